@@ -2789,3 +2789,29 @@ def test_the_writers_refuse_what_their_readers_would_not_read_back(tmp_path) -> 
         assert not out.exists()
     write_estimates(out, series, [("options", '{method = "ekf"}')])
     assert out.read_text().startswith('# options = {method = "ekf"}\n')
+
+
+def test_more_library_mistakes_are_one_line_user_errors(tmp_path) -> None:
+    """From a fuzzing of the library: run with t None (it said "t has 1 samples"), with
+    readings of bools or strings (taken as 1.0 and 0.0, or parsed); load_input of a tilt
+    file for the direct model (an IndexError); raw_measurements given RobotSettings (an
+    AttributeError): each a UserError naming what to give."""
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import load_input, raw_measurements
+
+    rec = simulate("paper3d", duration=1.0)
+    est = make_estimator("ekf", make_formulation("bend"))
+    for t, z, said in (
+        (None, rec.z, "t is None: give the sample times"),
+        (rec.t, rec.z > 0, "arrays of numbers (t (n,) s, z (n, m)); z holds bool values"),
+        (rec.t, rec.z.astype(str), "arrays of numbers (t (n,) s, z (n, m)); z holds <U"),
+    ):
+        with pytest.raises(UserError, match=re.escape(said)):
+            est.run(t, z)
+    assert len(est.run(list(rec.t), [list(row) for row in rec.z]).t) == len(rec.t)
+    tilt = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(tilt)]) == 0
+    with pytest.raises(UserError, match=r"tilt readings \(roll, pitch\) are read for the robot"):
+        load_input(tilt, InputOptions(), make_formulation("direct"))
+    with pytest.raises(UserError, match=r"^robot must be a Robot \(read_robot"):
+        raw_measurements(RobotSettings(), rec.t, np.zeros((len(rec.t), 1, 3)))  # type: ignore[arg-type]

@@ -699,6 +699,16 @@ class Estimator(Generic[InferenceT]):
         nz = self.formulation.nz
         if z is None:
             raise UserError(f"z is None: give the readings, an array (n, {nz})")
+        if t is None:
+            raise UserError("t is None: give the sample times, an array (n,) of seconds")
+        for name, values in (("t", t), ("z", z)):  # numpy would read True as 1, "0.1" as 0.1
+            kind = np.asarray(values).dtype.kind
+            if kind in "bSU":
+                raise UserError(
+                    "t and z must be arrays of numbers (t (n,) s, z (n, m)); "
+                    f"{name} holds {np.asarray(values).dtype} values"
+                    f"{' (True, False)' if kind == 'b' else ''}"
+                )
         if np.iscomplexobj(t) or np.iscomplexobj(z):  # numpy would drop the imaginary part
             raise UserError(
                 "t and z must be arrays of real numbers (t (n,) s, z (n, m)), got complex"

@@ -306,6 +306,7 @@ def raw_measurements(
     ``mount_rpy`` turns it into its disk's frame and its ``gyro_bias`` is removed
     (:func:`imu_converters`). The IMU model is ``raw.imu_model``, else ``direct`` with
     gyros (``make_formulation("direct", robot)``) and ``tilt`` without."""
+    expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     acc = np.asarray(acc, dtype=float)
     n_imus = robot.n_imus
     if acc.ndim != 3 or acc.shape[1:] != (n_imus, 3):
@@ -663,6 +664,12 @@ def _table_stream(
         kind = "tilt-csv"
         if n_imus > 1 and options.raw.imu_model == "direct":  # before the column checks
             raise InputError(f"{name}: --imu-model direct needs raw accelerometer and gyro input")
+        if base.name == "direct":  # a caller in Python who made the raw model
+            raise InputError(
+                f"{name}: tilt readings (roll, pitch) are read for the robot's kinematic "
+                "formulation (make_formulation('bend', robot)), not 'direct', which takes raw "
+                "accelerometer and gyro readings"
+            )
         cols = tilt_sample_columns(rows, n_imus)
         options, f = resolve(name, kind, False, options, base)
 
