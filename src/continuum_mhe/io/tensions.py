@@ -35,7 +35,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import InputError, SampleTimeError, UserError, time_text
+from continuum_mhe.errors import (
+    InputError,
+    SampleTimeError,
+    UserError,
+    is_integer,
+    is_real,
+    time_text,
+)
 from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_time_units
 from continuum_mhe.io.input_options import InputOptions, OptionWarning
 from continuum_mhe.io.sample_rows import RowProblems, iter_samples
@@ -584,10 +591,15 @@ class TensionStream:
     smoothed are said once (:meth:`_check_noise`)."""
 
     def __init__(self, name: str = "the tension stream", n_tendons: int | None = None) -> None:
+        if n_tendons is not None and not (is_integer(n_tendons) and n_tendons >= 1):
+            raise UserError(
+                f"TensionStream n_tendons must be a positive integer (the robot's tendons) or "
+                f"None, got {n_tendons!r}"
+            )
         #: what the stream is called in messages
         self.name = name
         #: the tensions a sample holds (the robot's tendons; else the first sample's count)
-        self.n_tendons = n_tendons
+        self.n_tendons = None if n_tendons is None else int(n_tendons)
         #: the last samples: two before the oldest one not yet given out, that one, and
         #: the ones after it (five at most)
         self._t: deque[float] = deque(maxlen=5)
@@ -610,6 +622,8 @@ class TensionStream:
         it). A sample whose time is not later than the last one's raises
         :class:`~continuum_mhe.errors.SampleTimeError` and is not added (its differences
         would be of a step back in time)."""
+        if not is_real(t):
+            raise UserError(f"{self.name}: a sample's time must be a number of seconds, got {t!r}")
         if not math.isfinite(t):
             raise SampleTimeError(f"{self.name}: a sample's time is {t}: left out (seconds)")
         if self._t and t <= self._t[-1]:
@@ -618,7 +632,13 @@ class TensionStream:
                 f"one ({time_text(self._t[-1])} s): left out (the tensions' times must "
                 "increase)"
             )
-        v = np.asarray(values, dtype=float)
+        try:
+            v = np.asarray(values, dtype=float)
+        except (TypeError, ValueError):
+            raise UserError(
+                f"{self.name}: a sample at t = {t:g} s has tensions that are not numbers: "
+                f"{values!r:.60}"
+            ) from None
         if self.n_tendons is None and v.ndim == 1:
             self.n_tendons = v.size
         if v.shape != (self.n_tendons,):
