@@ -242,10 +242,9 @@ def test_a_single_bracket_table_after_a_key_of_its_name_names_the_table(tmp_path
 def test_a_robot_of_more_sections_than_the_models_take_is_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Past MAX_SECTIONS (16) the models' symbolic Jacobians take minutes and gigabytes
-    (check-robot of 50 sections ran out of memory; their first estimate did not end in
-    two minutes): a robot file of 17 sections is refused in one line naming it, exit 2,
-    and so is such a Robot in Python; one of 16 is a robot."""
+    """Past MAX_SECTIONS (16) the models' symbolic Jacobians make a check or a first
+    estimate impractical (docs/formats.md): a robot file of 17 sections is refused in
+    one line naming it, exit 2, and so is such a Robot in Python; one of 16 is a robot."""
     from continuum_mhe.cli import main
     from continuum_mhe.errors import UserError
     from continuum_mhe.model.robot import MAX_SECTIONS, ImuPlacement, Robot, Section

@@ -421,7 +421,8 @@ def raw_blocks(
         huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
         check_accel_range(label, acc_norm)
         which = "" if n_imus == 1 else f"IMU {i + 1}: "
-        for j in np.flatnonzero(zero | huge) if n_imus == 1 or not range_dropouts else ():
+        said_here = n_imus == 1 or not range_dropouts  # else the caller counts them
+        for j in np.flatnonzero(zero | huge) if said_here else ():
             msg = f"line {lines[int(j)]}: {which}" + (
                 "acceleration is zero (no gravity direction)"
                 if zero[j]

@@ -423,7 +423,8 @@ class LiveSession:
         or a board reset were degrees read as radians (:attr:`wrong_units`: their
         estimates are not kept); a stream that turned to garbage keeps its estimates."""
         why, text, arrival = self._garbage_last
-        span = arrival - (self._garbage_since or arrival)
+        since = arrival if self._garbage_since is None else self._garbage_since
+        span = arrival - since
         after = f" after {self.counts.samples} valid sample(s)" if self.counts.samples else ""
         hint = field_count_hint(
             text, self.settings.fmt, self.n_imus, self.n_tensions, self._file_tensions

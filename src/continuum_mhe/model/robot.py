@@ -35,8 +35,8 @@ MAX_SECTION_LENGTH = 5.0
 #: Shortest section accepted, m (a shorter one is a unit slip, not a robot).
 MIN_SECTION_LENGTH = 1e-3
 #: Most sections a robot may have. The models' symbolic Jacobians (``check-robot``, the
-#: starts, the IPOPT path) grow with about the cube of the sections' number, and past
-#: this a robot's check or first estimate takes minutes and gigabytes.
+#: starts, the IPOPT path) grow with about the cube of the sections' number; past this
+#: a robot's check or first estimate is impractical (docs/formats.md: measured costs).
 MAX_SECTIONS = 16
 #: Largest mounting angle accepted, degrees (as ``--mount-rpy``).
 MAX_MOUNT_DEG = 360.0
