@@ -32,7 +32,8 @@ void cmhe::bind_consistency(nb::module_& m) {
              int nz, std::vector<double> R, std::vector<double> judged, std::vector<double> limit,
              std::vector<double> run_limit, std::vector<double> avg_limit,
              std::vector<double> shift_limit, std::vector<double> bias, std::vector<double> gravity_r, int memory,
-             int quiet_memory, double rcond, double model_error_floor) {
+             int quiet_memory, double rcond, double model_error_floor,
+             std::vector<double> range_info) {
             new (self) ConsistencyCheck(
                 transition, measurement, residual,
                 ConsistencySettings{nx, nu, nz, std::move(R), std::move(judged),
@@ -40,12 +41,12 @@ void cmhe::bind_consistency(nb::module_& m) {
                                     std::move(avg_limit), std::move(shift_limit),
                                     std::move(bias),
                                     std::move(gravity_r), memory, quiet_memory, rcond,
-                                    model_error_floor});
+                                    model_error_floor, std::move(range_info)});
           },
           nb::arg("transition"), nb::arg("measurement"), nb::arg("residual"), nb::arg("nx"),
           nb::arg("nu"), nb::arg("nz"), nb::arg("R"), nb::arg("judged"), nb::arg("limit"), nb::arg("run_limit"), nb::arg("avg_limit"),
           nb::arg("shift_limit"), nb::arg("bias"), nb::arg("gravity_r"), nb::arg("memory"), nb::arg("quiet_memory"), nb::arg("rcond"),
-          nb::arg("model_error_floor"),
+          nb::arg("model_error_floor"), nb::arg("range_info") = std::vector<double>{},
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(), nb::keep_alive<1, 4>(),
           "Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, "
           "``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, "
@@ -57,7 +58,9 @@ void cmhe::bind_consistency(nb::module_& m) {
           "``memory``: samples the average remembers; ``quiet_memory``: samples the "
           "average while no model error shows remembers; ``rcond``: the pseudo-inverse's "
           "cut-off; ``model_error_floor``: each gravity-direction reading's model-error "
-          "variance (rad^2) assumed until the one learned exceeds it.")
+          "variance (rad^2) assumed until the one learned exceeds it; ``range_info`` (nx, "
+          "or empty: none): each state's range as information 1 / std^2 (0: unbounded), "
+          "added to ``H^T R^-1 H`` in the constant errors' sensitivity.")
       .def("reset", &ConsistencyCheck::reset,
            "Forget the previous estimate, the average and the model error.")
       .def("forget", &ConsistencyCheck::forget,

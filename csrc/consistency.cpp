@@ -53,6 +53,12 @@ ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
   need(s_.shift_limit, nx + 1, "shift_limit");
   need(s_.bias, nz, "bias");
   need(s_.gravity_r, nz, "gravity_r");
+  if (!s_.range_info.empty()) {
+    need(s_.range_info, nx, "range_info");
+    for (double v : s_.range_info)
+      if (!(v >= 0.0) || !std::isfinite(v))
+        throw std::invalid_argument("range_info must be finite and >= 0");
+  }
   if (s_.memory < 1 || s_.quiet_memory < 1)
     throw std::invalid_argument("memory and quiet_memory must be at least 1");
   if (!(s_.model_error_floor >= 0.0) || !std::isfinite(s_.model_error_floor))
@@ -272,6 +278,8 @@ void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, c
   b.resize(nr);
   for (int a = 0; a < nr; ++a) b[a] = bias[rows_[a]];
   cov_.info.noalias() = Hs.transpose() * wh;
+  if (!s_.range_info.empty())
+    for (int i = 0; i < nc; ++i) cov_.info(i, i) += s_.range_info[cols_[i]];
   pinv_symmetric(cov_.info, s_.rcond, cov_.pinv, cov_.info_pinv);
   A.noalias() = cov_.info_pinv * wh.transpose();
   C.noalias() = A * b.asDiagonal() * A.transpose();

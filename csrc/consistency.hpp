@@ -59,6 +59,10 @@ struct ConsistencySettings {
   // the variance (rad^2) of each gravity-direction reading's model error assumed
   // before the readings show one: the floor under the model error learned
   double model_error_floor = 0.0;
+  // nx, or empty (all 0): the information 1 / std^2 of each state's range (the bend
+  // bound's), added to H^T R^-1 H in the constant errors' sensitivity, so that a shape
+  // the readings barely pin is not shifted beyond the range by them
+  std::vector<double> range_info;
 };
 
 class ConsistencyCheck {
@@ -86,7 +90,8 @@ class ConsistencyCheck {
                        const double* mask, const double* u, const double* Q,
                        const std::vector<int>& rows);
   // ``A B A^T`` (nx x nx, into ``out``) at ``x``: the covariance from the readings'
-  // constant errors and the model error (the one learned so far, at least the floor)
+  // constant errors and the model error (the one learned so far, at least the floor),
+  // ``A = (H^T R^-1 H + diag(range_info))^+ H^T R^-1``
   void constant_error_cov(const double* z, const double* mask, const double* x, double* out);
 
   const ConsistencySettings& settings() const { return s_; }
@@ -136,7 +141,7 @@ class ConsistencyCheck {
   std::vector<double> x0_, P0_;
   RowMatrix S_;  // the last predicted_nis's innovation covariance (its rows)
   // constant_error_cov's storage: B's diagonal, H and R^-1 H over the readings and
-  // states, H^T R^-1 H and its pseudo-inverse, A and A B A^T
+  // states, H^T R^-1 H with the range information and its pseudo-inverse, A and A B A^T
   struct ConstantErrorScratch {
     std::vector<double> bias;
     RowMatrix Hs, wh, info, info_pinv, A, C;

@@ -375,12 +375,13 @@ def test_quantile_table_is_scipy_s_at_every_level_the_estimators_use(
 
 @pytest.mark.parametrize("floor_deg", [0.0, 2.0])
 def test_learned_model_error_is_carried_as_a_constant_reading_error(floor_deg) -> None:
-    """One IMU on one section (tilt): the readings fix the bend exactly, so a model
-    error ``m`` in units of ``R`` on each reading shifts the bend by ``A e`` with
-    ``A = H^-1``: the covariance is ``m (H^T R^-1 H)^-1``, ``H`` the residual's
-    Jacobian by central differences; with none learned it is the floor's
-    (``model_error_std``; zero without one, with ``reading_bias_std`` 0), and a model
-    error learned below the floor carries the floor."""
+    """One IMU on one section (tilt): the readings fix the bend, so a model error
+    ``m`` in units of ``R`` on each reading shifts the bend by ``A e`` with
+    ``A = M^-1 H^T R^-1``, ``M = H^T R^-1 H + I / theta_max^2`` (the bend's range, pi/2): the
+    covariance is ``m M^-1 (H^T R^-1 H) M^-1``, ``H`` the residual's Jacobian by
+    central differences; with none learned it is the floor's (``model_error_std``;
+    zero without one, with ``reading_bias_std`` 0), and a model error learned below the
+    floor carries the floor."""
     from continuum_mhe.estimators.consistency import ConsistencyCheck
 
     noise = NoiseSettings(reading_bias_std=0.0, model_error_std=np.radians(floor_deg))
@@ -397,13 +398,57 @@ def test_learned_model_error_is_carried_as_a_constant_reading_error(floor_deg) -
         r_plus = np.asarray(f.functions.innovate(z, x + dx)[0]).ravel()
         r_minus = np.asarray(f.functions.innovate(z, x - dx)[0]).ravel()
         H[:, j] = -(r_plus - r_minus) / 2e-6
-    unit = np.linalg.inv(H.T @ np.linalg.solve(f.meas_cov(), H))  # m = 1
+    info = H.T @ np.linalg.solve(f.meas_cov(), H)
+    M_inv = np.linalg.inv(info + np.eye(2) / (np.pi / 2) ** 2)  # theta_max
+    unit = M_inv @ info @ M_inv  # m = 1
     floor = (floor_deg / 2.0) ** 2  # the floor in units of R (2 degrees)
     for learned in (0.0, 0.7, 1.6):
         check.model_error = learned
         got = check.constant_error_cov(z, mask, x)
         np.testing.assert_allclose(got[:2, :2], max(learned, floor) * unit, rtol=1e-6)
         assert not np.any(got[2:]) and not np.any(got[:, 2:])
+
+
+def test_constant_errors_do_not_shift_a_barely_pinned_shape_beyond_its_range() -> None:
+    """Three sections, a tilt IMU at each end, at a shape whose readings barely pin one
+    direction of the bends (the smallest eigenvalue of ``H^T R^-1 H`` is about 0.004
+    rad^-2): the readings' constant errors through the weighted least-squares
+    sensitivity alone would shift the second section's bend by a standard deviation of
+    about 15 rad. With the bends' range (``theta_max``, 3 rad) as information beside the
+    readings', the covariance is ``A B A^T`` with ``A = M^+ H^T R^-1``,
+    ``M = H^T R^-1 H + I / theta_max^2``, and no bend's standard deviation exceeds half
+    the range times the largest constant error in units of ``R``."""
+    from continuum_mhe.estimators.consistency import ConsistencyCheck
+
+    robot = Robot(
+        tuple(Section(length) for length in (0.12, 0.10, 0.08)),
+        tuple(ImuPlacement(k) for k in range(3)),
+        "z-down",
+    )
+    f = make_formulation("bend", robot)
+    x = np.zeros(f.nx)
+    for k, (theta, phi) in enumerate([(1.0866, 0.2003), (1.0514, 0.6540), (0.9873, 1.4766)]):
+        x[2 * k : 2 * k + 2] = theta * np.cos(phi), theta * np.sin(phi)
+    z = np.asarray(f.functions.measure(x)[0]).ravel()
+    mask = f.measurement_mask(z)
+    R = np.asarray(f.meas_cov(), dtype=float)
+    bias = np.diag(f.reading_bias_cov()) + np.where(
+        f.gravity_direction_rows(), f.model_error_floor(), 0.0
+    )
+    _, J = f.functions.innovate(z, x)
+    H = -np.asarray(J, dtype=float)[:, :6]  # the readings depend on the bends alone
+    W = np.diag(1.0 / np.diag(R))
+    info = H.T @ W @ H
+    assert np.linalg.eigvalsh(info)[0] < 0.01  # barely pinned
+    readings_alone = np.linalg.pinv(info, hermitian=True) @ H.T @ W
+    assert np.sqrt(np.diag(readings_alone @ np.diag(bias) @ readings_alone.T)).max() > 10.0
+    A = np.linalg.inv(info + np.eye(6) / 3.0**2) @ H.T @ W
+    want = A @ np.diag(bias) @ A.T
+    got = ConsistencyCheck(f).constant_error_cov(z, mask, x)
+    np.testing.assert_allclose(got[:6, :6], want, rtol=1e-8, atol=1e-14)
+    assert not np.any(got[6:]) and not np.any(got[:, 6:])
+    beta = float(np.max(bias / np.diag(R)))
+    assert np.sqrt(np.diag(got)).max() <= 3.0 / 2.0 * np.sqrt(beta)
 
 
 @settings(max_examples=60, deadline=None)
@@ -541,7 +586,8 @@ def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> No
         cols = np.flatnonzero(np.any(H[rows] != 0, axis=0))
         Hs = H[np.ix_(rows, cols)]
         W = np.diag(1 / np.diag(R)[rows])
-        A = np.linalg.pinv(Hs.T @ W @ Hs, rcond=1e-9, hermitian=True) @ Hs.T @ W
+        M = Hs.T @ W @ Hs + np.diag(1.0 / f.range_std()[cols] ** 2)
+        A = np.linalg.pinv(M, rcond=1e-9, hermitian=True) @ Hs.T @ W
         want = np.zeros((f.nx, f.nx))
         want[np.ix_(cols, cols)] = A @ np.diag(bias[rows]) @ A.T
         got = check.constant_error_cov(z0, f.measurement_mask(z0), x0)

@@ -201,7 +201,8 @@ def test_output_std_carries_the_readings_constant_errors(method: str) -> None:
     """With the default ``reading_bias_std`` and ``model_error_std`` the output
     standard deviations are those of the covariance and of the estimate's least-squares
     sensitivity to a constant reading error, ``A B A^T``, added in quadrature, with
-    ``A = (H^T R^-1 H)^-1 H^T R^-1``
+    ``A = (H^T R^-1 H + G)^+ H^T R^-1``, ``G`` the bends' range as information
+    (``1 / theta_max^2`` on both bend coordinates)
     (``H`` by finite differences of the residual: one IMU, two readings, two bends,
     two rates) and ``B`` both variances (the readings show no model error larger than
     the floor on this recording, which the model generated)."""
@@ -228,6 +229,7 @@ def test_output_std_carries_the_readings_constant_errors(method: str) -> None:
             ]
         )
         info = H.T @ np.linalg.inv(R) @ H
+        info[:2, :2] += np.eye(2) / f.robot.theta_max**2
         A = np.linalg.pinv(info, rcond=1e-9) @ H.T @ np.linalg.inv(R)
         expected = np.hypot(sigma_point_std(f, x, e.covariance), sigma_point_std(f, x, A @ B @ A.T))
         assert_allclose(e.output_std, expected, rtol=1e-5, atol=1e-9)

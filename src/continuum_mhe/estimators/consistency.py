@@ -83,11 +83,17 @@ readings' constant-error covariance ``B`` (``Formulation.reading_bias_cov``,
 ``NoiseSettings.reading_bias_std``, plus ``model_error`` times ``R``, at least the
 floor, on the gravity-direction readings) carried through the estimate's weighted
 least-squares sensitivity to the readings that carry such an error (the gravity
-directions; the states they depend on: the bends), ``A = (H^T R^-1 H)^+ H^T R^-1``
-at the estimate: ``A B A^T``. Its output standard deviations are added in quadrature
-to the estimator's (a constant reading error shifts an estimate by ``A`` times it, as
-long as the window or the filter's memory is shorter than the motion); the status
-does not depend on it.
+directions; the states they depend on: the bends),
+``A = (H^T R^-1 H + G)^+ H^T R^-1`` at the estimate: ``A B A^T``. ``G`` is the
+bends' range as information (``1 / theta_max^2`` on each bend coordinate,
+``Formulation.range_std``): where the readings barely pin a direction of the shape,
+the linear sensitivity alone would shift it by tens of radians, and ``G`` keeps the
+shift within the range the robot has (at most ``theta_max / 2`` per unit of the
+constant error in units of ``R``); where the readings pin the shape it changes ``A``
+by a fraction of ``G`` against ``H^T R^-1 H`` (about 1e-4). Its output standard
+deviations are added in quadrature to the estimator's (a constant reading error
+shifts an estimate by ``A`` times it, as long as the window or the filter's memory is
+shorter than the motion); the status does not depend on it.
 
 The numerics run in the compiled core (``continuum_mhe._core.ConsistencyCheck``,
 ``csrc/consistency.*``), which evaluates the node model the EKF uses
@@ -182,6 +188,7 @@ class ConsistencyCheck:
             quiet_memory=QUIET_MEMORY,
             rcond=PINV_RCOND,
             model_error_floor=f.model_error_floor(),
+            range_info=(1.0 / np.asarray(f.range_std(), dtype=float) ** 2).tolist(),
         )
         self._q = ProcessNoiseCache(formulation)
         self._prev: tuple[float, FloatArray] | None = None  # the previous (t, z)
@@ -253,9 +260,11 @@ class ConsistencyCheck:
         model error (module doc): ``A B A^T`` with ``B`` the readings' constant-error
         covariance plus :attr:`model_error` times ``R``, at least
         ``Formulation.model_error_floor``, on the gravity-direction readings and
-        ``A = (H^T R^-1 H)^+ H^T R^-1`` over the valid readings that carry a constant
-        error (``B > 0``: the gravity directions) and the states they depend on (the
-        bends: the readings that set the shape) at ``state``; zero where ``B`` is."""
+        ``A = (H^T R^-1 H + G)^+ H^T R^-1`` over the valid readings that carry a
+        constant error (``B > 0``: the gravity directions) and the states they depend on
+        (the bends: the readings that set the shape) at ``state``, ``G`` the diagonal of
+        ``1 / Formulation.range_std()^2`` (0 where a state has no bound); zero where
+        ``B`` is."""
         return self._core.constant_error_cov(z, mask, state)
 
 

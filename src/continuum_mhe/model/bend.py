@@ -120,6 +120,14 @@ class BendFormulation(Formulation):
         hi = np.array([s.theta_max**2 for s in self.robot.sections])
         return g, np.full(len(hi), -np.inf), hi
 
+    def range_std(self) -> FloatArray:
+        """Each section's bend bound ``theta_max`` (rad) on both of its bend coordinates
+        ``(a_k, b_k)``; the other states have none (inf)."""
+        std = np.full(self.nx, np.inf)
+        for k, sec in enumerate(self.robot.sections):
+            std[2 * k : 2 * k + 2] = sec.theta_max
+        return std
+
     # --- numeric helpers ----------------------------------------------------------
     def _measured_gravity(self, z0: FloatArray) -> list[FloatArray | None]:
         """Measured unit gravity direction per IMU (None where that IMU dropped out)."""

@@ -324,6 +324,13 @@ class Formulation:
         bounds, the filters' projection; -inf and inf where a state is free)."""
         return np.full(self.nx, -np.inf), np.full(self.nx, np.inf)
 
+    def range_std(self) -> FloatArray:
+        """(nx,) each state's range that the robot allows, as the standard deviation of
+        a Gaussian over it, in the state's units (inf where a state has no bound): the
+        largest shift that the readings' constant errors are taken to make
+        (:meth:`~continuum_mhe.estimators.consistency.ConsistencyCheck.constant_error_cov`)."""
+        return np.full(self.nx, np.inf)
+
     # --- numeric helpers (override) ----------------------------------------------
     def imus_determine_shape(self, imus: tuple[int, ...]) -> bool:
         """Whether the IMUs ``imus`` (0-based) alone determine the shape: their
