@@ -701,3 +701,23 @@ def test_raw_arrays_of_a_robot_give_what_its_file_gives() -> None:
                          (table.t, acc[:, :1], "acc must be (n, 2, 3)")):  # fmt: skip
         with pytest.raises(UserError, match=re.escape(needle)):
             raw_measurements(turned, t, a, None)
+    # a corrupt reading is refused, naming its sample and IMU; NaN is a dropout
+    for value, shown in ((np.inf, "inf"), (-np.inf, "inf"), (1e300, "1e+300"), (2e4, "2e+04")):
+        bad = acc.copy()
+        bad[7, 1, 2] = value
+        with pytest.raises(
+            UserError,
+            match=re.escape(
+                f"acc[7, 1] (sample 7, IMU 2): a reading beyond any IMU's range (|acc| {shown} m/s^2"
+            ),
+        ):
+            raw_measurements(turned, table.t, bad, gyr)
+    bad = gyr.copy()
+    bad[3, 0, 0] = np.inf
+    with pytest.raises(UserError, match=re.escape("gyr[3, 0] (sample 3, IMU 1)")):
+        raw_measurements(turned, table.t, acc, bad)
+    dropped = acc.copy()
+    dropped[7, 1] = np.nan
+    z_dropped = raw_measurements(turned, table.t, dropped, gyr)
+    assert np.isnan(z_dropped[7, 6:]).all() and np.isfinite(z_dropped[7, :6]).all()
+    np.testing.assert_array_equal(np.delete(z_dropped, 7, 0), np.delete(z, 7, 0))

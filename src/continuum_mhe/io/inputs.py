@@ -73,7 +73,13 @@ from continuum_mhe.io.raw_imu import (
     read_raw_imus,
     sample_kind,
 )
-from continuum_mhe.io.raw_units import TimeUnitWatch, check_accel_units, check_gyro_units
+from continuum_mhe.io.raw_units import (
+    ACCEL_READING_MAX,
+    GYRO_READING_MAX,
+    TimeUnitWatch,
+    check_accel_units,
+    check_gyro_units,
+)
 from continuum_mhe.io.robot_logs import (
     ImuLog,
     is_robot_log,
@@ -305,7 +311,10 @@ def raw_measurements(
     and ``gyr`` (n, n_imus, 3) rad/s or None, in each sensor's frame; each IMU's
     ``mount_rpy`` turns it into its disk's frame and its ``gyro_bias`` is removed
     (:func:`imu_converters`). The IMU model is ``raw.imu_model``, else ``direct`` with
-    gyros (``make_formulation("direct", robot)``) and ``tilt`` without."""
+    gyros (``make_formulation("direct", robot)``) and ``tilt`` without. NaN in a
+    sample's reading is that IMU's dropout there; an infinite reading, or one beyond
+    any IMU's range (an acceleration of more than 1e4 m/s^2, a rate of more than 1e3
+    rad/s), is a :class:`UserError` naming the sample and the IMU."""
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     acc = np.asarray(acc, dtype=float)
     n_imus = robot.n_imus
@@ -320,6 +329,9 @@ def raw_measurements(
     t = np.asarray(t, dtype=float)
     if t.shape != (len(acc),):
         raise UserError(f"t must be (n,) = ({len(acc)},), one time per sample, got {t.shape}")
+    _check_reading_range("acc", acc, ACCEL_READING_MAX, "m/s^2")
+    if gyro is not None:
+        _check_reading_range("gyr", gyro, GYRO_READING_MAX, "rad/s")
     settings = raw if raw is not None else RawImuSettings()
     if settings.imu_model is None:
         settings = replace(settings, imu_model="direct" if gyro is not None else "tilt")
@@ -330,6 +342,20 @@ def raw_measurements(
             for i, c in enumerate(converters)
         ]
     )
+
+
+def _check_reading_range(name: str, values: FloatArray, limit: float, unit: str) -> None:
+    """A :class:`UserError` naming the first sample and IMU of ``values`` (n, n_imus,
+    3) whose reading is infinite or of a magnitude beyond ``limit`` (NaN: a dropout)."""
+    magnitude = np.hypot.reduce(values, axis=2)  # hypot: no overflow of a finite 1e200
+    beyond = np.argwhere(magnitude > limit)
+    if len(beyond):
+        j, i = (int(v) for v in beyond[0])
+        raise UserError(
+            f"{name}[{j}, {i}] (sample {j}, IMU {i + 1}): a reading beyond any IMU's range "
+            f"(|{name}| {magnitude[j, i]:.3g} {unit}, limit {limit:g}): a corrupt value; "
+            "NaN marks a dropout"
+        )
 
 
 def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
