@@ -708,7 +708,8 @@ def test_raw_arrays_of_a_robot_give_what_its_file_gives() -> None:
         with pytest.raises(
             UserError,
             match=re.escape(
-                f"acc[7, 1] (sample 7, IMU 2): a reading beyond any IMU's range (|acc| {shown} m/s^2"
+                "acc[7, 1] (sample 7, IMU 2): a reading beyond any IMU's range "
+                f"(|acc| {shown} m/s^2"
             ),
         ):
             raw_measurements(turned, table.t, bad, gyr)
