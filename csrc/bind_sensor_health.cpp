@@ -630,7 +630,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<int> whole_rows, nb::object process_noise, nb::object inputs,
              nb::object observable, const StateChecks* checks, std::vector<int> change_rows,
              std::vector<double> change_scale, std::vector<double> change_psd,
-             std::vector<double> change_limit, double change_lag, int confirm_samples) {
+             std::vector<double> change_limit, double change_lag, int confirm_samples,
+             std::vector<double> std_limit) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -664,6 +665,13 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             s.change_lag = change_lag;
             if (confirm_samples < 1) throw std::invalid_argument("confirm_samples must be >= 1");
             s.confirm_samples = confirm_samples;
+            if (!std_limit.empty()) {
+              if (std_limit.size() != static_cast<size_t>(ny))
+                throw std::invalid_argument("std_limit needs one value per output (ny)");
+              for (double v : std_limit)
+                if (!(v > 0.0)) throw std::invalid_argument("std_limit must be positive");
+            }
+            s.std_limit = std::move(std_limit);
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -696,7 +704,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("change_scale") = std::vector<double>(),
           nb::arg("change_psd") = std::vector<double>(),
           nb::arg("change_limit") = std::vector<double>(), nb::arg("change_lag") = 0.0,
-          nb::arg("confirm_samples") = 5,
+          nb::arg("confirm_samples") = 5, nb::arg("std_limit") = std::vector<double>(),
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
@@ -708,7 +716,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "``change_psd``, ``change_limit``, ``change_lag``: the estimate-change test of "
           "slowly varying states (rows, prior std, white-noise density per s, chi-square "
           "limit by dof from index 1, lag s; no rows: off); ``confirm_samples``: readings "
-          "that must agree with an unconfirmed start once one disagreed with it.")
+          "that must agree with an unconfirmed start once one disagreed with it; "
+          "``std_limit`` (ny, or empty: none): each output's largest standard deviation, "
+          "half the width of its range (inf: no range).")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

@@ -618,6 +618,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
           tip_std(ystd) > s_.uncertain_fraction * s_.length)
         status = ST_UNCERTAIN;
     }
+    // no distribution within an output's range has a larger standard deviation than
+    // half its width: beyond it (a covariance widened to the shift that fits readings
+    // this estimate cannot explain), the estimate may lie anywhere in the range, and
+    // that is what the limit says (after the statuses: it changes none)
+    if (!s_.std_limit.empty())
+      for (int i = 0; i < s_.ny; ++i) ystd[i] = std::min(ystd[i], s_.std_limit[i]);
     out.has_std = true;
   }
   if (!s_.change_rows.empty() && s_.checks_start) {

@@ -170,6 +170,9 @@ struct PolicySettings {
   // readings that must agree with an unconfirmed start (the first estimate, a forced
   // restart) once one of them disagreed with it, before it is trusted
   int confirm_samples = 5;
+  // ny, or empty: the largest standard deviation of each output, half the width of the
+  // range its value has on the robot (inf: no range); a written one is held to it
+  std::vector<double> std_limit;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)

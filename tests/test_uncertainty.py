@@ -916,3 +916,33 @@ def test_the_nees_band_holds_the_average_nees_of_errors_correlated_in_time() -> 
         anti[k] = -0.9 * anti[k - 1] + rng.standard_normal()
     assert effective_samples(anti) == 2000
     assert effective_samples(np.array([1.0, np.nan, 2.0, np.inf, 3.0, 4.0, 2.5])) <= 5
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_no_written_std_exceeds_half_its_outputs_range(method: str) -> None:
+    """On the shipped torsion-stiff rod (tilt IMUs), the rows whose readings the estimate
+    cannot explain have their covariance widened until the shift that fits the readings
+    lies within it: the EKF's written ``std_x`` reached 7.6 m on this 0.3 m robot, and
+    ``std_theta_2`` 121 rad. No distribution within a range has a standard deviation
+    beyond half its width, so each written one is held to that (the backbone's length up
+    to the point for a coordinate, pi for a wrapped angle, half of ``theta_max`` for a
+    bend): the limit is reached on rows that are not ``ok``, and the ``ok`` rows are
+    within it by themselves."""
+    from continuum_mhe.io import load_input, read_robot
+    from continuum_mhe.io.input_options import InputOptions
+
+    f = make_formulation("bend", read_robot("two-section"))  # 0.16 m + 0.14 m, theta_max 3
+    want = {"x": 0.3, "y": 0.3, "z": 0.3, "theta_1": 1.5, "phi_1": math.pi, "x_1": 0.16,
+            "theta_2": 1.5, "phi_2": math.pi, "x_2": 0.3}  # fmt: skip
+    limit = f.output_std_limit()
+    names = [o.name for o in f.outputs]
+    for name, value in want.items():
+        assert limit[names.index(name)] == pytest.approx(value, rel=1e-12)
+    path = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2/spatial-stiff-torsion_tilt.csv"
+    data = load_input(str(path), InputOptions(), f)
+    s = make_estimator(method, data.formulation).run(data.t, data.z)
+    written = np.nan_to_num(s.std)
+    assert np.all(written <= limit)
+    at_limit = np.isclose(written, limit, rtol=1e-12).any(axis=1)
+    assert at_limit.sum() >= (1 if method == "mhe" else 20)
+    assert not np.any(at_limit & (s.status == "ok"))

@@ -341,6 +341,7 @@ class Estimator(Generic[InferenceT]):
             inputs=f.inputs,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
             checks=f.state_checks(),
+            std_limit=f.output_std_limit().tolist(),
             change_rows=change_rows,
             change_scale=list(change.scale) if change is not None else [],
             change_psd=list(change.psd) if change is not None else [],

@@ -331,6 +331,26 @@ class Formulation:
         (:meth:`~continuum_mhe.estimators.consistency.ConsistencyCheck.constant_error_cov`)."""
         return np.full(self.nx, np.inf)
 
+    def output_std_limit(self) -> FloatArray:
+        """(ny,) the largest standard deviation each output can have: half the width of
+        the range its value has on this robot, as no distribution within a range has a
+        larger one (inf where an output has none). A point's coordinates (m) lie within
+        the length of the backbone up to it of the base, an angle wrapped to a turn
+        within pi of any value, a section's bend ``theta`` (rad) within 0 and its
+        ``theta_max``; a force or a gain has no range."""
+        robot = self.robot
+        reach = np.cumsum(robot.lengths)
+        bound = [s.theta_max for s in robot.sections]
+        limit = np.full(self.ny, np.inf)
+        for i, o in enumerate(self.outputs):
+            if o.unit == "m":
+                limit[i] = reach[o.section - 1] if o.section else reach[-1]
+            elif o.unit == "rad" and o.wrapped:
+                limit[i] = math.pi
+            elif o.unit == "rad" and o.name.startswith("theta"):
+                limit[i] = (bound[o.section - 1] if o.section else max(bound)) / 2.0
+        return limit
+
     # --- numeric helpers (override) ----------------------------------------------
     def imus_determine_shape(self, imus: tuple[int, ...]) -> bool:
         """Whether the IMUs ``imus`` (0-based) alone determine the shape: their
