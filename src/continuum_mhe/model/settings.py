@@ -48,6 +48,9 @@ class RobotSettings:
 
 #: Smallest measurement standard deviation accepted, rad (0.2 arcseconds).
 MIN_MEASUREMENT_STD = 1e-6
+#: Smallest prior standard deviation of a start accepted (rad, rad/s): a finer one's
+#: variance is below what the estimators' matrices hold beside the readings' weights.
+MIN_PRIOR_STD = 1e-9
 #: Largest, rad (90 degrees, the command line's --noise-deg range: beyond it the value
 #: is in degrees).
 MAX_MEASUREMENT_STD = math.pi / 2
@@ -109,6 +112,14 @@ class NoiseSettings:
             "initial_rate_std",
         ):
             check_positive(name, getattr(self, name))
+        for name in ("initial_bend_std", "initial_rate_std"):
+            value = getattr(self, name)
+            if value < MIN_PRIOR_STD:
+                raise UserError(
+                    f"{name} {value!r} is below {MIN_PRIOR_STD:g}: a start held that "
+                    "tightly makes the estimators' matrices singular (give the prior's "
+                    "standard deviation in rad or rad/s)"
+                )
         for name in ("reading_bias_std", "model_error_std"):
             value = getattr(self, name)
             if not (is_real(value) and math.isfinite(value) and value >= 0):
