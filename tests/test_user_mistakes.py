@@ -1379,6 +1379,12 @@ def test_aligned_truth_refuses_a_truth_whose_rows_and_times_differ() -> None:
         aligned_truth(rec.t, rec.t[5:], rec.truth, names)
     with pytest.raises(UserError, match=r"^values has 5 columns, but names gives 3"):
         aligned_truth(rec.t, rec.t, rec.truth, names[:3])
+    for args, needle in (
+        (("abc", rec.t), "t_est must be an array of times (s), got 'abc'"),
+        ((rec.t, [None, "x"]), "t_truth must be an array of times (s), got [None, 'x']"),
+    ):  # a ValueError or TypeError from numpy
+        with pytest.raises(UserError, match="^" + re.escape(needle)):
+            aligned_truth(*args, rec.truth, names)
     i_est, rows, interpolated = aligned_truth(rec.t, rec.t, rec.truth, names)
     assert len(i_est) == len(rec.t) and not interpolated
     np.testing.assert_array_equal(rows, rec.truth)

@@ -115,6 +115,14 @@ def _table(what: str, values: object, names: list[str], name_arg: str) -> FloatA
     return a
 
 
+def _times(what: str, values: object) -> FloatArray:
+    """``values`` as a float array, or a :class:`UserError` naming ``what``."""
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise UserError(f"{what} must be an array of times (s), got {values!r:.60}") from None
+
+
 def state_errors(
     estimate: FloatArray, truth: FloatArray, names: Sequence[str] = STATE_NAMES
 ) -> FloatArray:
@@ -492,7 +500,7 @@ def aligned_truth(
     """
     names = _column_names("names", names)
     table = _table("values", values, names, "names")
-    t_est, t_truth = np.asarray(t_est, dtype=float), np.asarray(t_truth, dtype=float)
+    t_est, t_truth = _times("t_est", t_est), _times("t_truth", t_truth)
     if t_est.ndim != 1 or t_truth.ndim != 1:
         raise UserError(
             f"t_est and t_truth must be 1-D arrays of times, got shapes {t_est.shape} and "
