@@ -1047,6 +1047,33 @@ def test_the_tip_nees_line_says_which_side_of_its_band_and_what_it_means() -> No
     assert line(9.0).endswith(": outside, above: the intervals are narrower than the errors)")
 
 
+def test_zero_tip_stds_count_as_misses_and_are_said_left_out_of_the_nees() -> None:
+    """Rows with a zero standard deviation on a tip axis: the coverage counts them, as
+    misses where the error is not zero; the NEES (infinite for them) leaves them out, and
+    says how many, so that the two numbers' rows can be told apart."""
+    from continuum_mhe.cli.evaluate import format_calibration
+    from continuum_mhe.evaluation.metrics import compute_calibration
+
+    names = ["x", "y", "z"]
+    truth = np.zeros((10, 3))
+    est = np.full((10, 3), 0.001)
+    std = np.full((10, 3), 0.001)
+    std[:3, 2] = 0.0  # three rows claim an exact z, 1 mm off
+    c = compute_calibration(est, std, truth, names)
+    assert c.coverage == {"x": 1.0, "y": 1.0, "z": 0.7} and c.n == {"x": 10, "y": 10, "z": 10}
+    assert (c.tip_n, c.tip_zero_std) == (7, 3) and c.tip_nees == pytest.approx(3.0)
+    assert (
+        format_calibration(c)
+        .splitlines()[1]
+        .endswith(
+            "; 3 samples with a zero tip std left out, counted in the coverage as misses unless "
+            "their error is zero)"
+        )
+    )
+    est[:3, 2] = 0.0  # exact where the std says so: inside
+    assert compute_calibration(est, std, truth, names).coverage["z"] == 1.0
+
+
 def test_a_truth_on_its_own_clock_is_interpolated_at_the_estimates_times(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

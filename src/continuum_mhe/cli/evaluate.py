@@ -314,11 +314,17 @@ def format_calibration(c: Calibration | None, std_columns: bool = False) -> str:
         inside = "outside, above: the intervals are narrower than the errors"
     else:
         inside = "inside"
+    zero = ""
+    if c.tip_zero_std:
+        zero = (
+            f"; {c.tip_zero_std} samples with a zero tip std left out, counted in the coverage "
+            "as misses unless their error is zero"
+        )
     return (
         f"95% interval coverage {cover} (0.95 where the std is right)\n"
         f"tip NEES             {c.tip_nees:.2f} over {c.tip_n} samples (3 where the std is right; "
         f"95% band {lo:.2f} to {hi:.2f}, for the {c.tip_n_eff:.0f} independent samples they "
-        f"are worth, their errors correlated in time: {inside})"
+        f"are worth, their errors correlated in time: {inside}{zero})"
     )
 
 

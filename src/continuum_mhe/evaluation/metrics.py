@@ -269,6 +269,9 @@ class Calibration:
         tip_n_eff: the independent samples whose average NEES varies as this one does
             (:func:`effective_samples` of the per-sample NEES: an estimate's errors are
             correlated in time), at most ``tip_n``.
+        tip_zero_std: samples left out of ``tip_nees`` because a tip axis' standard
+            deviation is zero (their NEES is infinite where the error is not zero);
+            ``coverage`` counts them, as misses unless the error is zero too.
     """
 
     coverage: dict[str, float]
@@ -277,6 +280,7 @@ class Calibration:
     tip_nees_band: tuple[float, float]
     tip_n: int
     tip_n_eff: float
+    tip_zero_std: int = 0
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -330,7 +334,9 @@ def compute_calibration(
 ) -> Calibration:
     """Coverage and tip NEES of ``estimate`` (n, k) with standard deviations ``std``
     (n, k), columns ``names``, against ``truth`` (n, k') with columns ``truth_names``.
-    Rows without a finite estimate or standard deviation are left out per column.
+    Rows without a finite estimate or standard deviation are left out per column; a
+    zero standard deviation is a miss unless the error is zero too, and a row with one on
+    a tip axis is left out of the tip NEES (counted in ``tip_zero_std``).
 
     Raises:
         UserError: arrays that are not (n, k) numbers with a column per name, of
@@ -366,7 +372,12 @@ def compute_calibration(
     }
     counts = {c: int(ok[:, j].sum()) for j, c in enumerate(common)}
     tip = [common.index(c) for c in TIP_COLUMNS if c in common]
-    rows = np.all(ok[:, tip], axis=1) & np.all(sd[:, tip] > 0, axis=1) if len(tip) == 3 else []
+    zero = 0
+    rows: NDArray[np.bool_] = np.zeros(len(ok), dtype=bool)
+    if len(tip) == 3:
+        finite = np.all(ok[:, tip], axis=1)
+        rows = finite & np.all(sd[:, tip] > 0, axis=1)
+        zero = int(np.sum(finite & ~rows))
     n_tip = int(np.sum(rows))
     if n_tip:
         each = np.sum((err[rows][:, tip] / sd[rows][:, tip]) ** 2, axis=1)
@@ -374,7 +385,7 @@ def compute_calibration(
         band = nees_band(3, n_eff)
     else:
         nees, band, n_eff = math.nan, (math.nan, math.nan), 0.0
-    return Calibration(coverage, counts, nees, band, n_tip, n_eff)
+    return Calibration(coverage, counts, nees, band, n_tip, n_eff, zero)
 
 
 def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> str:
