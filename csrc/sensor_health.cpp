@@ -142,6 +142,7 @@ void SensorHealth::restart(bool keep_sensors) {
   cons_has_prev_ = false;
   rejecting_since_.reset();
   wide_t_ = -INFINITY;
+  jumped_t_ = -INFINITY;
   unconfirmed_ = 0;
   started_ = false;
   start_untrusted_ = start_judged_ = false;
@@ -526,6 +527,17 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     const double* judged = !has_state || !inference_.outlier() ? mask_.data() : zero_mask_.data();
     const bool disagree = consistency_check(t, z, judged, x, P, has_state, has_cov);
     if (disagree && trusted(status)) status = ST_INCONSISTENT;
+    // a reading beyond the limit of one sample against the prediction (IMUs without
+    // gyros, jump_hold): the estimator moved onto readings its model called impossible,
+    // and a burst of wrong readings then agrees with the moved estimate as the robot's
+    // would, so the rows after it are not trusted for the unobserved window (gyros see
+    // that such a burst turned nothing, and flag it)
+    const int dof = consistency_.dof();
+    if (s_.jump_hold && has_state && has_cov && dof > 0) {
+      const double limit = consistency_.settings().limit[dof];
+      if (consistency_.nis() > limit) jumped_t_ = t;
+    }
+    if (status == ST_OK && t - jumped_t_ < unobserved_window()) status = ST_UNCERTAIN;
     // restarts the readings forced, within the bad-start check's probation time (the
     // unobserved window where longer, or without the check): a run of them says the
     // readings contradict every estimate the model makes of them, so none is trusted

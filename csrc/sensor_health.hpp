@@ -173,6 +173,10 @@ struct PolicySettings {
   // ny, or empty: the largest standard deviation of each output, half the width of the
   // range its value has on the robot (inf: no range); a written one is held to it
   std::vector<double> std_limit;
+  // rows within the unobserved window of a reading beyond one sample's limit against
+  // the prediction are uncertain (IMUs without gyros: a burst of wrong readings agrees
+  // with the estimate that moved onto it)
+  bool jump_hold = false;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
@@ -270,6 +274,8 @@ class SensorHealth {
   // the last sample whose tip standard deviation exceeded the uncertain fraction (the
   // estimate's belief spanned shapes far apart); -inf since the (re)start when none
   double wide_t_ = -INFINITY;
+  // the last reading beyond one sample's limit that the estimate moved onto
+  double jumped_t_ = -INFINITY;
   // how many more samples' readings must agree with the estimate of a start before it
   // is trusted: start_samples after a restart that the readings forced (the estimate
   // before it contradicted them, or failed), 1 after the first estimate of a recording

@@ -537,8 +537,9 @@ def test_second_start_chooses_alike_on_both_backends() -> None:
         mhe.reset()
         for k in range(86):
             est = mhe.step(Measurement(float(rec.t[k]), z[k]))
-            # the burst's readings that were not down-weighted disagree with the estimate
-            assert est.status in ("ok", "inconsistent") or (k == 0 and est.status == "uncertain")
+            # the burst's readings that were not down-weighted disagree with the estimate,
+            # and the rows within a second of them are not trusted; no restart
+            assert est.status in ("ok", "inconsistent", "uncertain")
             states.append(est.state)
         assert mhe.inference.second_start is not None and mhe.inference.second_start.kept >= 1
     assert_allclose(states[:86], states[86:], rtol=0, atol=1e-6)

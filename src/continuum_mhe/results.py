@@ -84,8 +84,10 @@ class Status(str, Enum):
         "stated fraction of the robot's length (--uncertain-fraction), or the IMUs (those "
         "that reported within --gap-reset) do not determine the robot's shape, or the "
         "estimator restarted on readings that contradicted it and they have not yet "
-        "agreed with it (or it did so four times or more within --bad-start): do not "
-        "trust it",
+        "agreed with it (or it did so four times or more within --bad-start), or, with "
+        "tilt IMUs, within --gap-reset of a reading its prediction called impossible "
+        "(beyond one sample's limit: a burst of wrong readings agrees with an estimate "
+        "that moved onto it): do not trust it",
     )
     DRIFTED = (
         "drifted",

@@ -342,6 +342,9 @@ class Estimator(Generic[InferenceT]):
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
             checks=f.state_checks(),
             std_limit=f.output_std_limit().tolist(),
+            # IMUs without gyros: a burst of wrong readings agrees with the estimate that
+            # moved onto it (gyros see that it turned nothing)
+            jump_hold=all(b.kind == "tilt" for b in blocks if b.is_imu),
             change_rows=change_rows,
             change_scale=list(change.scale) if change is not None else [],
             change_psd=list(change.psd) if change is not None else [],
