@@ -449,6 +449,11 @@ def test_evaluate_gives_the_coverage_of_the_ok_rows_alone(tmp_path, capsys) -> N
     assert main(["evaluate", str(tmp_path / "e.csv"), str(truth), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["ok_rows"] == 4 and report["calibration_ok"]["coverage"]["x"] == 1.0
+    # no row ok: said, not left out
+    est.status[:] = "uncertain"
+    write_estimates(tmp_path / "u.csv", est)
+    assert main(["evaluate", str(tmp_path / "u.csv"), str(truth)]) == 0
+    assert "ok rows              0 of 6: no coverage of the ok rows" in capsys.readouterr().out
 
 
 # --- recovery ---------------------------------------------------------------------------------
