@@ -250,7 +250,7 @@ def test_a_burst_of_wrong_readings_is_not_ok_while_the_estimate_follows_it(
     """0.6 rad added to every tilt IMU's roll for a burst of samples (6 of paper3d at
     20 Hz; 10 of a two-section spatial motion at 50 Hz): the first readings of the burst
     are beyond one sample's limit and ``inconsistent``, the estimator moves onto them, and
-    the rest of the burst agrees with the moved estimate. Those rows were ``ok``, 43 to
+    the rest of the burst agrees with the moved estimate. Those rows were ``ok``, 50 to
     61 mm (paper3d) and 104 to 126 mm (two sections) off at up to 13 and 29 of their
     standard deviations; within a second of such a reading no row is ``ok``, and no
     ``ok`` row of the recording is more than 20 mm or 4 of its standard deviations off."""
