@@ -454,6 +454,12 @@ def test_evaluate_gives_the_coverage_of_the_ok_rows_alone(tmp_path, capsys) -> N
     write_estimates(tmp_path / "u.csv", est)
     assert main(["evaluate", str(tmp_path / "u.csv"), str(truth)]) == 0
     assert "ok rows              0 of 6: no coverage of the ok rows" in capsys.readouterr().out
+    # ok rows, none with a std: said too
+    est.status[:4] = "ok"
+    est.output_std[:4] = np.nan
+    write_estimates(tmp_path / "n.csv", est)
+    assert main(["evaluate", str(tmp_path / "n.csv"), str(truth)]) == 0
+    assert "ok rows              4 of 6 (no std on them: no coverage)" in capsys.readouterr().out
 
 
 # --- recovery ---------------------------------------------------------------------------------
@@ -951,3 +957,14 @@ def test_no_written_std_exceeds_half_its_outputs_range(method: str) -> None:
     at_limit = np.isclose(written, limit, rtol=1e-12).any(axis=1)
     assert at_limit.sum() >= (1 if method == "mhe" else 20)
     assert not np.any(at_limit & (s.status == "ok"))
+
+
+def test_the_paper_formulations_std_is_written_as_its_weight_implies() -> None:
+    """``--formulation paper``: its ``W`` is a weight, not a noise model, and its position
+    std grows to metres as the model implies; it is not held to the robot's range (0.2 m
+    here), which would write every row's std as that limit."""
+    rec = simulate("paper3d", duration=4)
+    f = make_formulation("paper")
+    for method in ("ekf", "mhe"):
+        s = make_estimator(method, f).run(rec.t, rec.z)
+        assert np.nanmedian(s.std[:, 0]) > 1.0

@@ -293,6 +293,8 @@ def _evaluate(args: argparse.Namespace) -> int:
             print(f"ok rows              {n_ok} of {len(i_e)} (no std_ columns: no coverage)")
         elif n_ok == 0:
             print(f"ok rows              0 of {len(i_e)}: no coverage of the ok rows")
+        else:
+            print(f"ok rows              {n_ok} of {len(i_e)} (no std on them: no coverage)")
         if unmatched:
             print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
     return 0

@@ -85,8 +85,9 @@ floor, on the gravity-direction readings) carried through the estimate's weighte
 least-squares sensitivity to the readings that carry such an error (the gravity
 directions; the states they depend on: the bends),
 ``A = (H^T R^-1 H + G)^+ H^T R^-1`` at the estimate: ``A B A^T``. ``G`` is the
-bends' range as information (``1 / theta_max^2`` on each bend coordinate,
-``Formulation.range_std``): where the readings barely pin a direction of the shape,
+bends' range as information (``1 / theta_max^2`` on each bend coordinate of the
+constant-curvature formulations, ``Formulation.range_std``; 0 for a tendon robot's
+mechanics model): where the readings barely pin a direction of the shape,
 the linear sensitivity alone would shift it by tens of radians, and ``G`` keeps the
 shift within the range the robot has (at most ``theta_max / 2`` per unit of the
 constant error in units of ``R``); where the readings pin the shape it changes ``A``

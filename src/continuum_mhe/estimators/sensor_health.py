@@ -341,7 +341,9 @@ class Estimator(Generic[InferenceT]):
             inputs=f.inputs,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
             checks=f.state_checks(),
-            std_limit=f.output_std_limit().tolist(),
+            # a covariance's standard deviations (not the paper formulation's weight W,
+            # whose position std grows as its model implies)
+            std_limit=f.output_std_limit().tolist() if f.calibrated_covariance else [],
             # IMUs without gyros: a burst of wrong readings agrees with the estimate that
             # moved onto it (gyros see that it turned nothing)
             jump_hold=all(b.kind == "tilt" for b in blocks if b.is_imu),

@@ -337,7 +337,9 @@ class Formulation:
         larger one (inf where an output has none). A point's coordinates (m) lie within
         the length of the backbone up to it of the base, an angle wrapped to a turn
         within pi of any value, a section's bend ``theta`` (rad) within 0 and its
-        ``theta_max``; a force or a gain has no range."""
+        ``theta_max``; a force or a gain has no range. The estimators hold the standard
+        deviations they write to it where their covariance is one
+        (:attr:`calibrated_covariance`: not the paper formulation's weight)."""
         robot = self.robot
         reach = np.cumsum(robot.lengths)
         bound = [s.theta_max for s in robot.sections]

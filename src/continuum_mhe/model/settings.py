@@ -69,8 +69,9 @@ class NoiseSettings:
         paper_process_weight: the paper's ``W = w I`` (weight, i.e. inverse
             covariance per step) for the five-state formulation.
         initial_bend_std: prior standard deviation of the initial ``(a, b)`` or
-            ``(theta, phi)``, rad.
-        initial_rate_std: prior standard deviation of the initial bend rates, rad/s.
+            ``(theta, phi)``, rad (at least :data:`MIN_PRIOR_STD`).
+        initial_rate_std: prior standard deviation of the initial bend rates, rad/s (at
+            least :data:`MIN_PRIOR_STD`).
         reading_bias_std: the constant error of each gravity-direction reading, rad
             (an IMU's mounting misalignment, about 1 degree by hand, and its
             accelerometer bias, 0.1 m/s^2 or 0.6 degree, in quadrature): no residual
