@@ -75,10 +75,9 @@ def is_integer(value: object) -> TypeGuard[int]:
 def real_number(name: str, value: object) -> float:
     """``value`` as a float, or a :class:`UserError` naming the argument ``name`` when it
     is not a real number (a string, None, a bool, a list)."""
-    if isinstance(value, numbers.Integral) and not isinstance(value, bool) and not is_real(value):
-        # an int beyond a float's range (10**400)
-        raise UserError(f"{name} must be a number a float can hold, got {value!r:.40}")
     if not is_real(value):
+        if isinstance(value, numbers.Integral) and not isinstance(value, bool):  # 10**400
+            raise UserError(f"{name} must be a number a float can hold, got {value!r:.40}")
         raise UserError(f"{name} must be a number, got {value!r}")
     return float(value)
 
