@@ -631,7 +631,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              nb::object observable, const StateChecks* checks, std::vector<int> change_rows,
              std::vector<double> change_scale, std::vector<double> change_psd,
              std::vector<double> change_limit, double change_lag, int confirm_samples,
-             std::vector<double> std_limit, bool jump_hold) {
+             std::vector<double> std_limit, bool jump_hold,
+             std::vector<double> freeze_tolerance) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -673,6 +674,14 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             }
             s.std_limit = std::move(std_limit);
             s.jump_hold = jump_hold;
+            if (!freeze_tolerance.empty()) {
+              if (freeze_tolerance.size() != static_cast<size_t>(nz))
+                throw std::invalid_argument("freeze_tolerance needs one value per reading (nz)");
+              for (double v : freeze_tolerance)
+                if (!(std::isfinite(v) && v >= 0.0))
+                  throw std::invalid_argument("freeze_tolerance must be finite and >= 0");
+            }
+            s.freeze_tolerance = std::move(freeze_tolerance);
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -706,7 +715,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("change_psd") = std::vector<double>(),
           nb::arg("change_limit") = std::vector<double>(), nb::arg("change_lag") = 0.0,
           nb::arg("confirm_samples") = 5, nb::arg("std_limit") = std::vector<double>(),
-          nb::arg("jump_hold") = false,
+          nb::arg("jump_hold") = false, nb::arg("freeze_tolerance") = std::vector<double>(),
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
@@ -721,7 +730,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "that must agree with an unconfirmed start once one disagreed with it; "
           "``std_limit`` (ny, or empty: none): each output's largest standard deviation, "
           "half the width of its range (inf: no range); ``jump_hold``: rows within the "
-          "unobserved window of a reading beyond one sample's limit are uncertain.")
+          "unobserved window of a reading beyond one sample's limit are uncertain; "
+          "``freeze_tolerance`` (nz, or empty: 0): how far a reading may move from a "
+          "freeze's first one and still repeat it.")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

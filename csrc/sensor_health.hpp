@@ -177,6 +177,9 @@ struct PolicySettings {
   // the prediction are uncertain (IMUs without gyros: a burst of wrong readings agrees
   // with the estimate that moved onto it)
   bool jump_hold = false;
+  // nz, or empty (0 each): how far a reading may move from a freeze's first one and still
+  // repeat it (a stuck IMU whose value jitters far below its noise is frozen too)
+  std::vector<double> freeze_tolerance;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)

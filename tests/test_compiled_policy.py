@@ -284,32 +284,35 @@ def test_run_lets_other_threads_go_on(method: str) -> None:
 
 
 def test_a_second_thread_is_refused_while_run_steps() -> None:
-    """While ``continue_run`` steps samples in one thread without the GIL, another
-    thread's call into the same policy is a RuntimeError (not a data race); the run's
-    own thread goes on, and the policy serves any thread once the run is done."""
-    rec = simulate("paper3d", duration=600.0, seed=1)
+    """While ``continue_run`` steps samples in one thread, another thread's call into the
+    same policy (made from the run's own ``should_stop``, so that it falls inside the
+    run) is a RuntimeError, not a data race; the run goes on to the last sample, and the
+    policy serves any thread once the run is done."""
+    rec = simulate("paper3d", duration=20.0, seed=1)
     est = make_estimator("mhe", make_formulation("bend"))
     est.reset()
-    started = threading.Event()
-    got: dict[str, object] = {}
+    refused: list[RuntimeError] = []
 
-    def work() -> None:
-        started.set()
-        got["batch"] = est.continue_run(rec.t, rec.z)
+    def read_from_another_thread() -> bool:
+        def read() -> None:
+            try:
+                est._policy.last_t  # noqa: B018  # a read of the policy
+            except RuntimeError as exc:
+                refused.append(exc)
 
-    worker = threading.Thread(target=work)
-    worker.start()
-    started.wait()
-    refused = None
-    while worker.is_alive() and refused is None:
-        try:
-            est._policy.last_t  # noqa: B018  # a read of the policy
-        except RuntimeError as exc:
-            refused = exc
-    worker.join()
-    assert refused is not None and "another thread" in str(refused)
-    assert len(got["batch"].status) == len(rec.t)  # type: ignore[attr-defined]
-    assert est._policy.last_t == rec.t[-1]
+        other = threading.Thread(target=read)
+        other.start()
+        other.join()
+        return False
+
+    batch = est.continue_run(rec.t, rec.z, should_stop=read_from_another_thread)
+    assert refused and all("another thread" in str(e) for e in refused)
+    assert len(batch.status) == len(rec.t)
+    got: list[float] = []
+    other = threading.Thread(target=lambda: got.append(est._policy.last_t))
+    other.start()
+    other.join()
+    assert got == [rec.t[-1]]
 
 
 def test_continue_run_stops_where_asked_and_goes_on_from_there() -> None:

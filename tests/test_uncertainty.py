@@ -49,6 +49,8 @@ from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries
 from continuum_mhe.settings import (
     FREEZE_MIN_SAMPLES,
+    FREEZE_S,
+    FREEZE_TOLERANCE,
     MHESettings,
     NoiseSettings,
     RecoverySettings,
@@ -464,6 +466,36 @@ def test_evaluate_gives_the_coverage_of_the_ok_rows_alone(tmp_path, capsys) -> N
 
 # --- recovery ---------------------------------------------------------------------------------
 estimators = recovery_estimators
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_a_stuck_imu_that_jitters_far_below_its_noise_is_frozen(method: str) -> None:
+    """The tip IMU of a two-section robot stuck from 3 to 5 s, its driver adding 1e-6 rad
+    of jitter (3e-5 of the 2-degree noise): a freeze as an exact repeat is (with the
+    default freeze), and no row from its discovery on is ``ok`` (as an exact repeat's;
+    without the tolerance 40 such rows were, up to 68 mm off). Ten times the tolerance (a
+    live IMU a hundred times quieter than its noise model) is no freeze."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("spatial", robot, duration=7.0, seed=1)
+    f = make_formulation("bend", robot)
+    stuck = (rec.t >= 3.0) & (rec.t < 5.0)
+    tip = f.measurement_blocks[1].slice
+    noise = np.random.default_rng(0).standard_normal((int(stuck.sum()), 2))
+    std = f.noise.measurement_std
+    for jitter, frozen in ((1e-6, True), (10 * FREEZE_TOLERANCE * std, False)):
+        z = rec.z.copy()
+        z[stuck, tip] = z[np.flatnonzero(stuck)[0], tip] + jitter * noise
+        est = make_estimator(method, f)
+        s = est.run(rec.t, z)
+        if frozen:
+            assert est.diagnostics.first_freezes == {1: 3.0}
+            found = stuck & (rec.t > 3.0 + FREEZE_S + 1e-9)
+            assert found.sum() >= 30 and "ok" not in set(s.status[found])
+        else:
+            assert est.diagnostics.first_freezes == {}
 
 
 @pytest.mark.parametrize("index", range(5), ids=["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"])

@@ -29,6 +29,7 @@ __all__ = [
     "MIN_MEASUREMENT_STD",
     "FORMULATIONS",
     "FREEZE_MIN_SAMPLES",
+    "FREEZE_TOLERANCE",
     "MHE_LOSSES",
     "MHE_SOLVERS",
     "FormulationName",
@@ -158,13 +159,20 @@ class MHESettings:
 #: samples, so at the usual rates the duration decides and only slow or gappy data feel
 #: the count.
 FREEZE_MIN_SAMPLES = 5
-#: How long a sensor's reading must repeat exactly to be frozen by default, s
+#: How long a sensor's reading must repeat to be frozen by default, s
 #: (``RecoverySettings.freeze``). Noise changes a live IMU's raw readings every sample;
 #: an IMU polled faster than it samples repeats each reading for less than its own
 #: sampling period, under this at 5 Hz or more. Shorter than a second, so that a freeze of
 #: half a second is caught: on a three-section robot at 100 Hz one IMU frozen for 0.5 s
 #: put the estimate 17 to 28 mm off and held it off for seconds at 1 s, not at this.
 FREEZE_S = 0.2
+#: How far, as a fraction of each reading's noise standard deviation (the formulation's
+#: measurement covariance), a reading may move from a freeze's first one and still repeat
+#: it. A stuck IMU whose driver adds a tiny jitter (1e-6 rad on a 2-degree tilt) is
+#: frozen too; a live IMU's noise moves its readings a thousand times further, and a
+#: reading's quantisation step is above it at any realistic noise level, so a real
+#: sensor's readings do not repeat within it.
+FREEZE_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -177,10 +185,12 @@ class RecoverySettings:
             sample restarts the estimator from its own measurement (status ``reset``)
             instead of continuing from a blind prediction; None: never (``--gap-reset``
             on the command line; default 1 s, as there).
-        freeze: a sensor (measurement block) whose reading repeats exactly for longer
-            than this (s), over at least ``freeze_samples`` consecutive samples none more
-            than ``gap_reset`` (1 s when it is off; ``freeze`` where that is longer) after
-            the one before (a gap is not a freeze), is treated as
+        freeze: a sensor (measurement block) whose reading repeats (every value within
+            :data:`FREEZE_TOLERANCE` of its noise standard deviation of the first
+            repeated reading) for longer than this (s), over at least
+            ``freeze_samples`` consecutive samples none more than ``gap_reset`` (1 s when
+            it is off; ``freeze`` where that is longer) after the one before (a gap is not
+            a freeze), is treated as
             dropped out until its reading changes; None: never (command line
             ``--freeze``; default :data:`FREEZE_S`).
         freeze_samples: the fewest consecutive samples with the same reading (the first

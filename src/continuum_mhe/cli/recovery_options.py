@@ -42,7 +42,8 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         type=float,
         default=FREEZE_S,
         metavar="SECONDS",
-        help="an IMU whose reading repeats exactly for longer than this, over at least "
+        help="an IMU whose reading repeats (to within a thousandth of its noise std) for "
+        "longer than this, over at least "
         f"{FREEZE_MIN_SAMPLES} consecutive samples, is treated as dropped out until it "
         f"changes; 0: never (default {FREEZE_S:g})",
     )

@@ -69,7 +69,7 @@ from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
-from continuum_mhe.settings import RecoverySettings
+from continuum_mhe.settings import FREEZE_TOLERANCE, RecoverySettings
 from continuum_mhe.signals import interrupt_in_chain
 
 #: An IMU silent for longer than this (s) no longer observes its part of the shape when
@@ -347,6 +347,7 @@ class Estimator(Generic[InferenceT]):
             # IMUs without gyros: a burst of wrong readings agrees with the estimate that
             # moved onto it (gyros see that it turned nothing)
             jump_hold=all(b.kind == "tilt" for b in blocks if b.is_imu),
+            freeze_tolerance=list(FREEZE_TOLERANCE * np.sqrt(np.diag(f.meas_cov()))),
             change_rows=change_rows,
             change_scale=list(change.scale) if change is not None else [],
             change_psd=list(change.psd) if change is not None else [],
