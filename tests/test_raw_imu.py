@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from header_helpers import assert_header_refused, imu_columns, renamed
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
@@ -575,6 +576,40 @@ def test_the_gravity_check_of_gyro_units_passes_the_shipped_recordings() -> None
         for imu in table.imus:
             assert imu.gyr is not None
             assert gyro_gravity_problem(table.t, imu.acc, imu.gyr) is None, path
+
+
+def test_a_frozen_imu_is_not_taken_for_a_gyro_in_deg_s(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """The shipped spatial-tendon recording (rad/s) with IMU 2 stuck from 3 to 5 s
+    mid-motion, exactly or with 1e-7 of jitter: its stuck rates turn no accelerometer,
+    and the gravity check read that as a gyro in deg/s (exit 2, "read as rad/s it misses
+    by 62 deg"). A frozen stretch says nothing of the unit: the file is estimated, and
+    the freeze said; a gyro in deg/s is still found beside the freeze."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    lines = (data / "spatial-tendon_raw.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    rows = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    stuck = (rows[:, 0] >= 3.0) & (rows[:, 0] < 5.0)
+    imu2 = [header.index(c + "_2") for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+    jitter = np.random.default_rng(0).standard_normal((int(stuck.sum()), 6))
+    for scale in (0.0, 1e-7):
+        frozen = rows.copy()
+        frozen[np.ix_(stuck, imu2)] = rows[np.flatnonzero(stuck)[0], imu2] + scale * jitter
+        table = read_raw_imus(_write(tmp_path / "f.csv", _csv(header, frozen)), 2)
+        assert all(gyro_gravity_problem(table.t, m.acc, m.gyr) is None for m in table.imus)
+        imu = table.imus[1]  # the frozen one: its other stretches tell deg/s
+        assert gyro_gravity_problem(table.t, imu.acc, np.degrees(imu.gyr)) is not None
+    out = tmp_path / "est.csv"
+    args = ["estimate", str(tmp_path / "f.csv"), "--robot", "two-section", "-o", str(out)]
+    capsys.readouterr()
+    assert main(args) == 0
+    assert "IMU 2 repeated the same reading" in capsys.readouterr().err
+
+
+def _csv(header: list[str], rows: FloatArray) -> str:
+    """A CSV text of ``rows`` under ``header``."""
+    return "\n".join([",".join(header), *(",".join(map(repr, r)) for r in rows.tolist())]) + "\n"
 
 
 def test_estimate_names_a_gyro_in_deg_s(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -40,6 +40,12 @@ GRAVITY_TURN_ACCEL_SPREAD = 0.01
 #: ... and its rates are steady, as a bias: their spread (the norm of the axes' standard
 #: deviations) at most this fraction of their mean rate's magnitude ...
 GRAVITY_TURN_RATE_SPREAD = 0.5
+#: ... and not frozen: a stretch in which either sensor repeats its first reading to
+#: within this (the accelerometer: a fraction of its magnitude; the gyro: in the file's
+#: unit) says nothing of the gyro's unit (a stuck IMU's rates turn no accelerometer); a
+#: live IMU's noise is a thousand times more ...
+FROZEN_ACCEL_SPREAD = 1e-6
+FROZEN_GYRO_SPREAD = 1e-5
 #: ... and finds deg/s where the gyro, read as rad/s, misses the accelerometer's turn by
 #: more than this (rad, 20 deg) in the median stretch: a MEMS gyro's bias in rad/s
 #: (under 0.05) turns a direction by about 1.5 deg in a stretch, one of 1 deg/s read
@@ -108,7 +114,9 @@ def _turn_errors(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> FloatArray:
     its mean (no acceleration of the IMU's own: a swinging IMU's specific force turns
     with it) and its rates by at most :data:`GRAVITY_TURN_RATE_SPREAD` of their mean (a
     steady rate, as a bias; a swing's rates change sign). Rows are paired with the next
-    row of their own stretch only (a gap or a short stretch adds nothing)."""
+    row of their own stretch only (a gap or a short stretch adds nothing). A stretch in
+    which either sensor is frozen (:data:`FROZEN_ACCEL_SPREAD`, :data:`FROZEN_GYRO_SPREAD`)
+    is not judged."""
     ok = np.isfinite(t) & np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1)
     t, acc, gyr = t[ok], acc[ok], gyr[ok]
     norm = np.linalg.norm(acc, axis=1)
@@ -128,8 +136,14 @@ def _turn_errors(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> FloatArray:
     norm_var = np.add.reduceat(norm**2, starts) / count - norm_mean**2
     rate_mean = np.add.reduceat(gyr, starts, axis=0) / count[:, None]
     rate_var = np.add.reduceat(gyr**2, starts, axis=0) / count[:, None] - rate_mean**2
+    # each row's largest departure from its stretch's first reading, per sensor
+    of_stretch = np.repeat(np.arange(len(starts)), stops - starts)
+    acc_moved = np.maximum.reduceat(np.abs(acc - acc[starts][of_stretch]).max(axis=1), starts)
+    gyr_moved = np.maximum.reduceat(np.abs(gyr - gyr[starts][of_stretch]).max(axis=1), starts)
+    frozen = (acc_moved <= FROZEN_ACCEL_SPREAD * norm_mean) | (gyr_moved <= FROZEN_GYRO_SPREAD)
     still = (
-        (count >= GRAVITY_TURN_ROWS)
+        ~frozen
+        & (count >= GRAVITY_TURN_ROWS)
         & (np.sqrt(np.maximum(norm_var, 0.0)) <= GRAVITY_TURN_ACCEL_SPREAD * norm_mean)
         & (
             np.sqrt(np.maximum(rate_var, 0.0).sum(axis=1))
