@@ -97,6 +97,7 @@ void ConsistencyCheck::reset() {
   high_ = false;
   persists_ = false;
   quiet_run_ = 0;
+  max_dof_ = 0;
   nis_ = fit_ = fit_nis_ = shift_ = 0.0;
   dof_ = 0;
 }
@@ -128,6 +129,7 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   const int dof = static_cast<int>(rows_.size());
   nis_ = fit_ = fit_nis_ = shift_ = 0.0;
   dof_ = dof;
+  max_dof_ = std::max(max_dof_, dof);
   if (dof > 0) {
     set_readings(z, mask);
     if (has_prev_) {
@@ -140,8 +142,11 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
       if (nis_ <= s_.limit[dof]) {
         noise_scale_ += (nis_ / dof - noise_scale_) / s_.memory;
         avg_dof_ = dof;
-        // the level the readings scatter at while the model follows them
-        if (!persists_) quiet_scale_ += (nis_ / dof - quiet_scale_) / s_.quiet_memory;
+        // the level the readings scatter at while the model follows them, all of them:
+        // with an IMU silent (a dropout, a freeze) the others' innovations scatter less,
+        // and a level learned from them would flag every sample after its return
+        if (!persists_ && dof == max_dof_)
+          quiet_scale_ += (nis_ / dof - quiet_scale_) / s_.quiet_memory;
       }
       evaluate(residual_, x, u, dt, r_.data());  // r at this estimate
       // the innovation this estimate's residual implies, S R^-1 r (an exact update of a

@@ -586,16 +586,8 @@ def test_a_frozen_imu_is_not_taken_for_a_gyro_in_deg_s(
     and the gravity check read that as a gyro in deg/s (exit 2, "read as rad/s it misses
     by 62 deg"). A frozen stretch says nothing of the unit: the file is estimated, and
     the freeze said; a gyro in deg/s is still found beside the freeze."""
-    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
-    lines = (data / "spatial-tendon_raw.csv").read_text().splitlines()
-    header = lines[0].split(",")
-    rows = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
-    stuck = (rows[:, 0] >= 3.0) & (rows[:, 0] < 5.0)
-    imu2 = [header.index(c + "_2") for c in ("ax", "ay", "az", "gx", "gy", "gz")]
-    jitter = np.random.default_rng(0).standard_normal((int(stuck.sum()), 6))
     for scale in (0.0, 1e-7):
-        frozen = rows.copy()
-        frozen[np.ix_(stuck, imu2)] = rows[np.flatnonzero(stuck)[0], imu2] + scale * jitter
+        header, _, frozen = _tip_imu_stuck(scale)
         table = read_raw_imus(_write(tmp_path / "f.csv", _csv(header, frozen)), 2)
         assert all(gyro_gravity_problem(table.t, m.acc, m.gyr) is None for m in table.imus)
         imu = table.imus[1]  # the frozen one: its other stretches tell deg/s
@@ -605,6 +597,42 @@ def test_a_frozen_imu_is_not_taken_for_a_gyro_in_deg_s(
     capsys.readouterr()
     assert main(args) == 0
     assert "IMU 2 repeated the same reading" in capsys.readouterr().err
+
+
+def test_rows_after_a_frozen_imu_returns_are_judged_as_before_it(tmp_path: Path) -> None:
+    """The shipped spatial-tendon recording with IMU 2 stuck from 3 to 5 s: while it is
+    silent the other IMU's readings scatter less than all of them do, and the level the
+    consistency check judges against learned from them flagged every row after its
+    return (6 of the 251 rows from 7 s on `ok`, against 188 without the freeze). It
+    learns only from samples with every IMU's readings: from 7 s on the rows are `ok`
+    about as often as without the freeze."""
+    header, rows, frozen = _tip_imu_stuck(0.0)
+    ok_after = []
+    for name, table in (("whole", rows), ("frozen", frozen)):
+        out = tmp_path / f"{name}_est.csv"
+        src = _write(tmp_path / f"{name}.csv", _csv(header, table))
+        assert main(["estimate", str(src), "--robot", "two-section", "-o", str(out)]) == 0
+        est = [ln.split(",") for ln in out.read_text().splitlines() if not ln.startswith("#")]
+        t_col, status_col = est[0].index("t"), est[0].index("status")
+        after = [r[status_col] for r in est[1:] if float(r[t_col]) >= 7.0]
+        ok_after.append(after.count("ok"))
+    assert ok_after[0] > 150 and ok_after[1] >= 0.9 * ok_after[0], ok_after
+
+
+def _tip_imu_stuck(jitter: float) -> tuple[list[str], FloatArray, FloatArray]:
+    """The shipped spatial-tendon raw recording: its header, its rows, and the rows with
+    IMU 2's six values stuck at their t = 3 s reading until 5 s, plus ``jitter`` times
+    standard normal noise."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    lines = (data / "spatial-tendon_raw.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    rows = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    stuck = (rows[:, 0] >= 3.0) & (rows[:, 0] < 5.0)
+    imu2 = [header.index(c + "_2") for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+    noise = np.random.default_rng(0).standard_normal((int(stuck.sum()), 6))
+    frozen = rows.copy()
+    frozen[np.ix_(stuck, imu2)] = rows[np.flatnonzero(stuck)[0], imu2] + jitter * noise
+    return header, rows, frozen
 
 
 def _csv(header: list[str], rows: FloatArray) -> str:
