@@ -210,6 +210,11 @@ BAD_INPUTS = {
     ),
     "duplicate-t": ("t,roll,pitch\n0,0.1,0.1\n0,0.1,0.1\n", "line 3: duplicate timestamp"),
     "degrees": ("t,roll,pitch\n0,10,20\n0.05,11,21\n", "look like degrees: pass --degrees"),
+    # a pitch column with a roll's range (up to pi), a roll column within pi/2: swapped
+    "roll-pitch-swapped": (
+        "t,roll,pitch\n0,0.2,1.2\n0.05,0.3,2.9\n0.1,0.1,-2.5\n",
+        "roll and pitch look swapped: this IMU's pitch reaches 2.9 rad",
+    ),
     "truncated-row": ("t,roll,pitch\n0,0.1,0.1\n0.05\n", "line 3: expected 3 fields"),
     "extra-field": (
         "t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1,0.2\n",

@@ -408,7 +408,15 @@ def _check_angle_units(
         where = f"{path}: line {lines[i]}: roll={shown[0]:.4g}, pitch={shown[1]:.4g}"
         raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
     valid = int(np.isfinite(z).all(axis=1).sum())
-    if over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1):
+    roll_most, pitch_most = (float(np.nanmax(np.abs(z[:, k]), initial=0.0)) for k in (0, 1))
+    if roll_most <= PITCH_LIMIT < pitch_most <= ROLL_LIMIT:
+        # a pitch column with a roll's range beside a roll column with a pitch's
+        hint = (
+            f"roll and pitch look swapped: this IMU's pitch reaches {pitch_most:.3g} rad, "
+            f"beyond pi/2, while its roll stays within pi/2: give roll before pitch; if "
+            "the angles are degrees, pass --degrees (degrees=True in Python)"
+        )
+    elif over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1):
         hint = "the angles look like degrees: pass --degrees (degrees=True in Python)"
     else:
         hint = (
