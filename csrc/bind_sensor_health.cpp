@@ -632,7 +632,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<double> change_scale, std::vector<double> change_psd,
              std::vector<double> change_limit, double change_lag, int confirm_samples,
              std::vector<double> std_limit, bool jump_hold,
-             std::vector<double> freeze_tolerance) {
+             std::vector<double> freeze_tolerance, double silent_after) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -682,6 +682,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
                   throw std::invalid_argument("freeze_tolerance must be finite and >= 0");
             }
             s.freeze_tolerance = std::move(freeze_tolerance);
+            if (!(silent_after > 0.0)) throw std::invalid_argument("silent_after must be > 0");
+            s.silent_after = silent_after;
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -716,6 +718,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("change_limit") = std::vector<double>(), nb::arg("change_lag") = 0.0,
           nb::arg("confirm_samples") = 5, nb::arg("std_limit") = std::vector<double>(),
           nb::arg("jump_hold") = false, nb::arg("freeze_tolerance") = std::vector<double>(),
+          nb::arg("silent_after") = INFINITY,
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
@@ -732,7 +735,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "half the width of its range (inf: no range); ``jump_hold``: rows within the "
           "unobserved window of a reading beyond one sample's limit are uncertain; "
           "``freeze_tolerance`` (nz, or empty: 0): how far a reading may move from a "
-          "freeze's first one and still repeat it.")
+          "freeze's first one and still repeat it; ``silent_after`` (s): an IMU silent for "
+          "longer no longer observes its part of the shape (inf: the unobserved window).")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

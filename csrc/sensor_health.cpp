@@ -253,7 +253,7 @@ bool SensorHealth::observed_now(double t) {
   if (!s_.shape_observable) return false;
   const size_t n = s_.imu_blocks.size();
   if (n == 1) return true;  // its silence is the whole robot's gap
-  const double window = unobserved_window();
+  const double window = std::min(unobserved_window(), s_.silent_after);
   std::vector<int> recent;
   for (size_t k = 0; k < n; ++k)  // a frozen IMU observes nothing, however recent
     if (t - imu_last_valid_[k] <= window && !frozen_now_[k]) recent.push_back(static_cast<int>(k));

@@ -180,6 +180,9 @@ struct PolicySettings {
   // nz, or empty (0 each): how far a reading may move from a freeze's first one and still
   // repeat it (a stuck IMU whose value jitters far below its noise is frozen too)
   std::vector<double> freeze_tolerance;
+  // s: an IMU silent for longer than this (or than the unobserved window, where shorter)
+  // no longer observes its part of the shape (observed_now)
+  double silent_after = INFINITY;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)

@@ -72,9 +72,18 @@ from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measure
 from continuum_mhe.settings import FREEZE_TOLERANCE, RecoverySettings
 from continuum_mhe.signals import interrupt_in_chain
 
-#: An IMU silent for longer than this (s) no longer observes its part of the shape when
-#: the gap reset is off (else the gap reset's time).
+#: The unobserved window when the gap reset is off (else the gap reset's time), s: an IMU
+#: silent for longer ends the probation of its return, a row within it of a jump or of a
+#: wide standard deviation is ``uncertain``, and a reading that old no longer carries its
+#: constant error.
 UNOBSERVED_AFTER = 1.0
+#: An IMU silent for longer than this (s; or than the unobserved window, where shorter)
+#: no longer observes its part of the shape: where the IMUs left do not determine it, the
+#: rows are ``uncertain``. Extrapolated at its last rates, the silent IMU's section
+#: drifts beyond its standard deviation within a quarter of a second on the shipped rods
+#: (spatial-tendon, tilt, the tip IMU silent from 3 s: 22 mm off at 1.7 standard
+#: deviations after 0.24 s, 72 mm at 3.9 after 0.56 s).
+SILENT_AFTER = 0.2
 #: A tilt angle beyond this (rad) is out of range, degrees given for radians: every
 #: gravity direction is a roll and a pitch within +-pi (a pitch beyond pi/2 with the roll
 #: turned by pi is the same direction as its canonical pair, and is taken as it is).
@@ -348,6 +357,7 @@ class Estimator(Generic[InferenceT]):
             # moved onto it (gyros see that it turned nothing)
             jump_hold=all(b.kind == "tilt" for b in blocks if b.is_imu),
             freeze_tolerance=list(FREEZE_TOLERANCE * np.sqrt(np.diag(f.meas_cov()))),
+            silent_after=SILENT_AFTER,
             change_rows=change_rows,
             change_scale=list(change.scale) if change is not None else [],
             change_psd=list(change.psd) if change is not None else [],
@@ -440,8 +450,9 @@ class Estimator(Generic[InferenceT]):
           window; and every
           trusted estimate (``ok``, ``fallback-ipopt``, ``branch-restart``) of a robot
           whose IMUs do not determine its shape (:attr:`shape_observable`), or whose
-          IMUs that reported within the gap reset do not (an IMU silent for longer: its
-          part of the shape is predicted blindly), or after such an IMU's return until
+          IMUs that reported within :data:`SILENT_AFTER` (the gap reset where shorter)
+          do not (an IMU silent for longer: its part of the shape is predicted blindly),
+          or after the return of an IMU silent for longer than the gap reset until
           its readings have agreed with the estimate for as long (whether ``bad_start``
           is set or not), or while four or more restarts that the readings forced fall
           within ``bad_start`` (or the unobserved window where longer, or without the
