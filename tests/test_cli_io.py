@@ -213,7 +213,7 @@ BAD_INPUTS = {
     # a pitch column with a roll's range (up to pi), a roll column within pi/2: swapped
     "roll-pitch-swapped": (
         "t,roll,pitch\n0,0.2,1.2\n0.05,0.3,2.9\n0.1,0.1,-2.5\n",
-        "roll and pitch look swapped: this IMU's pitch reaches 2.9 rad",
+        "the columns roll and pitch look swapped: pitch reaches 2.9 rad",
     ),
     "truncated-row": ("t,roll,pitch\n0,0.1,0.1\n0.05\n", "line 3: expected 3 fields"),
     "extra-field": (
@@ -236,6 +236,19 @@ def test_bad_measurement_file_is_rejected_cleanly(tmp_path, capsys, case):
     assert err.startswith("continuum-mhe: error: ") and str(meas) in err
     assert expected in err
     assert list(tmp_path.iterdir()) == [meas]  # no output, no temporary left behind
+
+
+def test_swapped_angles_of_one_imu_of_several_are_named_by_their_columns(tmp_path, capsys):
+    """Two IMUs, the second's pitch column holding roll values (up to pi) and its roll
+    column pitch values: the line names that IMU's columns and says they look swapped."""
+    text = "t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.1,0.3,0.2\n0.05,0.1,0.1,0.2,2.8\n"
+    meas = _write(tmp_path / "meas.csv", text)
+    code = main(["estimate", str(meas), "--robot", "two-section", "-o", str(tmp_path / "e.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "line 3: roll_2=0.2, pitch_2=2.8 rad is out of range" in err
+    assert "the columns roll_2 and pitch_2 look swapped: pitch_2 reaches 2.8 rad" in err
+    assert list(tmp_path.iterdir()) == [meas]
 
 
 def test_one_angle_out_of_range_is_a_glitch_not_degrees(tmp_path, capsys):

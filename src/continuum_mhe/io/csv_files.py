@@ -171,7 +171,8 @@ def tilt_values(
     IMU described there."""
     z = np.radians(values) if degrees else np.array(values, dtype=float)
     for i in range(n_imus):
-        _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees, skipped)
+        columns = ("roll", "pitch") if n_imus == 1 else (f"roll_{i + 1}", f"pitch_{i + 1}")
+        _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees, skipped, columns)
     return z
 
 
@@ -383,38 +384,42 @@ def _check_angle_units(
     lines: Sequence[int],
     degrees: bool,
     skipped: list[str] | None = None,
+    columns: tuple[str, str] = ("roll", "pitch"),
 ) -> None:
     """Refuse angles (n, 2) beyond their range in one line naming the first; with
     ``skipped`` (``skip_bad``) such a row's angles become a dropout (NaN, in place) and
-    its description is appended there instead."""
+    its description is appended there instead. ``columns``: the angles' column names."""
     with np.errstate(invalid="ignore"):
         over = (np.abs(z[:, 0]) > ROLL_LIMIT) | (np.abs(z[:, 1]) > PITCH_LIMIT)
     if not over.any():
         return
     unit = "deg" if degrees else "rad"
+    roll_name, pitch_name = columns
     if skipped is not None:
         for row in np.flatnonzero(over).tolist():
             shown = np.degrees(z[row]) if degrees else z[row]
             skipped.append(
-                f"line {lines[row]}: roll={shown[0]:.4g}, pitch={shown[1]:.4g} {unit} out of range"
+                f"line {lines[row]}: {roll_name}={shown[0]:.4g}, {pitch_name}={shown[1]:.4g} "
+                f"{unit} out of range"
             )
             z[row] = np.nan
         return
     i = int(np.argmax(over))
     roll, pitch = z[i]
-    where = f"{path}: line {lines[i]}: roll={roll:.4g}, pitch={pitch:.4g}"
+    where = f"{path}: line {lines[i]}: {roll_name}={roll:.4g}, {pitch_name}={pitch:.4g}"
     if degrees or max(abs(roll), abs(pitch)) > 360:
         shown = np.degrees(z[i]) if degrees else z[i]
-        where = f"{path}: line {lines[i]}: roll={shown[0]:.4g}, pitch={shown[1]:.4g}"
+        where = f"{path}: line {lines[i]}: {roll_name}={shown[0]:.4g}, {pitch_name}={shown[1]:.4g}"
         raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
     valid = int(np.isfinite(z).all(axis=1).sum())
     roll_most, pitch_most = (float(np.nanmax(np.abs(z[:, k]), initial=0.0)) for k in (0, 1))
     if roll_most <= PITCH_LIMIT < pitch_most <= ROLL_LIMIT:
         # a pitch column with a roll's range beside a roll column with a pitch's
         hint = (
-            f"roll and pitch look swapped: this IMU's pitch reaches {pitch_most:.3g} rad, "
-            f"beyond pi/2, while its roll stays within pi/2: give roll before pitch; if "
-            "the angles are degrees, pass --degrees (degrees=True in Python)"
+            f"the columns {roll_name} and {pitch_name} look swapped: {pitch_name} reaches "
+            f"{pitch_most:.3g} rad, beyond pi/2, while {roll_name} stays within pi/2 (swap "
+            "their names in the header); if the angles are degrees, pass --degrees "
+            "(degrees=True in Python)"
         )
     elif over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1):
         hint = "the angles look like degrees: pass --degrees (degrees=True in Python)"
