@@ -129,7 +129,10 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   const int dof = static_cast<int>(rows_.size());
   nis_ = fit_ = fit_nis_ = shift_ = 0.0;
   dof_ = dof;
-  max_dof_ = std::max(max_dof_, dof);
+  if (dof > max_dof_) {  // more readings than any sample before: learn their level anew
+    max_dof_ = dof;
+    quiet_scale_ = 1.0;
+  }
   if (dof > 0) {
     set_readings(z, mask);
     if (has_prev_) {

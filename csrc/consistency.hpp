@@ -155,8 +155,9 @@ class ConsistencyCheck {
   double shift_ = 0.0, quiet_scale_ = 1.0;
   int avg_dof_ = 0, dof_ = 0, shift_dof_ = 0;
   int quiet_run_ = 0;  // samples in a row the average has been at the quiet level
-  // the most readings judged at one sample of the recording: the quiet level learns only
-  // from samples with as many (a sample without some IMU's readings scatters otherwise)
+  // the most readings judged at one sample so far: the quiet level learns only from
+  // samples with as many, and starts again from 1 when a sample has more (an IMU's first
+  // reading): a sample without some IMU's readings scatters otherwise
   int max_dof_ = 0;
   bool high_ = false, persists_ = false;
 };

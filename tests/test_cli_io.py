@@ -251,24 +251,27 @@ def test_swapped_angles_of_one_imu_of_several_are_named_by_their_columns(tmp_pat
     assert list(tmp_path.iterdir()) == [meas]
 
 
-def test_one_angle_out_of_range_is_a_glitch_not_degrees(tmp_path, capsys):
-    """One pitch of 45 among radians is a glitch, not degrees: the line names it, says
-    how many rows are out of range and that --skip-bad reads them as dropouts, and does
-    not suggest --degrees (which would read the whole file 57 times too small); with
-    --skip-bad that row is a dropout, counted."""
+@pytest.mark.parametrize("glitch", ["45", "2"])
+def test_one_angle_out_of_range_is_a_glitch_not_degrees(tmp_path, capsys, glitch):
+    """One pitch of 45 (or of 2, within a roll's range: not a swap of the columns either)
+    among radians is a glitch, not degrees: the line names it, says how many rows are
+    out of range and that --skip-bad reads them as dropouts, and does not suggest
+    --degrees (which would read the whole file 57 times too small) nor swapping the
+    columns; with --skip-bad that row is a dropout, counted."""
     rows = [f"{0.05 * i:g},{0.1 + 0.001 * i:g},{0.2:g}" for i in range(60)]
-    rows[30] = "1.5,0.13,45"
+    rows[30] = f"1.5,0.13,{glitch}"
     meas = _write(tmp_path / "meas.csv", "t,roll,pitch\n" + "\n".join(rows) + "\n")
     est = tmp_path / "est.csv"
     assert main(["estimate", str(meas), "-o", str(est)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "line 32: roll=0.13, pitch=45 rad is out of range" in err
-    assert "--degrees" not in err and "1 of 60 rows read here are" in err
+    assert err.count("\n") == 1 and f"line 32: roll=0.13, pitch={glitch} rad is out of range" in err
+    assert "--degrees" not in err and "swapped" not in err and "1 of 60 rows read here are" in err
     assert "--skip-bad reads them as dropouts" in err and not est.exists()
     assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
     said = capsys.readouterr()
     said_all = said.out + said.err
-    assert "dropout: 1" in said_all and "line 32: roll=0.13, pitch=45 rad out of range" in said_all
+    assert "dropout: 1" in said_all
+    assert f"line 32: roll=0.13, pitch={glitch} rad out of range" in said_all
     table = read_state_table(est)
     assert list(table.status).count("dropout") == 1 and table.status[30] == "dropout"
 

@@ -41,17 +41,17 @@ from continuum_mhe.estimators.branch import BranchStats
 from continuum_mhe.estimators.fast.model import NodeEvaluator, node_functions
 from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.estimators.sensor_health import SILENT_AFTER
 from continuum_mhe.evaluation.metrics import Z95, compute_calibration, nees_band
 from continuum_mhe.io.estimate_csv import write_estimates
 from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries
+from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Status
 from continuum_mhe.settings import (
     FREEZE_MIN_SAMPLES,
     FREEZE_S,
     FREEZE_TOLERANCE,
+    SILENT_AFTER,
     MHESettings,
     NoiseSettings,
     RecoverySettings,
@@ -474,11 +474,12 @@ def test_rows_are_not_ok_while_an_imu_is_silent_and_the_others_cannot_see_its_pa
     method: str,
 ) -> None:
     """The shipped spatial-tendon rod, tilt, its tip IMU silent (no readings) from 3 to
-    5 s: extrapolated at its last rates, the second section drifted beyond its standard
+    5 s: extrapolated at its last rates, the second section drifts beyond its standard
     deviation (22 mm off at 1.7 of them after 0.24 s, 72 mm at 3.9 after 0.56 s), and
-    the rows stayed ``ok`` for the unobserved window's second. From ``SILENT_AFTER`` on
-    no row of the silence is ``ok``, no ``ok`` row of the recording is more than 20 mm
-    and 3 standard deviations off, and the rows after its return are ``ok`` again."""
+    within the unobserved window's second the rows would be ``ok``. From
+    ``SILENT_AFTER`` on no row of the silence is ``ok``, no ``ok`` row of the recording
+    is more than 20 mm and 3 standard deviations off, and the rows after its return are
+    ``ok`` again; the status's meaning states the time."""
     from continuum_mhe.io.csv_files import read_measurements
     from continuum_mhe.io.robot_file import read_robot
 
@@ -497,6 +498,7 @@ def test_rows_are_not_ok_while_an_imu_is_silent_and_the_others_cannot_see_its_pa
     assert not ok[silent & (t > 3.0 + SILENT_AFTER + 1e-9)].any()
     assert not (ok & (err > 0.02) & (err > 3 * std)).any()
     assert ok[t > 6.5].mean() > 0.8
+    assert f"SILENT_AFTER, {SILENT_AFTER:g} s," in Status.UNCERTAIN.meaning
 
 
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
@@ -504,7 +506,7 @@ def test_a_stuck_imu_that_jitters_far_below_its_noise_is_frozen(method: str) -> 
     """The tip IMU of a two-section robot stuck from 3 to 5 s, its driver adding 1e-6 rad
     of jitter (3e-5 of the 2-degree noise): a freeze as an exact repeat is (with the
     default freeze), and no row from its discovery on is ``ok`` (as an exact repeat's;
-    without the tolerance 40 such rows were, up to 68 mm off). Ten times the tolerance (a
+    without the tolerance 40 such rows are, up to 68 mm off). Ten times the tolerance (a
     live IMU a hundred times quieter than its noise model) is no freeze."""
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.simulation.scenarios import simulate_robot

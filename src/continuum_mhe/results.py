@@ -82,7 +82,8 @@ class Status(str, Enum):
         "uncertain",
         "an estimate was made, but the tip position's standard deviation exceeds the "
         "stated fraction of the robot's length (--uncertain-fraction), or the IMUs (those "
-        "that reported within the last 0.2 s) do not determine the robot's shape, or the "
+        "that reported within the last SILENT_AFTER, 0.2 s, or --gap-reset where shorter) "
+        "do not determine the robot's shape, or the "
         "estimator restarted on readings that contradicted it and they have not yet "
         "agreed with it (or it did so four times or more within --bad-start), or, with "
         "tilt IMUs, within --gap-reset of a reading its prediction called impossible "

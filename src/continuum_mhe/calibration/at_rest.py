@@ -132,9 +132,11 @@ def frozen_at_rest(t: FloatArray, values: FloatArray, n_imus: int) -> str | None
     """Why a raw rest recording ``values`` (n, 6 n_imus) at times ``t`` (s) holds a frozen
     IMU, or None: one whose six values repeat exactly for longer than
     :data:`~continuum_mhe.settings.FREEZE_S` and over at least
-    :data:`~continuum_mhe.settings.FREEZE_MIN_SAMPLES` samples, as ``estimate``'s
-    ``--freeze`` judges one (a still IMU's noise changes its raw readings every sample;
-    tilt angles of an attitude output can repeat at rest, so they are not judged)."""
+    :data:`~continuum_mhe.settings.FREEZE_MIN_SAMPLES` samples (a still IMU's noise
+    changes its raw readings every sample; tilt angles of an attitude output can repeat
+    at rest, so they are not judged). Exact repeats only, where ``estimate``'s
+    ``--freeze`` allows :data:`~continuum_mhe.settings.FREEZE_TOLERANCE` of the noise
+    model's standard deviation: a rest recording is where that noise is measured."""
     for i in range(n_imus):
         block = values[:, 6 * i : 6 * i + 6]
         repeats = np.concatenate([[False], np.all(block[1:] == block[:-1], axis=1)])

@@ -41,9 +41,10 @@ predict) is :attr:`ConsistencyCheck.noise_scale`. It is judged against the level
 readings scattered at while the model followed them, the *quiet level*: a slower
 average over about ``QUIET_MEMORY`` samples while no model error shows
 (:attr:`ConsistencyCheck.quiet_scale`, starting at 1), never taken above 1, learned
-from the samples with as many readings as the recording's most (while an IMU is
-silent the others' innovations scatter less, and a level learned from them would flag
-the rows after its return). Real
+from the samples with as many readings as the most of any sample so far, and started
+again from 1 when a sample has more (an IMU's first reading): while an IMU is silent
+the others' innovations scatter less, and a level learned from them would flag the
+rows after its return. Real
 readings are often less noisy than ``R`` says (a MEMS IMU's direction noise is a
 fraction of the 2 degrees assumed), and a model error then shows as innovations two to
 four times their own level while still below ``R``'s. The ratio of the two averages is

@@ -69,7 +69,7 @@ from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
-from continuum_mhe.settings import FREEZE_TOLERANCE, RecoverySettings
+from continuum_mhe.settings import FREEZE_TOLERANCE, SILENT_AFTER, RecoverySettings
 from continuum_mhe.signals import interrupt_in_chain
 
 #: The unobserved window when the gap reset is off (else the gap reset's time), s: an IMU
@@ -77,13 +77,6 @@ from continuum_mhe.signals import interrupt_in_chain
 #: wide standard deviation is ``uncertain``, and a reading that old no longer carries its
 #: constant error.
 UNOBSERVED_AFTER = 1.0
-#: An IMU silent for longer than this (s; or than the unobserved window, where shorter)
-#: no longer observes its part of the shape: where the IMUs left do not determine it, the
-#: rows are ``uncertain``. Extrapolated at its last rates, the silent IMU's section
-#: drifts beyond its standard deviation within a quarter of a second on the shipped rods
-#: (spatial-tendon, tilt, the tip IMU silent from 3 s: 22 mm off at 1.7 standard
-#: deviations after 0.24 s, 72 mm at 3.9 after 0.56 s).
-SILENT_AFTER = 0.2
 #: A tilt angle beyond this (rad) is out of range, degrees given for radians: every
 #: gravity direction is a roll and a pitch within +-pi (a pitch beyond pi/2 with the roll
 #: turned by pi is the same direction as its canonical pair, and is taken as it is).
@@ -450,7 +443,8 @@ class Estimator(Generic[InferenceT]):
           window; and every
           trusted estimate (``ok``, ``fallback-ipopt``, ``branch-restart``) of a robot
           whose IMUs do not determine its shape (:attr:`shape_observable`), or whose
-          IMUs that reported within :data:`SILENT_AFTER` (the gap reset where shorter)
+          IMUs that reported within :data:`~continuum_mhe.settings.SILENT_AFTER` (the gap
+          reset where shorter)
           do not (an IMU silent for longer: its part of the shape is predicted blindly),
           or after the return of an IMU silent for longer than the gap reset until
           its readings have agreed with the estimate for as long (whether ``bad_start``

@@ -413,7 +413,8 @@ def _check_angle_units(
         raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
     valid = int(np.isfinite(z).all(axis=1).sum())
     roll_most, pitch_most = (float(np.nanmax(np.abs(z[:, k]), initial=0.0)) for k in (0, 1))
-    if roll_most <= PITCH_LIMIT < pitch_most <= ROLL_LIMIT:
+    many = over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1)  # not a few glitches
+    if many and roll_most <= PITCH_LIMIT < pitch_most <= ROLL_LIMIT:
         # a pitch column with a roll's range beside a roll column with a pitch's
         hint = (
             f"the columns {roll_name} and {pitch_name} look swapped: {pitch_name} reaches "
@@ -421,7 +422,7 @@ def _check_angle_units(
             "their names in the header); if the angles are degrees, pass --degrees "
             "(degrees=True in Python)"
         )
-    elif over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1):
+    elif many:
         hint = "the angles look like degrees: pass --degrees (degrees=True in Python)"
     else:
         hint = (

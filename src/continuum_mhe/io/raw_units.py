@@ -40,12 +40,14 @@ GRAVITY_TURN_ACCEL_SPREAD = 0.01
 #: ... and its rates are steady, as a bias: their spread (the norm of the axes' standard
 #: deviations) at most this fraction of their mean rate's magnitude ...
 GRAVITY_TURN_RATE_SPREAD = 0.5
-#: ... and not frozen: a stretch in which either sensor repeats its first reading to
+#: ... and not frozen: a stretch in which both sensors repeat their first reading to
 #: within this (the accelerometer: a fraction of its magnitude; the gyro: in the file's
-#: unit) says nothing of the gyro's unit (a stuck IMU's rates turn no accelerometer); a
-#: live IMU's noise is a thousand times more ...
+#: unit, tiny in rad/s and in deg/s alike) says nothing of the gyro's unit (a stuck
+#: IMU's rates turn no accelerometer); a live IMU's noise is a thousand times more. The
+#: unit check runs before any noise model, so these are not ``FREEZE_TOLERANCE``'s; a
+#: still gyro that repeats alone (coarsely quantised) is judged ...
 FROZEN_ACCEL_SPREAD = 1e-6
-FROZEN_GYRO_SPREAD = 1e-5
+FROZEN_GYRO_SPREAD = 1e-4
 #: ... and finds deg/s where the gyro, read as rad/s, misses the accelerometer's turn by
 #: more than this (rad, 20 deg) in the median stretch: a MEMS gyro's bias in rad/s
 #: (under 0.05) turns a direction by about 1.5 deg in a stretch, one of 1 deg/s read
@@ -115,7 +117,7 @@ def _turn_errors(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> FloatArray:
     with it) and its rates by at most :data:`GRAVITY_TURN_RATE_SPREAD` of their mean (a
     steady rate, as a bias; a swing's rates change sign). Rows are paired with the next
     row of their own stretch only (a gap or a short stretch adds nothing). A stretch in
-    which either sensor is frozen (:data:`FROZEN_ACCEL_SPREAD`, :data:`FROZEN_GYRO_SPREAD`)
+    which both sensors are frozen (:data:`FROZEN_ACCEL_SPREAD`, :data:`FROZEN_GYRO_SPREAD`)
     is not judged."""
     ok = np.isfinite(t) & np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1)
     t, acc, gyr = t[ok], acc[ok], gyr[ok]
@@ -140,7 +142,7 @@ def _turn_errors(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> FloatArray:
     of_stretch = np.repeat(np.arange(len(starts)), stops - starts)
     acc_moved = np.maximum.reduceat(np.abs(acc - acc[starts][of_stretch]).max(axis=1), starts)
     gyr_moved = np.maximum.reduceat(np.abs(gyr - gyr[starts][of_stretch]).max(axis=1), starts)
-    frozen = (acc_moved <= FROZEN_ACCEL_SPREAD * norm_mean) | (gyr_moved <= FROZEN_GYRO_SPREAD)
+    frozen = (acc_moved <= FROZEN_ACCEL_SPREAD * norm_mean) & (gyr_moved <= FROZEN_GYRO_SPREAD)
     still = (
         ~frozen
         & (count >= GRAVITY_TURN_ROWS)
