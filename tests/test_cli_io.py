@@ -215,6 +215,11 @@ BAD_INPUTS = {
         "t,roll,pitch\n0,0.2,1.2\n0.05,0.3,2.9\n0.1,0.1,-2.5\n",
         "the columns roll and pitch look swapped: pitch reaches 2.9 rad",
     ),
+    "roll-pitch-swapped-numbered": (  # named as the file writes them
+        "t,Roll_1,pitch_1\n0,0.2,1.2\n0.05,0.3,2.9\n0.1,0.1,-2.5\n",
+        "line 3: Roll_1=0.3, pitch_1=2.9 rad is out of range (|roll| <= pi, |pitch| <= pi/2); "
+        "the columns Roll_1 and pitch_1 look swapped",
+    ),
     "truncated-row": ("t,roll,pitch\n0,0.1,0.1\n0.05\n", "line 3: expected 3 fields"),
     "extra-field": (
         "t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1,0.2\n",

@@ -119,7 +119,13 @@ def read_measurements(
         got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=True)
     check_time_units(rows, got.t)
     z = tilt_values(
-        rows.name, got.values, got.lines, degrees, n_imus, got.skipped if skip_bad else None
+        rows.name,
+        got.values,
+        got.lines,
+        degrees,
+        n_imus,
+        got.skipped if skip_bad else None,
+        [rows.as_written(c) for c in columns[1:]],
     )
     if degrees:
         seen = DegreesCheck()
@@ -165,13 +171,17 @@ def tilt_values(
     degrees: bool,
     n_imus: int,
     skipped: list[str] | None = None,
+    names: Sequence[str] | None = None,
 ) -> FloatArray:
     """Measurements (n, 2 n_imus) in rad from the file's values, range-checked: an angle
     out of range is a one-line error, or with ``skipped`` (``skip_bad``) a dropout of its
-    IMU described there."""
+    IMU described there. ``names``: the angles' columns as the file writes them, for the
+    messages (else ``roll``, ``pitch``, or ``roll_k``, ``pitch_k``)."""
     z = np.radians(values) if degrees else np.array(values, dtype=float)
     for i in range(n_imus):
         columns = ("roll", "pitch") if n_imus == 1 else (f"roll_{i + 1}", f"pitch_{i + 1}")
+        if names is not None:
+            columns = (names[2 * i], names[2 * i + 1])
         _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees, skipped, columns)
     return z
 

@@ -703,7 +703,10 @@ def _table_stream(
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             out_of_range: list[str] | None = [] if options.skip_bad else None
-            z = tilt_values(name, values, lines, options.degrees, n_imus, out_of_range)
+            z = tilt_values(
+                name, values, lines, options.degrees, n_imus, out_of_range,
+                [rows.as_written(c) for c in cols[1:]],
+            )  # fmt: skip
             for what in out_of_range or ():
                 problems.add(what)
             if options.degrees:
