@@ -674,13 +674,12 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             }
             s.std_limit = std::move(std_limit);
             s.jump_hold = jump_hold;
-            if (!freeze_tolerance.empty()) {
-              if (freeze_tolerance.size() != static_cast<size_t>(nz))
-                throw std::invalid_argument("freeze_tolerance needs one value per reading (nz)");
-              for (double v : freeze_tolerance)
-                if (!(std::isfinite(v) && v >= 0.0))
-                  throw std::invalid_argument("freeze_tolerance must be finite and >= 0");
-            }
+            if (freeze_tolerance.empty()) freeze_tolerance.assign(static_cast<size_t>(nz), 0.0);
+            if (freeze_tolerance.size() != static_cast<size_t>(nz))
+              throw std::invalid_argument("freeze_tolerance needs one value per reading (nz)");
+            for (double v : freeze_tolerance)
+              if (!(std::isfinite(v) && v >= 0.0))
+                throw std::invalid_argument("freeze_tolerance must be finite and >= 0");
             s.freeze_tolerance = std::move(freeze_tolerance);
             if (!(silent_after > 0.0)) throw std::invalid_argument("silent_after must be > 0");
             s.silent_after = silent_after;

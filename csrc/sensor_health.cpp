@@ -180,9 +180,9 @@ const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
     const bool gap = t - freeze_last_t_[k] > gap_step;
     freeze_last_t_[k] = t;
     bool same = has_freeze_value_[k] != 0;
-    const double* tol = s_.freeze_tolerance.empty() ? nullptr : s_.freeze_tolerance.data() + start;
+    const double* tol = s_.freeze_tolerance.data() + start;
     for (int i = 0; same && i < size; ++i)  // NaN never repeats
-      same = std::fabs(zb[i] - last[i]) <= (tol ? tol[i] : 0.0);
+      same = std::fabs(zb[i] - last[i]) <= tol[i];
     if (!has_freeze_value_[k] || gap || !same) {
       frozen_now_[k] = 0;
       std::copy(zb, zb + size, last);

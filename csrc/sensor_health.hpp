@@ -177,8 +177,8 @@ struct PolicySettings {
   // the prediction are uncertain (IMUs without gyros: a burst of wrong readings agrees
   // with the estimate that moved onto it)
   bool jump_hold = false;
-  // nz, or empty (0 each): how far a reading may move from a freeze's first one and still
-  // repeat it (a stuck IMU whose value jitters far below its noise is frozen too)
+  // nz: how far a reading may move from a freeze's first one and still repeat it (a stuck
+  // IMU whose value jitters far below its noise is frozen too; the binding fills 0s)
   std::vector<double> freeze_tolerance;
   // s: an IMU silent for longer than this (or than the unobserved window, where shorter)
   // no longer observes its part of the shape (observed_now)

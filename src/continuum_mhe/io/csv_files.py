@@ -170,18 +170,16 @@ def tilt_values(
     lines: Sequence[int],
     degrees: bool,
     n_imus: int,
-    skipped: list[str] | None = None,
-    names: Sequence[str] | None = None,
+    skipped: list[str] | None,
+    names: Sequence[str],
 ) -> FloatArray:
     """Measurements (n, 2 n_imus) in rad from the file's values, range-checked: an angle
     out of range is a one-line error, or with ``skipped`` (``skip_bad``) a dropout of its
-    IMU described there. ``names``: the angles' columns as the file writes them, for the
-    messages (else ``roll``, ``pitch``, or ``roll_k``, ``pitch_k``)."""
+    IMU described there. ``names``: the angles' columns as the file writes them (roll,
+    pitch of each IMU), for the messages."""
     z = np.radians(values) if degrees else np.array(values, dtype=float)
     for i in range(n_imus):
-        columns = ("roll", "pitch") if n_imus == 1 else (f"roll_{i + 1}", f"pitch_{i + 1}")
-        if names is not None:
-            columns = (names[2 * i], names[2 * i + 1])
+        columns = (names[2 * i], names[2 * i + 1])
         _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees, skipped, columns)
     return z
 
@@ -393,8 +391,8 @@ def _check_angle_units(
     z: FloatArray,
     lines: Sequence[int],
     degrees: bool,
-    skipped: list[str] | None = None,
-    columns: tuple[str, str] = ("roll", "pitch"),
+    skipped: list[str] | None,
+    columns: tuple[str, str],
 ) -> None:
     """Refuse angles (n, 2) beyond their range in one line naming the first; with
     ``skipped`` (``skip_bad``) such a row's angles become a dropout (NaN, in place) and
