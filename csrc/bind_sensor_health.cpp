@@ -40,7 +40,7 @@ using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 auto counts_of(const PolicyDiagnostics& d) {
   return std::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.bad_starts,
                          d.reject_resets, d.bound_samples, d.bad_start_chains,
-                         d.untrusted_start_samples,
+                         d.untrusted_start_samples, d.glitches,
                          d.first_freezes.size(), d.has_failure, d.max_noise_scale,
                          d.model_error);
 }
@@ -518,7 +518,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
       .def_ro("bad_start_chains", &PolicyDiagnostics::bad_start_chains,
               "Times the bad-start check stopped restarting after a chain of restarts.")
       .def_ro("untrusted_start_samples", &PolicyDiagnostics::untrusted_start_samples,
-              "Estimates of a start the inference did not trust (none of them ok).");
+              "Estimates of a start the inference did not trust (none of them ok).")
+      .def_ro("glitches", &PolicyDiagnostics::glitches,
+              "IMU readings skipped as glitches (far beyond the prediction, alone).");
 
   nb::class_<StateChecks>(
       m, "StateChecks",
@@ -632,7 +634,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<double> change_scale, std::vector<double> change_psd,
              std::vector<double> change_limit, double change_lag, int confirm_samples,
              std::vector<double> std_limit, bool jump_hold,
-             std::vector<double> freeze_tolerance, double silent_after) {
+             std::vector<double> freeze_tolerance, double silent_after, double glitch_factor) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -683,6 +685,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             s.freeze_tolerance = std::move(freeze_tolerance);
             if (!(silent_after > 0.0)) throw std::invalid_argument("silent_after must be > 0");
             s.silent_after = silent_after;
+            if (!(std::isfinite(glitch_factor) && glitch_factor >= 0.0))
+              throw std::invalid_argument("glitch_factor must be finite and >= 0");
+            s.glitch_factor = glitch_factor;
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -717,7 +722,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("change_limit") = std::vector<double>(), nb::arg("change_lag") = 0.0,
           nb::arg("confirm_samples") = 5, nb::arg("std_limit") = std::vector<double>(),
           nb::arg("jump_hold") = false, nb::arg("freeze_tolerance") = std::vector<double>(),
-          nb::arg("silent_after") = INFINITY,
+          nb::arg("silent_after") = INFINITY, nb::arg("glitch_factor") = 0.0,
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
@@ -735,7 +740,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "unobserved window of a reading beyond one sample's limit are uncertain; "
           "``freeze_tolerance`` (nz, or empty: 0): how far a reading may move from a "
           "freeze's first one and still repeat it; ``silent_after`` (s): an IMU silent for "
-          "longer no longer observes its part of the shape (inf: the unobserved window).")
+          "longer no longer observes its part of the shape (inf: the unobserved window); "
+          "``glitch_factor``: an IMU's reading beyond this many times the one-sample limit "
+          "against the prediction, its reading before not so, is skipped as a glitch (0: off).")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

@@ -261,6 +261,57 @@ double ConsistencyCheck::predicted_nis(const double* x0, const double* P0, doubl
   return rp.dot(S_.partialPivLu().solve(rp));
 }
 
+void ConsistencyCheck::predicted_nis_given(const double* x0, const double* P0, double dt,
+                                           const double* z, const double* mask, const double* u,
+                                           const double* Q,
+                                           const std::vector<std::vector<int>>& sets,
+                                           const std::vector<int>& given,
+                                           std::vector<double>& out) {
+  const int nx = s_.nx, nz = s_.nz;
+  out.assign(sets.size(), 0.0);
+  if (sets.empty()) return;
+  set_readings(z, mask);
+  evaluate(transition_, x0, u, dt, fF_.data());
+  evaluate(measurement_, fF_.data(), u, dt, Hr_.data());
+  ConstRowMap F(fF_.data() + nx, nx, nx), P(P0, nx, nx), Qm(Q, nx, nx);
+  ConstRowMap H(Hr_.data(), nz, nx);
+  const double* r_pred = Hr_.data() + nz * nx;
+  const RowMatrix Pn = F * P * F.transpose() + Qm;
+  // the innovation covariance and residual over rows ``a`` (rows) against rows ``b``
+  auto block = [&](const std::vector<int>& a, const std::vector<int>& b) {
+    RowMatrix Ha(a.size(), nx), Hb(b.size(), nx);
+    for (size_t i = 0; i < a.size(); ++i) Ha.row(i) = H.row(a[i]);
+    for (size_t i = 0; i < b.size(); ++i) Hb.row(i) = H.row(b[i]);
+    RowMatrix S = Ha * Pn * Hb.transpose();
+    for (size_t i = 0; i < a.size(); ++i)
+      for (size_t j = 0; j < b.size(); ++j) S(i, j) += s_.R[a[i] * nz + b[j]];
+    return S;
+  };
+  auto residual = [&](const std::vector<int>& a) {
+    Eigen::VectorXd r(a.size());
+    for (size_t i = 0; i < a.size(); ++i) r[i] = r_pred[a[i]];
+    return r;
+  };
+  const bool conditioned = !given.empty();
+  Eigen::PartialPivLU<RowMatrix> lu_g;
+  Eigen::VectorXd rg;
+  if (conditioned) {
+    lu_g.compute(block(given, given));
+    rg = residual(given);
+  }
+  for (size_t k = 0; k < sets.size(); ++k) {
+    const std::vector<int>& a = sets[k];
+    RowMatrix Saa = block(a, a);
+    Eigen::VectorXd ra = residual(a);
+    if (conditioned) {  // the innovation of a given that of ``given``
+      const RowMatrix Sag = block(a, given);
+      ra -= Sag * lu_g.solve(rg);
+      Saa -= Sag * lu_g.solve(RowMatrix(Sag.transpose()));
+    }
+    out[k] = ra.dot(Saa.partialPivLu().solve(ra));
+  }
+}
+
 void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, const double* x,
                                           double* out) {
   const int nx = s_.nx, nz = s_.nz;

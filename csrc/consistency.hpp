@@ -89,6 +89,15 @@ class ConsistencyCheck {
   double predicted_nis(const double* x0, const double* P0, double dt, const double* z,
                        const double* mask, const double* u, const double* Q,
                        const std::vector<int>& rows);
+  // The NIS of each set of readings in ``sets`` (rows with ``mask`` > 0, none empty)
+  // against the prediction of ``x0``, ``P0`` as predicted_nis, each given the readings
+  // ``given`` of the same sample (the innovation's distribution conditioned on theirs: a
+  // tendon robot's tensions and tip condition, which pin states the motion model leaves
+  // free); into ``out`` (one per set). One evaluation of the model for all of them.
+  void predicted_nis_given(const double* x0, const double* P0, double dt, const double* z,
+                           const double* mask, const double* u, const double* Q,
+                           const std::vector<std::vector<int>>& sets,
+                           const std::vector<int>& given, std::vector<double>& out);
   // ``A B A^T`` (nx x nx, into ``out``) at ``x``: the covariance from the readings'
   // constant errors and the model error (the one learned so far, at least the floor),
   // ``A = (H^T R^-1 H + diag(range_info))^+ H^T R^-1``

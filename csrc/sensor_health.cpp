@@ -94,6 +94,11 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   freeze_count_.assign(nb, 0);
   has_freeze_value_.assign(nb, 0);
   frozen_now_.assign(nb, 0);
+  gate_x_.resize(s_.nx);
+  gate_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
+  gate_z_.resize(s_.nz);
+  gated_z_.resize(s_.nz);
+  gated_mask_.resize(s_.nz);
   z_.resize(s_.nz);
   mask_.resize(s_.nz);
   zero_mask_.assign(s_.nz, 0.0);
@@ -121,6 +126,7 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   last_t_ = last_valid_t_ = first_valid_t_ = -INFINITY;
   std::fill(has_freeze_value_.begin(), has_freeze_value_.end(), 0);
   std::fill(frozen_now_.begin(), frozen_now_.end(), 0);
+  gate_has_ = false;
   std::fill(freeze_since_.begin(), freeze_since_.end(), -INFINITY);
   std::fill(freeze_last_t_.begin(), freeze_last_t_.end(), -INFINITY);
   std::fill(freeze_count_.begin(), freeze_count_.end(), 0);
@@ -140,6 +146,7 @@ void SensorHealth::restart(bool keep_sensors) {
   // the robot's, and a restart does not make the model follow
   consistency_.forget();
   cons_has_prev_ = false;
+  gate_has_ = false;
   rejecting_since_.reset();
   wide_t_ = -INFINITY;
   jumped_t_ = -INFINITY;
@@ -336,6 +343,62 @@ void SensorHealth::start_remember(double t, const double* z, const double* x, co
   has_prev_ = true;
 }
 
+const double* SensorHealth::gate_glitches(double t, const double* z, int& gated) {
+  gated = 0;
+  if (!(s_.glitch_factor > 0.0) || !s_.checks_start || !gate_has_ ||
+      !(t - gate_t_ <= unobserved_window()))
+    return z;
+  const auto& judged = consistency_.settings().judged;
+  // each IMU's judged readings, and the sample's other readings (a tendon robot's
+  // tensions and tip condition) that its prediction is conditioned on
+  gate_sets_.clear();
+  gate_imus_.clear();
+  std::vector<char> in_imu(static_cast<size_t>(s_.nz), 0);
+  for (size_t b = 0; b < s_.imu_blocks.size(); ++b) {
+    const auto [start, size] = s_.imu_blocks[b];
+    std::vector<int> rows;
+    for (int i = start; i < start + size; ++i) {
+      in_imu[i] = 1;
+      if (mask_[i] > 0.0 && judged[i] != 0.0) rows.push_back(i);
+    }
+    if (!rows.empty()) {
+      gate_sets_.push_back(std::move(rows));
+      gate_imus_.push_back(static_cast<int>(b));
+    }
+  }
+  if (gate_sets_.empty()) return z;
+  gate_given_.clear();
+  for (int i = 0; i < s_.nz; ++i)
+    if (!in_imu[i] && mask_[i] > 0.0) gate_given_.push_back(i);
+  const double dt = t - gate_t_;
+  const double* u = process_.inputs(gate_z_.data(), z, dt);
+  const double* Q = process_.noise(dt).first;
+  consistency_.predicted_nis_given(gate_x_.data(), gate_P_.data(), dt, z, mask_.data(), u, Q,
+                                   gate_sets_, gate_given_, gate_nis_);
+  const double scale = std::max(1.0, consistency_.noise_scale());
+  const double* out = z;
+  for (size_t k = 0; k < gate_sets_.size(); ++k) {
+    const int b = gate_imus_[k];
+    const double limit =
+        s_.glitch_factor * consistency_.settings().limit[gate_sets_[k].size()] * scale;
+    // (a NIS that is not finite is beyond any limit)
+    if (!(gate_nis_[k] <= limit)) {
+      if (out == z) {
+        std::copy(z, z + s_.nz, gated_z_.begin());
+        std::copy(mask_.begin(), mask_.end(), gated_mask_.begin());
+        out = gated_z_.data();
+      }
+      const auto [start, size] = s_.imu_blocks[b];
+      for (int i = start; i < start + size; ++i) {
+        gated_z_[i] = NAN;
+        gated_mask_[i] = 0.0;
+      }
+      ++gated;
+    }
+  }
+  return out;
+}
+
 bool SensorHealth::consistency_check(double t, const double* z, const double* judged,
                                      const double* x, const double* P, bool has_state,
                                      bool has_cov) {
@@ -445,6 +508,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   }
   const bool back = note_imus(t);
   const bool observed = observed_now(t);
+  // the glitches are judged against the estimate before any restart below, and skipped
+  // only where none happens (a restart starts from this sample's readings); the
+  // bad-start check counts them among the readings that disagree with a start
+  int gated = 0;
+  const double* z_read = z;
+  const double* z_gated = gate_glitches(t, z, gated);
   if (gap_reset) {  // restart from this sample instead of a blind prediction
     ++diagnostics.gap_resets;
     end_chain();
@@ -472,6 +541,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     end_chain();
     restart(false);
   }
+  if (gated > 0 && (gap_reset || bad_start || reject_reset)) gated = 0;
+  if (gated > 0) {
+    z = z_gated;
+    std::copy(gated_mask_.begin(), gated_mask_.end(), mask_.begin());
+    diagnostics.glitches += gated;
+  }
   bool has_state = false, has_cov = false, failed = false;
   int status = infer_once(t, z, x, P, has_state, has_cov, failed);
   bool healthy = !failed && (!has_state || !diverged(x, has_cov ? P : nullptr));
@@ -479,6 +554,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     ++diagnostics.restarts;
     end_chain();
     restart(false);
+    if (gated > 0) {  // the restart starts from this sample's readings, all of them
+      z = z_read;
+      measurement_mask(z);
+    }
     status = infer_once(t, z, x, P, has_state, has_cov, failed);
     if (has_state && diverged(x, has_cov ? P : nullptr)) {
       restart(false);
@@ -493,6 +572,9 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // tendon robot's tensions update the estimate, but nothing read the robot)
   const bool imu_read = s_.imu_blocks.empty() || imu_reading();
   if (status == ST_OK && has_state && !imu_read) status = ST_DROPOUT;
+  // a sample whose IMU readings were all skipped as glitches: inconsistent (the estimate
+  // is the prediction), as one with some of them skipped (below)
+  if (status == ST_DROPOUT && has_state && gated > 0) status = ST_INCONSISTENT;
   // the first estimate since a (re)start fits its one reading alone
   const bool first = has_state && !started_;
   if (has_state) started_ = true;
@@ -528,7 +610,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // nothing about the estimate
     const double* judged = !has_state || !inference_.outlier() ? mask_.data() : zero_mask_.data();
     const bool disagree = consistency_check(t, z, judged, x, P, has_state, has_cov);
-    if (disagree && trusted(status)) status = ST_INCONSISTENT;
+    if ((disagree || gated > 0) && trusted(status)) status = ST_INCONSISTENT;
     // a reading beyond the limit of one sample against the prediction (IMUs without
     // gyros, jump_hold): the estimator moved onto readings its model called impossible,
     // and a burst of wrong readings then agrees with the moved estimate as the robot's
@@ -687,6 +769,15 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       last_state_t_ = t;
       has_last_ = true;
     }
+  }
+  // the gate predicts from an estimate the readings confirmed only: readings far from an
+  // estimate that is not trusted may be right where it is wrong
+  gate_has_ = has_state && has_cov && !failed && status == ST_OK;
+  if (gate_has_) {
+    std::copy(x, x + s_.nx, gate_x_.begin());
+    std::copy(P, P + static_cast<size_t>(s_.nx) * s_.nx, gate_P_.begin());
+    std::copy(z, z + s_.nz, gate_z_.begin());
+    gate_t_ = t;
   }
   out.status = status;
   out.has_state = has_state;

@@ -183,6 +183,13 @@ struct PolicySettings {
   // s: an IMU silent for longer than this (or than the unobserved window, where shorter)
   // no longer observes its part of the shape (observed_now)
   double silent_after = INFINITY;
+  // an IMU's reading whose NIS against the prediction from the previous estimate, where
+  // that was ok, exceeds this many times the one-sample limit (chi-square 99.99 %, times
+  // the model error the readings showed; given the sample's other readings, such as a
+  // tendon robot's tensions) is skipped as a glitch (a dropout of that IMU for the
+  // sample, its row inconsistent); the row after it is not ok, so a second such reading
+  // in a row is taken, as the robot may have moved so; 0: off
+  double glitch_factor = 0.0;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
@@ -190,7 +197,8 @@ struct PolicyDiagnostics {
   int64_t restarts = 0, gap_resets = 0, frozen_samples = 0, bad_starts = 0,
           reject_resets = 0, bound_samples = 0,
           bad_start_chains = 0,  // chains in which the check held a restart back
-          untrusted_start_samples = 0;  // estimates of a start the inference did not trust
+          untrusted_start_samples = 0,  // estimates of a start the inference did not trust
+          glitches = 0;  // IMU readings skipped as glitches (glitch_factor)
   std::vector<std::pair<int, double>> first_freezes;  // (IMU, t), in order
   bool has_failure = false;
   std::string last_failure;
@@ -269,6 +277,17 @@ class SensorHealth {
   double changed_until_ = -INFINITY;  // the change test holds rows drifted until then
   int infer_once(double t, const double* z, double* x, double* P, bool& has_state,
                  bool& has_cov, bool& failed);
+  // ``z`` with the IMU readings that glitch_factor skips as glitches made missing (their
+  // rows zeroed in gated_mask_, a copy of mask_; counted in ``gated``): z itself where
+  // none is
+  const double* gate_glitches(double t, const double* z, int& gated);
+  // the previous sample's estimate where it was ok, its readings and time (gate_glitches)
+  std::vector<double> gate_x_, gate_P_, gate_z_, gated_z_, gated_mask_;
+  double gate_t_ = -INFINITY;
+  bool gate_has_ = false;
+  std::vector<std::vector<int>> gate_sets_;  // scratch: the IMUs' judged rows, their NIS
+  std::vector<int> gate_imus_, gate_given_;
+  std::vector<double> gate_nis_;
 
   PolicySettings s_;
   PolicyInference& inference_;

@@ -1011,6 +1011,11 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
         ([[0.5 * i, 1.0 + 0.001 * i] for i in range(201)], ["t", "tension_1"],
          "its t spans 100 s in steps of 0.5 s, the recording 0.1 s: if t is in "
          "milliseconds, name the column t_ms"),
+        # microseconds in t_ms: the column is already t_ms
+        ([[0.0, 1.0], [20000.0, 1.1], [40000.0, 1.2], [60000.0, 1.3], [80000.0, 1.4],
+          [100000.0, 1.5]], ["t_ms", "tension_1"], "its t_ms spans 100 s in steps of 20 s, "
+         "the recording 0.1 s: if t_ms is in microseconds, give milliseconds; if it is in "
+         "milliseconds, cut the file"),
         ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
          "line 3: column tension_1 is nan (--skip-bad, skip_bad=True in Python, leaves the "
          "row out and interpolates across it)"),

@@ -112,7 +112,9 @@ class Status(str, Enum):
         "sample's normalised residual beyond the chi-square 99.99 % quantile, or beyond "
         "99 % here and at the sample before, or their recent average beyond the 99.9 % "
         "quantile of its F distribution): the model does not follow the data here; the "
-        "standard deviations are widened by the estimated model error (noise_scale)",
+        "standard deviations are widened by the estimated model error (noise_scale); or an "
+        "IMU's reading so far beyond the prediction from the ok estimate before it that it "
+        "was skipped as a glitch (the estimate is the prediction without it)",
     )
 
 
@@ -252,6 +254,10 @@ class Diagnostics:
             (:meth:`~continuum_mhe.estimators.base.Inference.start_untrusted`: a tendon
             robot's first reading that showed a tip load it cannot tell from the IMUs'
             errors), none of them ``ok``.
+        glitches: IMU readings skipped as glitches
+            (:data:`~continuum_mhe.settings.GLITCH_FACTOR`: far beyond the prediction
+            from an ``ok`` estimate), each a dropout of that IMU for its sample, whose
+            row is ``inconsistent``.
     """
 
     restarts: int = 0
@@ -266,6 +272,7 @@ class Diagnostics:
     model_error: float = 0.0
     bad_start_chains: int = 0
     untrusted_start_samples: int = 0
+    glitches: int = 0
 
     def copy(self) -> Diagnostics:
         """An independent copy (later steps do not change it)."""

@@ -30,6 +30,7 @@ __all__ = [
     "FORMULATIONS",
     "FREEZE_MIN_SAMPLES",
     "FREEZE_TOLERANCE",
+    "GLITCH_FACTOR",
     "MHE_LOSSES",
     "MHE_SOLVERS",
     "FormulationName",
@@ -181,6 +182,18 @@ FREEZE_TOLERANCE = 1e-3
 #: (spatial-tendon, tilt, the tip IMU silent from 3 s: 22 mm off at 1.7 standard
 #: deviations after 0.24 s, 72 mm at 3.9 after 0.56 s).
 SILENT_AFTER = 0.2
+#: An IMU's reading whose NIS against the prediction from the previous estimate, where
+#: that estimate was ``ok``, exceeds this many times the one-sample limit (chi-square
+#: 99.99 % for its readings, times the model error the readings showed; given the
+#: sample's other readings, such as a tendon robot's tensions) is skipped as a glitch: a
+#: dropout of that IMU for the sample, whose row is ``inconsistent``. The row after it
+#: is then not ``ok``, so a second such reading in a row is taken, as the robot may have
+#: moved so. A single upside-down raw reading (a serial line's corrupted field) is then
+#: not absorbed into the estimate, where a tendon robot's IMU error states would carry it
+#: for the rest of the recording. Not for tilt readings near the opposite of the
+#: predicted gravity direction, where the linearised prediction widens with the
+#: residual (the tilt residual is singular there).
+GLITCH_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
@@ -234,9 +247,14 @@ class RecoverySettings:
             (``gap_reset``, or 1 s when that is off): a filter linearised on one of
             several shapes that fit the readings narrows around it whether or not it is
             the robot's.
+        glitch: an IMU's reading whose NIS against the prediction from an ``ok``
+            estimate exceeds this many times the one-sample limit is skipped as a
+            glitch (:data:`GLITCH_FACTOR`, the default); not for a robust MHE, whose
+            loss weighs such readings; None: never (command line ``--glitch``, 0).
 
     The defaults are the command line's; :meth:`off` gives the bare estimator (no
-    gap reset, freeze, bad-start or reject reset), as the paper's experiments run it.
+    gap reset, freeze, bad-start check, reject reset or glitch skip), as the paper's
+    experiments run it.
     """
 
     gap_reset: float | None = 1.0
@@ -244,11 +262,12 @@ class RecoverySettings:
     uncertain_fraction: float = 0.1
     bad_start: float | None = 2.0
     reject_reset: float | None = 0.5
-    # last, so that the fields before it keep their positions
+    # last, so that the fields before them keep their positions
     freeze_samples: int = FREEZE_MIN_SAMPLES
+    glitch: float | None = GLITCH_FACTOR
 
     def __post_init__(self) -> None:
-        for name in ("gap_reset", "freeze", "bad_start", "reject_reset"):
+        for name in ("gap_reset", "freeze", "bad_start", "reject_reset", "glitch"):
             value = getattr(self, name)
             if value is not None and value == 0 and not isinstance(value, bool):
                 raise UserError(
@@ -270,6 +289,6 @@ class RecoverySettings:
 
     @classmethod
     def off(cls) -> RecoverySettings:
-        """No gap reset, freeze, bad-start check or reject reset: the estimator as the
-        paper runs it (statuses and the ``uncertain`` threshold stay)."""
-        return cls(gap_reset=None, freeze=None, bad_start=None, reject_reset=None)
+        """No gap reset, freeze, bad-start check, reject reset or glitch skip: the
+        estimator as the paper runs it (statuses and the ``uncertain`` threshold stay)."""
+        return cls(gap_reset=None, freeze=None, bad_start=None, reject_reset=None, glitch=None)

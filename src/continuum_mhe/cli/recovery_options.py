@@ -68,6 +68,17 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         f"sensor, is taken as lost); 0: never (default {RecoverySettings.reject_reset:g})",
     )
     g.add_argument(
+        "--glitch",
+        type=float,
+        default=RecoverySettings.glitch,
+        metavar="FACTOR",
+        help="an IMU's reading whose normalised innovation against the prediction from an "
+        "ok estimate exceeds FACTOR times the chi-square 99.99 %% quantile is skipped as a "
+        "glitch (that IMU's dropout for the sample, the row inconsistent); the next reading "
+        "is taken, as the robot may have moved so; not with --loss; 0: never "
+        f"(default {RecoverySettings.glitch:g})",
+    )
+    g.add_argument(
         "--uncertain-fraction",
         type=float,
         default=RecoverySettings.uncertain_fraction,
@@ -85,6 +96,8 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
         v = getattr(args, name)
         if not (math.isfinite(v) and v >= 0):
             raise InputError(f"--{name.replace('_', '-')} must be >= 0 seconds, got {v}")
+    if not (math.isfinite(args.glitch) and args.glitch >= 0):
+        raise InputError(f"--glitch must be >= 0, got {args.glitch}")
     f = args.uncertain_fraction
     if not (math.isfinite(f) and f > 0):
         raise InputError(f"--uncertain-fraction must be positive, got {f}")
@@ -94,4 +107,5 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
         uncertain_fraction=f,
         bad_start=args.bad_start or None,
         reject_reset=args.reject_reset or None,
+        glitch=args.glitch or None,
     )

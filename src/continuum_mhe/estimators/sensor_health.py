@@ -69,7 +69,11 @@ from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
-from continuum_mhe.settings import FREEZE_TOLERANCE, SILENT_AFTER, RecoverySettings
+from continuum_mhe.settings import (
+    FREEZE_TOLERANCE,
+    SILENT_AFTER,
+    RecoverySettings,
+)
 from continuum_mhe.signals import interrupt_in_chain
 
 #: The unobserved window when the gap reset is off (else the gap reset's time), s: an IMU
@@ -351,6 +355,8 @@ class Estimator(Generic[InferenceT]):
             jump_hold=all(b.kind == "tilt" for b in blocks if b.is_imu),
             freeze_tolerance=list(FREEZE_TOLERANCE * np.sqrt(np.diag(f.meas_cov()))),
             silent_after=SILENT_AFTER,
+            # a robust MHE weighs readings that disagree with its estimate itself
+            glitch_factor=0.0 if self.flags_outliers or r.glitch is None else r.glitch,
             change_rows=change_rows,
             change_scale=list(change.scale) if change is not None else [],
             change_psd=list(change.psd) if change is not None else [],
@@ -408,6 +414,7 @@ class Estimator(Generic[InferenceT]):
         d.bound_samples, d.bad_start_chains = got.bound_samples, got.bad_start_chains
         d.max_noise_scale, d.model_error = got.max_noise_scale, got.model_error
         d.untrusted_start_samples = got.untrusted_start_samples
+        d.glitches = got.glitches
         for k, t in got.first_freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t
         self.inference.sync_counts()

@@ -30,7 +30,7 @@ import os
 import warnings
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -181,6 +181,8 @@ class Tensions:
             zero-order hold), s: ``values`` are linear between the rows where they
             change (0: none found; :func:`~.tension_derivatives.hold_knots`).
         lines: each row's line in its file, for messages (None: rows of no file).
+        time_column: the file's time column, ``t`` (s) or ``t_ms`` (ms, converted to
+            s), for messages about its unit.
     """
 
     name: str
@@ -192,6 +194,7 @@ class Tensions:
     given: FloatArray | None = None
     hold_period_s: float = 0.0
     lines: tuple[int, ...] | None = None
+    time_column: str = "t"
 
     @classmethod
     def from_rows(
@@ -302,10 +305,16 @@ class Tensions:
         # within a millisecond of each end, read in milliseconds (seconds)
         as_ms_covers = self.t[0] / 1e3 <= first + 1e-3 and self.t[-1] / 1e3 >= last - 1e-3
         if span > 100.0 * (last - first) and (step >= 1.0 or as_ms_covers):
+            unit = (
+                "if t_ms is in microseconds, give milliseconds; if it is in milliseconds"
+                if self.time_column == "t_ms"
+                else "if t is in milliseconds, name the column t_ms (it is read in seconds); "
+                "if it is in seconds"
+            )
             raise InputError(
-                f"{self.name}: its t spans {span:g} s in steps of {step:g} s, the recording "
-                f"{last - first:g} s: if t is in milliseconds, name the column t_ms (it is "
-                "read in seconds); if it is in seconds, cut the file to the recording's times"
+                f"{self.name}: its {self.time_column} spans {span:g} s in steps of {step:g} s, "
+                f"the recording {last - first:g} s: {unit}, cut the file to the recording's "
+                "times"
             )
 
     def check_scale(self, robot: Robot) -> None:
@@ -402,9 +411,14 @@ class Tensions:
             return
         step = float(np.median(np.diff(self.t)))
         if step > MS_LIKE_STEP_S:
+            unit = (
+                "if t_ms is in microseconds, give milliseconds"
+                if self.time_column == "t_ms"
+                else "if t is in milliseconds, name the column t_ms (it is read in seconds)"
+            )
             raise InputError(
-                f"{self.name}: its t steps by a median of {step:g} s: if t is in "
-                "milliseconds, name the column t_ms (it is read in seconds); live cannot "
+                f"{self.name}: its {self.time_column} steps by a median of {step:g} s: "
+                f"{unit}; live cannot "
                 "check the tensions' times against a recording before it runs, so rows "
                 f"more than {MS_LIKE_STEP_S:g} s apart are refused here: add rows between "
                 "them (estimate takes the file as it is)"
@@ -563,7 +577,8 @@ def read_tensions(
     # (a negative tension is refused on its line by from_rows)
     # a recording's own columns row by row, as live's TensionStream differenced them
     lines = tuple(int(d[0]) for d in data)
-    return Tensions.from_rows(name, t, values, binned=not other_columns, lines=lines)
+    read = Tensions.from_rows(name, t, values, binned=not other_columns, lines=lines)
+    return replace(read, time_column="t_ms" if rows.time_scale == 1e-3 else "t")
 
 
 def tension_columns_in(path: str | os.PathLike[str]) -> list[str]:

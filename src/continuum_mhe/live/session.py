@@ -1087,6 +1087,11 @@ class LiveSession:
             msg += "; warning: " + beyond_note
         if force_note := self.force.notice():
             msg += "; warning: " + force_note
+        if glitches := self.estimator.diagnostics.glitches:
+            msg += (
+                f"; skipped {glitches} IMU reading(s) far beyond the prediction from the ok "
+                "estimate before them (glitches)"
+            )
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (
                 f"; warning: stopped restarting {chains} time(s) after "

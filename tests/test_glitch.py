@@ -1,0 +1,169 @@
+"""An IMU reading far beyond the prediction from an ``ok`` estimate is skipped as a
+glitch (``RecoverySettings.glitch``, :data:`~continuum_mhe.settings.GLITCH_FACTOR`): the
+row is ``inconsistent``, the estimate is the prediction without that IMU, and the next
+reading is taken, as the robot may have moved so."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.estimators import make_estimator
+from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.settings import RecoverySettings
+from continuum_mhe.simulation.scenarios import simulate
+
+DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
+
+
+def _upside_down_raw(path: Path, out: Path, row: int, imu: int) -> None:
+    """``path`` with IMU ``imu``'s raw reading of data row ``row`` turned upside down
+    (a half turn about its x axis: y and z of the accelerometer and the gyro negated)."""
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    fields = lines[1 + row].split(",")
+    for c in ("ay", "az", "gy", "gz"):
+        k = header.index(f"{c}_{imu}")
+        fields[k] = repr(-float(fields[k]))
+    lines[1 + row] = ",".join(fields)
+    out.write_text("\n".join(lines) + "\n")
+
+
+def _rows(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(t, tip (n, 3), status)`` of an estimate file."""
+    with path.open() as fh:
+        rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
+    t = np.array([float(r["t"]) for r in rows])
+    tip = np.array([[float(r[c]) for c in "xyz"] for r in rows])
+    return t, tip, np.array([r["status"] for r in rows])
+
+
+@pytest.mark.parametrize("glitch", ["10", "0"])
+def test_one_upside_down_raw_reading_does_not_cost_a_tendon_robot_the_recording(
+    tmp_path: Path, glitch: str
+) -> None:
+    """force-29 (raw IMUs, the tendon robot's EKF), IMU 1's reading at 1.2 s upside down.
+    Taken (``--glitch 0``), it moves the IMUs' error states, the estimator restarts on
+    the readings that then disagree, and a restart under load cannot tell the load
+    from those errors: most of the recording is lost (none of it ``ok``). Skipped, the
+    rest is estimated as without it."""
+    tendon = DATA / "tendon"
+    meas = tmp_path / "raw.csv"
+    _upside_down_raw(tendon / "force-29_raw.csv", meas, 60, 1)
+    out = tmp_path / "est.csv"
+    assert (
+        main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
+              str(tendon / "force-29_tensions.csv"), "--glitch", glitch, "-o", str(out)])
+        == 0
+    )  # fmt: skip
+    t, tip, status = _rows(out)
+    with (tendon / "force-29_truth.csv").open() as fh:
+        truth = list(csv.DictReader(fh))
+    true_tip = np.array([[float(r[c]) for c in "xyz"] for r in truth])
+    assert np.allclose([float(r["t"]) for r in truth], t)
+    err = np.linalg.norm(tip - true_tip, axis=1)
+    if glitch == "0":
+        assert np.sum(status == "ok") < 100 and np.mean(err) > 0.02
+    else:
+        assert status[60] == "inconsistent"
+        assert np.sum(status == "ok") >= 395
+        assert np.mean(err) < 2e-3 and np.max(err[status == "ok"]) < 5e-3
+
+
+def _shipped_rod(path: Path) -> tuple[object, np.ndarray, np.ndarray]:
+    """``(formulation, t, z)`` of a two-section rod recording, read as ``estimate``
+    reads it with the defaults (raw IMUs: the direct model with gyro biases)."""
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import open_input
+
+    base = make_formulation("bend", read_robot("two-section"))
+    with open_input(path, InputOptions(), base) as stream:
+        f = stream.formulation
+        blocks = list(stream.blocks)
+    return f, np.concatenate([b[0] for b in blocks]), np.vstack([b[1] for b in blocks])
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_an_upside_down_raw_reading_is_skipped_once(tmp_path: Path, method: str) -> None:
+    """The shipped two-section rod (spatial-tendon, raw IMUs), IMU 2's reading at 4 s
+    upside down: that reading alone is skipped, its row is ``inconsistent``, and the
+    estimates from half a second after it are within a millimetre of the clean
+    recording's."""
+    shipped = DATA / "rod2" / "spatial-tendon_raw.csv"
+    flipped = tmp_path / "flipped.csv"
+    _upside_down_raw(shipped, flipped, 200, 2)
+    f, t, z = _shipped_rod(flipped)
+    est = make_estimator(method, f)  # type: ignore[arg-type]
+    s = est.run(t, z)
+    assert est.diagnostics.glitches == 1
+    assert s.status[200] == "inconsistent"
+    _, _, z_clean = _shipped_rod(shipped)
+    clean = make_estimator(method, f).run(t, z_clean)  # type: ignore[arg-type]
+    after = slice(225, None)
+    gap = np.linalg.norm(
+        np.asarray(s.output)[after, :3] - np.asarray(clean.output)[after, :3], axis=1
+    )
+    assert np.max(gap) < 1e-3
+
+
+def test_a_lasting_jump_is_taken_from_its_second_reading() -> None:
+    """Readings that jump and stay (the roll of paper3d's tilt IMU 1 rad more from 5 s
+    on): the first is skipped, the second taken (the row before it was not ``ok``), and
+    the estimate follows them."""
+    rec = simulate("paper3d", duration=10.0, seed=0)
+    z = rec.z.copy()
+    i = int(np.searchsorted(rec.t, 5.0))
+    z[i:, 0] += 1.0
+    f = make_formulation("bend")
+    est = make_estimator("ekf", f)
+    s = est.run(rec.t, z)
+    assert est.diagnostics.glitches == 1
+    assert s.status[i] == "inconsistent"
+    moved = make_estimator("ekf", f, recovery=RecoverySettings(glitch=None)).run(rec.t, z)
+    # one sample later than the estimator that takes the jump, the same estimates
+    late = rec.t >= 7.0
+    np.testing.assert_allclose(
+        np.asarray(s.output)[late, :3], np.asarray(moved.output)[late, :3], atol=1e-4
+    )
+
+
+@pytest.mark.parametrize("kind", ["raw", "tilt"])
+def test_no_reading_of_the_shipped_rods_is_a_glitch(kind: str) -> None:
+    """The shipped two-section rod recordings (model errors, restarts and all): the EKF
+    skips none of their readings."""
+    for name in ("planar-s", "spatial-tendon", "spatial-stiff-torsion"):
+        f, t, z = _shipped_rod(DATA / "rod2" / f"{name}_{kind}.csv")
+        est = make_estimator("ekf", f)  # type: ignore[arg-type]
+        est.run(t, z)
+        assert est.diagnostics.glitches == 0, name
+
+
+def test_glitch_off_and_a_robust_loss_skip_nothing() -> None:
+    """``RecoverySettings(glitch=None)`` (``--glitch 0``) and a robust MHE (its loss
+    weighs such readings) take every reading; 0 is refused (None means never)."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.settings import MHESettings
+
+    rec = simulate("paper3d", duration=4.0, seed=1)
+    z = rec.z.copy()
+    z[40, 0] += -math.pi if z[40, 0] > 0 else math.pi  # upside down
+    f = make_formulation("bend")
+    off = make_estimator("ekf", f, recovery=RecoverySettings(glitch=None))
+    off.run(rec.t, z)
+    robust = make_estimator("mhe", f, MHESettings(loss="huber"))
+    robust.run(rec.t, z)
+    on = make_estimator("ekf", f)
+    on.run(rec.t, z)
+    assert (off.diagnostics.glitches, robust.diagnostics.glitches, on.diagnostics.glitches) == (
+        0,
+        0,
+        1,
+    )
+    with pytest.raises(UserError, match="glitch"):
+        RecoverySettings(glitch=0.0)
