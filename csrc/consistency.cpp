@@ -1,5 +1,7 @@
 #include "consistency.hpp"
 
+#include <cstring>
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -81,6 +83,7 @@ ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
   dt_.resize(1);
   fF_.resize(nx + nx * nx);
   Hr_.resize(nz * nx + nz);
+  pred_Hr_.resize(nz * nx + nz);
   r_.resize(nz);
   x0_.resize(nx);
   P0_.resize(nx * nx);
@@ -237,17 +240,39 @@ double ConsistencyCheck::shift_to_fit(const double* x, const double* P, const do
   return d.dot(pinv_symmetric(Pc, s_.rcond) * d);
 }
 
+void ConsistencyCheck::predict(const double* x0, const double* P0, double dt, const double* z,
+                               const double* mask, const double* u, const double* Q) {
+  const int nx = s_.nx, nz = s_.nz, nu = s_.nu;
+  set_readings(z, mask);
+  const size_t size = static_cast<size_t>(nx) * (1 + 2 * nx) + 1 + nu + nz;
+  key_.resize(size);
+  double* k = key_.data();
+  k = std::copy(x0, x0 + nx, k);
+  k = std::copy(P0, P0 + nx * nx, k);
+  *k++ = dt;
+  if (nu) k = std::copy(u, u + nu, k);
+  k = std::copy(Q, Q + nx * nx, k);
+  std::copy(zv_.begin(), zv_.end(), k);
+  if (has_pred_ && pred_key_.size() == size &&
+      std::memcmp(pred_key_.data(), key_.data(), size * sizeof(double)) == 0)
+    return;
+  evaluate(transition_, x0, u, dt, fF_.data());                // x+ = f(x0, u, dt), F
+  evaluate(measurement_, fF_.data(), u, dt, pred_Hr_.data());  // H and r at x+
+  ConstRowMap F(fF_.data() + nx, nx, nx), P(P0, nx, nx), Qm(Q, nx, nx);
+  Pn_.noalias() = F * P * F.transpose();
+  Pn_ += Qm;
+  pred_key_.swap(key_);
+  has_pred_ = true;
+}
+
 double ConsistencyCheck::predicted_nis(const double* x0, const double* P0, double dt,
                                        const double* z, const double* mask, const double* u,
                                        const double* Q, const std::vector<int>& rows) {
   const int nx = s_.nx, nz = s_.nz, dof = static_cast<int>(rows.size());
-  set_readings(z, mask);
-  evaluate(transition_, x0, u, dt, fF_.data());      // x+ = f(x0, u, dt), F
-  evaluate(measurement_, fF_.data(), u, dt, Hr_.data());  // H and r at x+
-  ConstRowMap F(fF_.data() + nx, nx, nx), P(P0, nx, nx), Qm(Q, nx, nx);
-  ConstRowMap H(Hr_.data(), nz, nx);
-  const double* r_pred = Hr_.data() + nz * nx;
-  const RowMatrix Pn = F * P * F.transpose() + Qm;
+  predict(x0, P0, dt, z, mask, u, Q);
+  ConstRowMap H(pred_Hr_.data(), nz, nx);
+  const double* r_pred = pred_Hr_.data() + nz * nx;
+  const RowMatrix& Pn = Pn_;
   RowMatrix Hj(dof, nx);
   Eigen::VectorXd rp(dof);
   for (int a = 0; a < dof; ++a) {
@@ -270,13 +295,10 @@ void ConsistencyCheck::predicted_nis_given(const double* x0, const double* P0, d
   const int nx = s_.nx, nz = s_.nz;
   out.assign(sets.size(), 0.0);
   if (sets.empty()) return;
-  set_readings(z, mask);
-  evaluate(transition_, x0, u, dt, fF_.data());
-  evaluate(measurement_, fF_.data(), u, dt, Hr_.data());
-  ConstRowMap F(fF_.data() + nx, nx, nx), P(P0, nx, nx), Qm(Q, nx, nx);
-  ConstRowMap H(Hr_.data(), nz, nx);
-  const double* r_pred = Hr_.data() + nz * nx;
-  const RowMatrix Pn = F * P * F.transpose() + Qm;
+  predict(x0, P0, dt, z, mask, u, Q);
+  ConstRowMap H(pred_Hr_.data(), nz, nx);
+  const double* r_pred = pred_Hr_.data() + nz * nx;
+  const RowMatrix& Pn = Pn_;
   // the innovation covariance and residual over rows ``a`` (rows) against rows ``b``
   auto block = [&](const std::vector<int>& a, const std::vector<int>& b) {
     RowMatrix Ha(a.size(), nx), Hb(b.size(), nx);
