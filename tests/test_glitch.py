@@ -44,7 +44,17 @@ def _rows(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, tip, np.array([r["status"] for r in rows])
 
 
-@pytest.mark.parametrize("glitch", ["10", "0"])
+def _gyro_spike(path: Path, out: Path, row: int) -> None:
+    """``path`` with 1 rad/s added to ``gx_1`` of data row ``row``."""
+    lines = path.read_text().splitlines()
+    k = lines[0].split(",").index("gx_1")
+    fields = lines[1 + row].split(",")
+    fields[k] = repr(float(fields[k]) + 1.0)
+    lines[1 + row] = ",".join(fields)
+    out.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("glitch", ["3", "0"])
 def test_one_upside_down_raw_reading_does_not_cost_a_tendon_robot_the_recording(
     tmp_path: Path, glitch: str
 ) -> None:
@@ -74,6 +84,38 @@ def test_one_upside_down_raw_reading_does_not_cost_a_tendon_robot_the_recording(
         assert status[60] == "inconsistent"
         assert np.sum(status == "ok") >= 395
         assert np.mean(err) < 2e-3 and np.max(err[status == "ok"]) < 5e-3
+
+
+@pytest.mark.parametrize("glitch", ["3", "0"])
+def test_one_gyro_spike_leaves_no_ok_row_far_off_on_a_tendon_robot(
+    tmp_path: Path, glitch: str
+) -> None:
+    """force-29 (raw IMUs, the EKF), 1 rad/s added to one reading of IMU 1's x gyro at
+    3 s. Taken, it moves the IMUs' error states and the estimate: rows 20 mm and 3 of
+    their standard deviations off say ``ok``. Skipped, none does."""
+    tendon = DATA / "tendon"
+    meas = tmp_path / "raw.csv"
+    _gyro_spike(tendon / "force-29_raw.csv", meas, 150)
+    out = tmp_path / "est.csv"
+    assert (
+        main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
+              str(tendon / "force-29_tensions.csv"), "--glitch", glitch, "-o", str(out)])
+        == 0
+    )  # fmt: skip
+    t, tip, status = _rows(out)
+    with (tendon / "force-29_truth.csv").open() as fh:
+        truth = list(csv.DictReader(fh))
+    true_tip = np.array([[float(r[c]) for c in "xyz"] for r in truth])
+    with out.open() as fh:
+        rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
+    std = np.array([math.hypot(*(float(r[f"std_{c}"]) for c in "xyz")) for r in rows])
+    err = np.linalg.norm(tip - true_tip, axis=1)
+    far_ok = (status == "ok") & (err > 0.02) & (err > 3 * std)
+    if glitch == "0":
+        assert far_ok.sum() > 10
+    else:
+        assert status[150] == "inconsistent" and not far_ok.any()
+        assert np.max(err[status == "ok"]) < 5e-3
 
 
 def _shipped_rod(path: Path) -> tuple[object, np.ndarray, np.ndarray]:
