@@ -35,13 +35,27 @@ def _upside_down_raw(path: Path, out: Path, row: int, imu: int) -> None:
     out.write_text("\n".join(lines) + "\n")
 
 
-def _rows(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(t, tip (n, 3), status)`` of an estimate file."""
-    with path.open() as fh:
+def _force29(tmp_path: Path, meas: Path, glitch: str) -> tuple[np.ndarray, ...]:
+    """``estimate`` of the tendon robot's recording ``meas`` (force-29's raw readings, a
+    fault in them) with its tensions and ``--glitch glitch``: ``(status, tip error m,
+    tip std m)`` per row, the error against force-29's truth."""
+    tendon = DATA / "tendon"
+    out = tmp_path / "est.csv"
+    assert (
+        main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
+              str(tendon / "force-29_tensions.csv"), "--glitch", glitch, "-o", str(out)])
+        == 0
+    )  # fmt: skip
+    with out.open() as fh:
         rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
-    t = np.array([float(r["t"]) for r in rows])
+    with (tendon / "force-29_truth.csv").open() as fh:
+        truth = list(csv.DictReader(fh))
+    assert np.allclose([float(r["t"]) for r in truth], [float(r["t"]) for r in rows])
     tip = np.array([[float(r[c]) for c in "xyz"] for r in rows])
-    return t, tip, np.array([r["status"] for r in rows])
+    true_tip = np.array([[float(r[c]) for c in "xyz"] for r in truth])
+    std = np.array([math.hypot(*(float(r[f"std_{c}"]) for c in "xyz")) for r in rows])
+    status = np.array([r["status"] for r in rows])
+    return status, np.linalg.norm(tip - true_tip, axis=1), std
 
 
 def _gyro_spike(path: Path, out: Path, row: int) -> None:
@@ -63,21 +77,9 @@ def test_one_upside_down_raw_reading_does_not_cost_a_tendon_robot_the_recording(
     the readings that then disagree, and a restart under load cannot tell the load
     from those errors: most of the recording is lost (none of it ``ok``). Skipped, the
     rest is estimated as without it."""
-    tendon = DATA / "tendon"
     meas = tmp_path / "raw.csv"
-    _upside_down_raw(tendon / "force-29_raw.csv", meas, 60, 1)
-    out = tmp_path / "est.csv"
-    assert (
-        main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
-              str(tendon / "force-29_tensions.csv"), "--glitch", glitch, "-o", str(out)])
-        == 0
-    )  # fmt: skip
-    t, tip, status = _rows(out)
-    with (tendon / "force-29_truth.csv").open() as fh:
-        truth = list(csv.DictReader(fh))
-    true_tip = np.array([[float(r[c]) for c in "xyz"] for r in truth])
-    assert np.allclose([float(r["t"]) for r in truth], t)
-    err = np.linalg.norm(tip - true_tip, axis=1)
+    _upside_down_raw(DATA / "tendon" / "force-29_raw.csv", meas, 60, 1)
+    status, err, _ = _force29(tmp_path, meas, glitch)
     if glitch == "0":
         assert np.sum(status == "ok") < 100 and np.mean(err) > 0.02
     else:
@@ -93,23 +95,9 @@ def test_one_gyro_spike_leaves_no_ok_row_far_off_on_a_tendon_robot(
     """force-29 (raw IMUs, the EKF), 1 rad/s added to one reading of IMU 1's x gyro at
     3 s. Taken, it moves the IMUs' error states and the estimate: rows 20 mm and 3 of
     their standard deviations off say ``ok``. Skipped, none does."""
-    tendon = DATA / "tendon"
     meas = tmp_path / "raw.csv"
-    _gyro_spike(tendon / "force-29_raw.csv", meas, 150)
-    out = tmp_path / "est.csv"
-    assert (
-        main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
-              str(tendon / "force-29_tensions.csv"), "--glitch", glitch, "-o", str(out)])
-        == 0
-    )  # fmt: skip
-    t, tip, status = _rows(out)
-    with (tendon / "force-29_truth.csv").open() as fh:
-        truth = list(csv.DictReader(fh))
-    true_tip = np.array([[float(r[c]) for c in "xyz"] for r in truth])
-    with out.open() as fh:
-        rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
-    std = np.array([math.hypot(*(float(r[f"std_{c}"]) for c in "xyz")) for r in rows])
-    err = np.linalg.norm(tip - true_tip, axis=1)
+    _gyro_spike(DATA / "tendon" / "force-29_raw.csv", meas, 150)
+    status, err, std = _force29(tmp_path, meas, glitch)
     far_ok = (status == "ok") & (err > 0.02) & (err > 3 * std)
     if glitch == "0":
         assert far_ok.sum() > 10
