@@ -1103,3 +1103,20 @@ def test_a_stream_that_ends_in_tilt_degrees_is_found_without_the_stop(
         assert s.fatal is not None and "degrees given for radians?" in s.fatal
     else:
         assert s.fatal is None and s.counts.garbled == garbled
+
+
+def test_a_glitch_is_skipped_and_said_in_the_summary() -> None:
+    """One tilt line whose roll is 1 rad off between steady ones: the session skips it
+    as a glitch (its row inconsistent, the estimates after it as before) and its summary
+    counts it."""
+    out = io.StringIO()
+    s, _ = _session(out=out)
+    now = time.monotonic()
+    noise = np.random.default_rng(0).normal(0.0, 0.01, (200, 2))  # not a frozen IMU
+    for i in range(200):
+        roll = 0.1 + noise[i, 0] + (1.0 if i == 150 else 0.0)
+        s.handle_line(f"{10 * i},{roll},{0.1 + noise[i, 1]}".encode(), now + 0.01 * i)
+    rows = [r.split(",") for r in out.getvalue().splitlines()[1:]]
+    assert rows[150][-2] == "inconsistent" and rows[151][-2] == "ok"
+    assert s.estimator.diagnostics.glitches == 1
+    assert "skipped 1 IMU reading(s) far beyond the prediction" in s.summary()
