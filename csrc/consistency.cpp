@@ -291,13 +291,23 @@ void ConsistencyCheck::predicted_nis_given(const double* x0, const double* P0, d
                                            const double* Q,
                                            const std::vector<std::vector<int>>& sets,
                                            const std::vector<int>& given,
-                                           std::vector<double>& out) {
+                                           std::vector<double>& out,
+                                           std::vector<double>* whitened,
+                                           const double* z_jac) {
   const int nx = s_.nx, nz = s_.nz;
   out.assign(sets.size(), 0.0);
+  if (whitened) whitened->assign(sets.size(), 0.0);
   if (sets.empty()) return;
   predict(x0, P0, dt, z, mask, u, Q);
-  ConstRowMap H(pred_Hr_.data(), nz, nx);
   const double* r_pred = pred_Hr_.data() + nz * nx;
+  const double* jac = pred_Hr_.data();
+  if (z_jac) {
+    set_readings(z_jac, mask);
+    jac_Hr_.resize(pred_Hr_.size());
+    evaluate(measurement_, fF_.data(), u, dt, jac_Hr_.data());
+    jac = jac_Hr_.data();
+  }
+  ConstRowMap H(jac, nz, nx);
   const RowMatrix& Pn = Pn_;
   // the innovation covariance and residual over rows ``a`` (rows) against rows ``b``
   auto block = [&](const std::vector<int>& a, const std::vector<int>& b) {
@@ -325,6 +335,12 @@ void ConsistencyCheck::predicted_nis_given(const double* x0, const double* P0, d
     const std::vector<int>& a = sets[k];
     RowMatrix Saa = block(a, a);
     Eigen::VectorXd ra = residual(a);
+    if (whitened) {
+      RowMatrix Ra(a.size(), a.size());
+      for (size_t i = 0; i < a.size(); ++i)
+        for (size_t j = 0; j < a.size(); ++j) Ra(i, j) = s_.R[a[i] * nz + a[j]];
+      (*whitened)[k] = ra.dot(Ra.partialPivLu().solve(ra));
+    }
     if (conditioned) {  // the innovation of a given that of ``given``
       const RowMatrix Sag = block(a, given);
       ra -= Sag * lu_g.solve(rg);

@@ -94,10 +94,17 @@ class ConsistencyCheck {
   // ``given`` of the same sample (the innovation's distribution conditioned on theirs: a
   // tendon robot's tensions and tip condition, which pin states the motion model leaves
   // free); into ``out`` (one per set). One evaluation of the model for all of them.
+  // ``whitened`` (or null): each set's ``r^T R^-1 r`` at the prediction, without its
+  // covariance. ``z_jac`` (or null): the readings at which the Jacobian is taken (the
+  // residual stays ``z``'s): a residual whose linearisation widens with it, as the tilt
+  // residual's near the opposite gravity direction, is judged with the Jacobian at the
+  // readings before (another evaluation of the model).
   void predicted_nis_given(const double* x0, const double* P0, double dt, const double* z,
                            const double* mask, const double* u, const double* Q,
                            const std::vector<std::vector<int>>& sets,
-                           const std::vector<int>& given, std::vector<double>& out);
+                           const std::vector<int>& given, std::vector<double>& out,
+                           std::vector<double>* whitened = nullptr,
+                           const double* z_jac = nullptr);
   // ``A B A^T`` (nx x nx, into ``out``) at ``x``: the covariance from the readings'
   // constant errors and the model error (the one learned so far, at least the floor),
   // ``A = (H^T R^-1 H + diag(range_info))^+ H^T R^-1``
@@ -148,6 +155,7 @@ class ConsistencyCheck {
                const double* mask, const double* u, const double* Q);
   std::vector<double> pred_key_, key_;  // x0, P0, dt, u, Q, zv of the prediction kept
   std::vector<double> pred_Hr_;         // H and r at the prediction kept
+  std::vector<double> jac_Hr_;          // H at the prediction and other readings
   bool has_pred_ = false;
   RowMatrix Pn_;
 

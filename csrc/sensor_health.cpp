@@ -374,8 +374,31 @@ const double* SensorHealth::gate_glitches(double t, const double* z, int& gated)
   const double* u = process_.inputs(gate_z_.data(), z, dt);
   const double* Q = process_.noise(dt).first;
   consistency_.predicted_nis_given(gate_x_.data(), gate_P_.data(), dt, z, mask_.data(), u, Q,
-                                   gate_sets_, gate_given_, gate_nis_);
+                                   gate_sets_, gate_given_, gate_nis_, &gate_whitened_);
   const double scale = std::max(1.0, consistency_.noise_scale());
+  // a reading far from the prediction by its noise alone whose linearised prediction
+  // widens as far (the tilt residual near the opposite gravity direction, where both
+  // grow without bound): judged again with the Jacobian at the IMU's readings before,
+  // where it agreed with the estimate
+  std::vector<int> again;
+  for (size_t k = 0; k < gate_sets_.size(); ++k) {
+    const double limit = s_.glitch_factor * consistency_.settings().limit[gate_sets_[k].size()] * scale;
+    bool before = true;
+    for (int i : gate_sets_[k]) before = before && std::isfinite(gate_z_[i]);
+    if (gate_nis_[k] <= limit && gate_whitened_[k] > limit && before) again.push_back(static_cast<int>(k));
+  }
+  if (!again.empty()) {
+    std::vector<std::vector<int>> sets;
+    std::copy(z, z + s_.nz, gated_z_.begin());  // scratch: z with those IMUs' readings before
+    for (int k : again) {
+      sets.push_back(gate_sets_[k]);
+      for (int i : gate_sets_[k]) gated_z_[i] = gate_z_[i];
+    }
+    std::vector<double> nis;
+    consistency_.predicted_nis_given(gate_x_.data(), gate_P_.data(), dt, z, mask_.data(), u, Q,
+                                     sets, gate_given_, nis, nullptr, gated_z_.data());
+    for (size_t j = 0; j < again.size(); ++j) gate_nis_[again[j]] = std::max(gate_nis_[again[j]], nis[j]);
+  }
   const double* out = z;
   for (size_t k = 0; k < gate_sets_.size(); ++k) {
     const int b = gate_imus_[k];

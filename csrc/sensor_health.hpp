@@ -188,7 +188,9 @@ struct PolicySettings {
   // the model error the readings showed; given the sample's other readings, such as a
   // tendon robot's tensions) is skipped as a glitch (a dropout of that IMU for the
   // sample, its row inconsistent); the row after it is not ok, so a second such reading
-  // in a row is taken, as the robot may have moved so; 0: off
+  // in a row is taken, as the robot may have moved so. A reading whose whitened residual
+  // alone is beyond the limit is judged with the Jacobian at the IMU's reading before
+  // as well (a tilt reading near the opposite gravity direction); 0: off
   double glitch_factor = 0.0;
 };
 
@@ -287,7 +289,7 @@ class SensorHealth {
   bool gate_has_ = false;
   std::vector<std::vector<int>> gate_sets_;  // scratch: the IMUs' judged rows, their NIS
   std::vector<int> gate_imus_, gate_given_;
-  std::vector<double> gate_nis_;
+  std::vector<double> gate_nis_, gate_whitened_;
 
   PolicySettings s_;
   PolicyInference& inference_;

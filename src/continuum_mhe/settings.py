@@ -190,9 +190,10 @@ SILENT_AFTER = 0.2
 #: is then not ``ok``, so a second such reading in a row is taken, as the robot may have
 #: moved so. A single upside-down raw reading (a serial line's corrupted field) is then
 #: not absorbed into the estimate, where a tendon robot's IMU error states would carry it
-#: for the rest of the recording. Not for tilt readings near the opposite of the
-#: predicted gravity direction, where the linearised prediction widens with the
-#: residual (the tilt residual is singular there). At 3 no reading of the shipped
+#: for the rest of the recording. A tilt reading near the opposite of the predicted
+#: gravity direction, where the tilt residual and its linearised prediction grow
+#: together, is judged again with the Jacobian at the IMU's reading before, where the
+#: reading's whitened residual alone is beyond the limit. At 3 no reading of the shipped
 #: two-section rod and tendon recordings is skipped (a few are at 1), and a single
 #: 1 rad/s spike in one gyro reading of a tendon robot is (taken, it left ``ok`` rows
 #: 20 mm and 3 standard deviations off).
