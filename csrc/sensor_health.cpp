@@ -99,6 +99,9 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   gate_z_.resize(s_.nz);
   gated_z_.resize(s_.nz);
   gated_mask_.resize(s_.nz);
+  imu_row_.assign(static_cast<size_t>(s_.nz), 0);
+  for (const auto& [start, size] : s_.imu_blocks)
+    for (int i = start; i < start + size; ++i) imu_row_[i] = 1;
   z_.resize(s_.nz);
   mask_.resize(s_.nz);
   zero_mask_.assign(s_.nz, 0.0);
@@ -353,14 +356,11 @@ const double* SensorHealth::gate_glitches(double t, const double* z, int& gated)
   // tensions and tip condition) that its prediction is conditioned on
   gate_sets_.clear();
   gate_imus_.clear();
-  std::vector<char> in_imu(static_cast<size_t>(s_.nz), 0);
   for (size_t b = 0; b < s_.imu_blocks.size(); ++b) {
     const auto [start, size] = s_.imu_blocks[b];
     std::vector<int> rows;
-    for (int i = start; i < start + size; ++i) {
-      in_imu[i] = 1;
+    for (int i = start; i < start + size; ++i)
       if (mask_[i] > 0.0 && judged[i] != 0.0) rows.push_back(i);
-    }
     if (!rows.empty()) {
       gate_sets_.push_back(std::move(rows));
       gate_imus_.push_back(static_cast<int>(b));
@@ -369,7 +369,7 @@ const double* SensorHealth::gate_glitches(double t, const double* z, int& gated)
   if (gate_sets_.empty()) return z;
   gate_given_.clear();
   for (int i = 0; i < s_.nz; ++i)
-    if (!in_imu[i] && mask_[i] > 0.0) gate_given_.push_back(i);
+    if (!imu_row_[i] && mask_[i] > 0.0) gate_given_.push_back(i);
   const double dt = t - gate_t_;
   const double* u = process_.inputs(gate_z_.data(), z, dt);
   const double* Q = process_.noise(dt).first;

@@ -289,6 +289,7 @@ class SensorHealth {
   bool gate_has_ = false;
   std::vector<std::vector<int>> gate_sets_;  // scratch: the IMUs' judged rows, their NIS
   std::vector<int> gate_imus_, gate_given_;
+  std::vector<char> imu_row_;  // 1 on the rows of an IMU's block
   std::vector<double> gate_nis_, gate_whitened_;
 
   PolicySettings s_;
