@@ -187,8 +187,8 @@ struct PolicySettings {
   // that was ok, exceeds this many times the one-sample limit (chi-square 99.99 %, times
   // the model error the readings showed; given the sample's other readings, such as a
   // tendon robot's tensions) is skipped as a glitch (a dropout of that IMU for the
-  // sample, its row inconsistent); the row after it is not ok, so a second such reading
-  // in a row is taken, as the robot may have moved so. A reading whose whitened residual
+  // sample, its row inconsistent); that row is not ok, so the next reading is taken
+  // whatever it is (a second such reading in a row: the robot may have moved so). A reading whose whitened residual
   // alone is beyond the limit is judged with the Jacobian at the IMU's reading before
   // as well (a tilt reading near the opposite gravity direction); 0: off
   double glitch_factor = 0.0;

@@ -186,17 +186,17 @@ SILENT_AFTER = 0.2
 #: that estimate was ``ok``, exceeds this many times the one-sample limit (chi-square
 #: 99.99 % for its readings, times the model error the readings showed; given the
 #: sample's other readings, such as a tendon robot's tensions) is skipped as a glitch: a
-#: dropout of that IMU for the sample, whose row is ``inconsistent``. The row after it
-#: is then not ``ok``, so a second such reading in a row is taken, as the robot may have
-#: moved so. A single upside-down raw reading (a serial line's corrupted field) is then
-#: not absorbed into the estimate, where a tendon robot's IMU error states would carry it
-#: for the rest of the recording. A tilt reading near the opposite of the predicted
-#: gravity direction, where the tilt residual and its linearised prediction grow
-#: together, is judged again with the Jacobian at the IMU's reading before, where the
-#: reading's whitened residual alone is beyond the limit. At 3 no reading of the shipped
-#: two-section rod and tendon recordings is skipped (a few are at 1), and a single
-#: 1 rad/s spike in one gyro reading of a tendon robot is (taken, it left ``ok`` rows
-#: 20 mm and 3 standard deviations off).
+#: dropout of that IMU for the sample, whose row is ``inconsistent``. That row is not
+#: ``ok``, so the next reading is taken whatever it is: a second such reading in a row
+#: is followed, as the robot may have moved so. A single upside-down raw reading (a
+#: serial line's corrupted field) is then not absorbed into the estimate, where a tendon
+#: robot's IMU error states would carry it for the rest of the recording. A tilt reading
+#: near the opposite of the predicted gravity direction, where the tilt residual and its
+#: linearised prediction grow together, is judged again with the Jacobian at the IMU's
+#: reading before, where the reading's whitened residual alone is beyond the limit. At 3
+#: no reading of the shipped two-section rod and tendon recordings is skipped (a few are
+#: at 1), and a single 1 rad/s spike in one gyro reading of a tendon robot is (taken, it
+#: left ``ok`` rows 20 mm and 3 standard deviations off).
 GLITCH_FACTOR = 3.0
 
 
