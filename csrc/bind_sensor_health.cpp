@@ -520,7 +520,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
       .def_ro("untrusted_start_samples", &PolicyDiagnostics::untrusted_start_samples,
               "Estimates of a start the inference did not trust (none of them ok).")
       .def_ro("glitches", &PolicyDiagnostics::glitches,
-              "IMU readings skipped as glitches (far beyond the prediction, alone).");
+              "IMU readings skipped as glitches (far beyond the prediction from an ok "
+              "estimate).");
 
   nb::class_<StateChecks>(
       m, "StateChecks",
@@ -742,7 +743,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "freeze's first one and still repeat it; ``silent_after`` (s): an IMU silent for "
           "longer no longer observes its part of the shape (inf: the unobserved window); "
           "``glitch_factor``: an IMU's reading beyond this many times the one-sample limit "
-          "against the prediction, its reading before not so, is skipped as a glitch (0: off).")
+          "against the prediction from an ok estimate is skipped as a glitch (0: off).")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

@@ -533,7 +533,8 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   const bool observed = observed_now(t);
   // the glitches are judged against the estimate before any restart below, and skipped
   // only where none happens (a restart starts from this sample's readings); the
-  // bad-start check counts them among the readings that disagree with a start
+  // bad-start check counts them among the readings that disagree with a start, and the
+  // silence tracking above as readings (an IMU that sent one reported)
   int gated = 0;
   const double* z_read = z;
   const double* z_gated = gate_glitches(t, z, gated);
@@ -578,6 +579,8 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     end_chain();
     restart(false);
     if (gated > 0) {  // the restart starts from this sample's readings, all of them
+      diagnostics.glitches -= gated;
+      gated = 0;
       z = z_read;
       measurement_mask(z);
     }

@@ -255,3 +255,16 @@ def test_an_upside_down_tilt_reading_on_a_tendon_robot_is_skipped(tmp_path: Path
             statuses[name] = np.array([r["status"] for r in rows])
     differ = np.flatnonzero(statuses["flipped"] != statuses["clean"])
     assert list(differ) == [60] and statuses["flipped"][60] == "inconsistent"
+
+
+def test_glitch_with_a_robust_loss_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--glitch`` with ``--loss``: the robust MHE weighs such readings itself, so the
+    option would do nothing; one line says so, exit 2, nothing written."""
+    out = tmp_path / "o.csv"
+    rc = main(["estimate", str(DATA / "rod2" / "planar-s_tilt.csv"), "--robot", "two-section",
+               "--method", "mhe", "--loss", "huber", "--glitch", "5", "-o", str(out)])  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and not out.exists()
+    assert len(err) == 1 and "--glitch does not apply with --loss huber" in err[0]

@@ -257,7 +257,7 @@ class Diagnostics:
         glitches: IMU readings skipped as glitches
             (:data:`~continuum_mhe.settings.GLITCH_FACTOR`: far beyond the prediction
             from an ``ok`` estimate), each a dropout of that IMU for its sample, whose
-            row is ``inconsistent``.
+            row is not ``ok`` (``inconsistent`` unless another status applies).
     """
 
     restarts: int = 0

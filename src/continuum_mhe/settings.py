@@ -185,9 +185,10 @@ SILENT_AFTER = 0.2
 #: An IMU's reading whose NIS against the prediction from the previous estimate, where
 #: that estimate was ``ok``, exceeds this many times the one-sample limit (chi-square
 #: 99.99 % for its readings, times the model error the readings showed; given the
-#: sample's other readings, such as a tendon robot's tensions) is skipped as a glitch: a
-#: dropout of that IMU for the sample, whose row is ``inconsistent``. That row is not
-#: ``ok``, so the next reading is taken whatever it is: a second such reading in a row
+#: sample's readings that are not an IMU's, such as a tendon robot's tensions and tip
+#: condition) is skipped as a glitch: a dropout of that IMU for the sample, whose row is
+#: not ``ok`` (``inconsistent`` unless another status applies). So the next reading is
+#: taken whatever it is: a second such reading in a row
 #: is followed, as the robot may have moved so. A single upside-down raw reading (a
 #: serial line's corrupted field) is then not absorbed into the estimate, where a tendon
 #: robot's IMU error states would carry it for the rest of the recording. A tilt reading
@@ -252,9 +253,11 @@ class RecoverySettings:
             several shapes that fit the readings narrows around it whether or not it is
             the robot's.
         glitch: an IMU's reading whose NIS against the prediction from an ``ok``
-            estimate exceeds this many times the one-sample limit is skipped as a
-            glitch (:data:`GLITCH_FACTOR`, the default); not for a robust MHE, whose
-            loss weighs such readings; None: never (command line ``--glitch``, 0).
+            estimate exceeds this many times the one-sample limit (times the model error
+            the readings showed) is skipped as a glitch (:data:`GLITCH_FACTOR`, the
+            default); not for a robust MHE, whose loss weighs such readings, nor for the
+            ``paper`` formulation, which has no consistency check; None: never (command
+            line ``--glitch``, 0).
 
     The defaults are the command line's; :meth:`off` gives the bare estimator (no
     gap reset, freeze, bad-start check, reject reset or glitch skip), as the paper's

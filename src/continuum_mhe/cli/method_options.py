@@ -168,9 +168,10 @@ def _refuse_mhe_options(
 
 def _refuse_outlier_options(args: argparse.Namespace, method: str) -> None:
     """One line for a recovery option typed on the command line that the estimator
-    ``method`` with its cost makes do nothing: ``--bad-start`` for a robust MHE (it
-    rejects inconsistent readings instead), ``--reject-reset`` for any other estimator
-    (nothing is rejected). The loss may come from an options file (named)."""
+    ``method`` with its cost makes do nothing: ``--bad-start`` and ``--glitch`` for a
+    robust MHE (it rejects inconsistent readings instead), ``--reject-reset`` for any
+    other estimator (nothing is rejected). The loss may come from an options file
+    (named)."""
     given = given_options(args)
     loss = getattr(args, "loss", "l2")
     named = getattr(args, "config_sources", {}).get("loss") or f"--loss {loss}"
@@ -179,6 +180,11 @@ def _refuse_outlier_options(args: argparse.Namespace, method: str) -> None:
             f"--bad-start does not apply with {named} (the robust MHE rejects readings "
             "inconsistent with its estimate instead of restarting on them; --reject-reset "
             "restarts it after it rejected every reading for that long)"
+        )
+    if "glitch" in given and method == "mhe" and loss != "l2":
+        raise InputError(
+            f"--glitch does not apply with {named} (the robust MHE weighs readings far from "
+            "its estimate by its loss instead of skipping them)"
         )
     if "reject_reset" in given and (method != "mhe" or loss == "l2"):
         which = f"the {method}" if method != "mhe" else "the MHE with the l2 cost"
