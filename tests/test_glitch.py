@@ -268,3 +268,19 @@ def test_glitch_with_a_robust_loss_is_refused_in_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and not out.exists()
     assert len(err) == 1 and "--glitch does not apply with --loss huber" in err[0]
+
+
+@pytest.mark.parametrize("method", ["ekf", "mhe"])
+def test_where_nothing_is_skipped_the_estimates_are_those_without_the_test(method: str) -> None:
+    """The shipped spatial-tendon rod (raw IMUs), where no reading is skipped: every
+    estimate, standard deviation and status equals, bit for bit, those of a run without
+    the glitch test (the consistency check's prediction, kept for the same inputs, is the
+    one it would compute)."""
+    f, t, z = _shipped_rod(DATA / "rod2" / "spatial-tendon_raw.csv")
+    on = make_estimator(method, f)  # type: ignore[arg-type]
+    s_on = on.run(t, z)
+    s_off = make_estimator(method, f, recovery=RecoverySettings(glitch=None)).run(t, z)  # type: ignore[arg-type]
+    assert on.diagnostics.glitches == 0
+    np.testing.assert_array_equal(s_on.status, s_off.status)
+    np.testing.assert_array_equal(np.asarray(s_on.output), np.asarray(s_off.output))
+    np.testing.assert_array_equal(np.asarray(s_on.output_std), np.asarray(s_off.output_std))
