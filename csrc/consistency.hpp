@@ -148,9 +148,9 @@ class ConsistencyCheck {
   // shift() at this estimate ``x``, ``P`` over the judged readings (rows_)
   double shift_to_fit(const double* x, const double* P, const double* u, double dt);
   // the prediction of ``x0``, ``P0`` over ``dt`` with ``u``, ``Q`` and the readings
-  // ``z``, ``mask``: fF_ (x+, F), Hr_ (H, r at x+) and Pn_ (F P0 F^T + Q); kept, and not
-  // computed again for the same inputs bit for bit (the glitch test and the check
-  // predict from the same estimate)
+  // ``z``, ``mask``: fF_ (x+, F), pred_Hr_ (H, r at x+) and Pn_ (F P0 F^T + Q); kept,
+  // and not computed again for the same inputs bit for bit (the glitch test and the
+  // check predict from the same estimate)
   void predict(const double* x0, const double* P0, double dt, const double* z,
                const double* mask, const double* u, const double* Q);
   std::vector<double> pred_key_, key_;  // x0, P0, dt, u, Q, zv of the prediction kept

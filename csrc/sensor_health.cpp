@@ -354,19 +354,23 @@ const double* SensorHealth::gate_glitches(double t, const double* z, int& gated)
   const auto& judged = consistency_.settings().judged;
   // each IMU's judged readings, and the sample's other readings (a tendon robot's
   // tensions and tip condition) that its prediction is conditioned on
-  gate_sets_.clear();
+  // (the sets keep their storage from one sample to the next)
+  gate_sets_.resize(s_.imu_blocks.size());
   gate_imus_.clear();
+  size_t n = 0;
   for (size_t b = 0; b < s_.imu_blocks.size(); ++b) {
     const auto [start, size] = s_.imu_blocks[b];
-    std::vector<int> rows;
+    std::vector<int>& rows = gate_sets_[n];
+    rows.clear();
     for (int i = start; i < start + size; ++i)
       if (mask_[i] > 0.0 && judged[i] != 0.0) rows.push_back(i);
     if (!rows.empty()) {
-      gate_sets_.push_back(std::move(rows));
       gate_imus_.push_back(static_cast<int>(b));
+      ++n;
     }
   }
-  if (gate_sets_.empty()) return z;
+  gate_sets_.resize(n);
+  if (n == 0) return z;
   gate_given_.clear();
   for (int i = 0; i < s_.nz; ++i)
     if (!imu_row_[i] && mask_[i] > 0.0) gate_given_.push_back(i);
@@ -376,16 +380,20 @@ const double* SensorHealth::gate_glitches(double t, const double* z, int& gated)
   consistency_.predicted_nis_given(gate_x_.data(), gate_P_.data(), dt, z, mask_.data(), u, Q,
                                    gate_sets_, gate_given_, gate_nis_, &gate_whitened_);
   const double scale = std::max(1.0, consistency_.noise_scale());
+  gate_limit_.resize(n);
+  for (size_t k = 0; k < n; ++k)
+    gate_limit_[k] =
+        s_.glitch_factor * consistency_.settings().limit[gate_sets_[k].size()] * scale;
   // a reading far from the prediction by its noise alone whose linearised prediction
   // widens as far (the tilt residual near the opposite gravity direction, where both
   // grow without bound): judged again with the Jacobian at the IMU's readings before,
   // where it agreed with the estimate
   std::vector<int> again;
-  for (size_t k = 0; k < gate_sets_.size(); ++k) {
-    const double limit = s_.glitch_factor * consistency_.settings().limit[gate_sets_[k].size()] * scale;
+  for (size_t k = 0; k < n; ++k) {
     bool before = true;
     for (int i : gate_sets_[k]) before = before && std::isfinite(gate_z_[i]);
-    if (gate_nis_[k] <= limit && gate_whitened_[k] > limit && before) again.push_back(static_cast<int>(k));
+    if (gate_nis_[k] <= gate_limit_[k] && gate_whitened_[k] > gate_limit_[k] && before)
+      again.push_back(static_cast<int>(k));
   }
   if (!again.empty()) {
     std::vector<std::vector<int>> sets;
@@ -397,15 +405,14 @@ const double* SensorHealth::gate_glitches(double t, const double* z, int& gated)
     std::vector<double> nis;
     consistency_.predicted_nis_given(gate_x_.data(), gate_P_.data(), dt, z, mask_.data(), u, Q,
                                      sets, gate_given_, nis, nullptr, gated_z_.data());
-    for (size_t j = 0; j < again.size(); ++j) gate_nis_[again[j]] = std::max(gate_nis_[again[j]], nis[j]);
+    for (size_t j = 0; j < again.size(); ++j)
+      gate_nis_[again[j]] = std::max(gate_nis_[again[j]], nis[j]);
   }
   const double* out = z;
-  for (size_t k = 0; k < gate_sets_.size(); ++k) {
+  for (size_t k = 0; k < n; ++k) {
     const int b = gate_imus_[k];
-    const double limit =
-        s_.glitch_factor * consistency_.settings().limit[gate_sets_[k].size()] * scale;
     // (a NIS that is not finite is beyond any limit)
-    if (!(gate_nis_[k] <= limit)) {
+    if (!(gate_nis_[k] <= gate_limit_[k])) {
       if (out == z) {
         std::copy(z, z + s_.nz, gated_z_.begin());
         std::copy(mask_.begin(), mask_.end(), gated_mask_.begin());

@@ -185,12 +185,12 @@ struct PolicySettings {
   double silent_after = INFINITY;
   // an IMU's reading whose NIS against the prediction from the previous estimate, where
   // that was ok, exceeds this many times the one-sample limit (chi-square 99.99 %, times
-  // the model error the readings showed; given the sample's other readings, such as a
-  // tendon robot's tensions) is skipped as a glitch (a dropout of that IMU for the
-  // sample, its row inconsistent); that row is not ok, so the next reading is taken
-  // whatever it is (a second such reading in a row: the robot may have moved so). A reading whose whitened residual
-  // alone is beyond the limit is judged with the Jacobian at the IMU's reading before
-  // as well (a tilt reading near the opposite gravity direction); 0: off
+  // the model error the readings showed; given the sample's readings that are not an
+  // IMU's, such as a tendon robot's tensions) is skipped as a glitch (a dropout of that
+  // IMU for the sample, its row not ok); so the next reading is taken whatever it is (a
+  // second such reading in a row: the robot may have moved so). A reading whose whitened
+  // residual alone is beyond the limit is judged with the Jacobian at the IMU's reading
+  // before as well (a tilt reading near the opposite gravity direction); 0: off
   double glitch_factor = 0.0;
 };
 
@@ -290,7 +290,7 @@ class SensorHealth {
   std::vector<std::vector<int>> gate_sets_;  // scratch: the IMUs' judged rows, their NIS
   std::vector<int> gate_imus_, gate_given_;
   std::vector<char> imu_row_;  // 1 on the rows of an IMU's block
-  std::vector<double> gate_nis_, gate_whitened_;
+  std::vector<double> gate_nis_, gate_whitened_, gate_limit_;
 
   PolicySettings s_;
   PolicyInference& inference_;

@@ -55,6 +55,7 @@ from continuum_mhe.estimators.run_notices import (
     TwistWithTiltImus,
     drifted_notice,
     free_of_load_clause,
+    glitch_clause,
     inconsistent_notice,
     untrusted_start_notice,
 )
@@ -335,12 +336,8 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             f"; {diag.frozen_samples} of the {n} estimates had a frozen IMU (the same reading "
             f"for over {args.freeze:g} s, treated as a dropout): {of}"
         )
-    if diag.glitches:
-        msg += (
-            f"; skipped {diag.glitches} IMU reading(s) far beyond the prediction from the ok "
-            "estimate before them (glitches: that IMU's dropout for the sample, the row "
-            "inconsistent)"
-        )
+    if glitches := glitch_clause(diag):
+        msg += f"; {glitches}"
     if diag.restarts:
         msg += (
             f"; restarted {diag.restarts} time(s) after the estimate diverged, failed or its "

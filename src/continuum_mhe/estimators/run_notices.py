@@ -421,6 +421,17 @@ def free_of_load_clause(inference: Inference, n: int) -> str | None:
     return f"taken as free of load (tip force 0 N) in {free} of the {n} estimates"
 
 
+def glitch_clause(diagnostics: Diagnostics) -> str | None:
+    """The summary's clause of the IMU readings skipped as glitches
+    (``Diagnostics.glitches``; ``estimate``'s and ``live``'s), or None where none was."""
+    if not diagnostics.glitches:
+        return None
+    return (
+        f"skipped {diagnostics.glitches} IMU reading(s) far beyond the prediction from the ok "
+        "estimate before them (glitches: that IMU's dropout for the sample, the row not ok)"
+    )
+
+
 def untrusted_start_notice(diagnostics: Diagnostics, n: int) -> str | None:
     """The line for the estimates, of ``n``, of a start whose first reading showed a
     load it could not tell from the IMUs' errors (a tendon robot's, in any estimator:

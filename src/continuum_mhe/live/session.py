@@ -25,6 +25,7 @@ from continuum_mhe.estimators.run_notices import (
     TwistWithTiltImus,
     drifted_notice,
     free_of_load_clause,
+    glitch_clause,
     inconsistent_notice,
     untrusted_start_notice,
 )
@@ -1087,11 +1088,8 @@ class LiveSession:
             msg += "; warning: " + beyond_note
         if force_note := self.force.notice():
             msg += "; warning: " + force_note
-        if glitches := self.estimator.diagnostics.glitches:
-            msg += (
-                f"; skipped {glitches} IMU reading(s) far beyond the prediction from the ok "
-                "estimate before them (glitches)"
-            )
+        if glitches := glitch_clause(self.estimator.diagnostics):
+            msg += f"; {glitches}"
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (
                 f"; warning: stopped restarting {chains} time(s) after "
