@@ -284,3 +284,43 @@ def test_where_nothing_is_skipped_the_estimates_are_those_without_the_test(metho
     np.testing.assert_array_equal(s_on.status, s_off.status)
     np.testing.assert_array_equal(np.asarray(s_on.output), np.asarray(s_off.output))
     np.testing.assert_array_equal(np.asarray(s_on.output_std), np.asarray(s_off.output_std))
+
+
+def test_a_skip_is_taken_back_when_the_step_fails_and_the_estimator_restarts(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A step that fails numerically on a sample with a skipped reading restarts from
+    that sample's readings, all of them: the restart sees the reading, and the
+    reading is not counted as skipped (the row is ``reset``)."""
+    from continuum_mhe.estimators.base import Measurement
+    from continuum_mhe.estimators.kalman import (
+        CasadiExtendedKalmanFilter,
+        ExtendedKalmanInference,
+    )
+
+    rec = simulate("paper3d", duration=4.0, seed=1)
+    z = rec.z.copy()
+    i = 40
+    z[i, 0] += -math.pi if z[i, 0] > 0 else math.pi  # upside down
+    seen: list[np.ndarray] = []
+    infer = ExtendedKalmanInference.infer
+
+    def fail_once_at_i(self: ExtendedKalmanInference, m: Measurement) -> object:
+        if m.t == rec.t[i]:
+            seen.append(np.array(m.z))
+            if len(seen) == 1:
+                raise np.linalg.LinAlgError("forced")
+        return infer(self, m)
+
+    f = make_formulation("bend")
+    skipped = CasadiExtendedKalmanFilter(f)
+    skipped.run(rec.t, z)
+    assert skipped.diagnostics.glitches == 1  # the reading is a glitch to this estimator
+
+    monkeypatch.setattr(ExtendedKalmanInference, "infer", fail_once_at_i)
+    est = CasadiExtendedKalmanFilter(f)
+    s = est.run(rec.t, z)
+    assert len(seen) == 2
+    assert np.isnan(seen[0][0]) and seen[1][0] == z[i, 0]  # skipped, then taken
+    assert est.diagnostics.restarts == 1 and est.diagnostics.glitches == 0
+    assert s.status[i] == "reset"
