@@ -1951,9 +1951,18 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "would bend section" in err[0] and not out.exists()
     assert (
-        "N m^2): the robot file's [backbone] too soft (youngs_modulus 540000 Pa: MPa?; radius "
-        "0.0007 m), or tensions in N (mN?)?"
+        "N m^2): the robot file's [backbone] too soft (youngs_modulus 540000 Pa: MPa? 540000 "
+        "MPa is 5.4e+11 Pa; radius 0.0007 m), or tensions in N (mN?)?"
     ) in err[0]
+    # a modulus ten times too low, in Pa: no unit is the mistake
+    ten = tmp_path / "ten.toml"
+    text = shipped.read_text().replace("youngs_modulus = 54e9", "youngs_modulus = 5.4e9")
+    ten.write_text(text.replace("shear_modulus = 20.77e9", "shear_modulus = 2.077e9"))
+    argv[argv.index(str(mpa))] = str(ten)
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and not out.exists()
+    assert "too soft (youngs_modulus 5.4e+09 Pa; radius 0.0007 m)" in err[0]
 
 
 @pytest.mark.parametrize(

@@ -59,7 +59,7 @@ from continuum_mhe.io.tension_derivatives import (
 )
 from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import Robot, modulus_unit_hint
 from continuum_mhe.model.tendon import TendonFormulation
 
 #: The turns a section may bend through under its tendons alone (their net moment over
@@ -143,9 +143,11 @@ def tension_scale_problem(
         i = int(np.argmax(bend))
         if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
             bb = robot.backbone
+            # a unit only for a modulus below soft silicone's, a material no backbone is
+            unit = modulus_unit_hint(bb.youngs_modulus) if bb.youngs_modulus < 1e6 else None
             soft = (
                 f"the robot file's [backbone] too soft (youngs_modulus {bb.youngs_modulus:g} "
-                f"Pa: MPa?; radius {bb.radius:g} m)"
+                f"Pa{': ' + unit if unit else ''}; radius {bb.radius:g} m)"
             )
             # tensions a tendon can carry in N point at the backbone first
             causes = [soft, "tensions in N (mN?)"]

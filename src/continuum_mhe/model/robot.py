@@ -226,18 +226,26 @@ MAX_MODULUS = 1.2e12
 _MODULUS_UNITS = (("kPa", 1e3), ("MPa", 1e6), ("GPa", 1e9))
 
 
+def modulus_unit_hint(value: float) -> str | None:
+    """The unit a modulus ``value`` (Pa) was likely written in, as ``"MPa? 77000 MPa is
+    7.7e+10 Pa"``: the largest of kPa, MPa and GPa that makes it a modulus between soft
+    silicone's (1e6 Pa) and :data:`MAX_MODULUS`; None where none does."""
+    hints = [
+        f"{unit}? {value:g} {unit} is {value * size:.4g} Pa"
+        for unit, size in _MODULUS_UNITS
+        if 1e6 <= value * size <= MAX_MODULUS
+    ]
+    return hints[-1] if hints else None
+
+
 def modulus_problem(name: str, value: float) -> str | None:
     """What is wrong with a backbone's elastic modulus ``value`` (Pa) named ``name``,
     for a one-line error, or None: below :data:`MIN_MODULUS` (with the unit that would
     make it a plausible modulus: ``77000`` is ``77000 MPa``), or above
     :data:`MAX_MODULUS`."""
     if value < MIN_MODULUS:
-        hints = [
-            f"{unit}? {value:g} {unit} is {value * size:.4g} Pa"
-            for unit, size in _MODULUS_UNITS
-            if 1e6 <= value * size <= MAX_MODULUS
-        ]
-        hint = f" ({hints[-1]})" if hints else ""
+        hint = modulus_unit_hint(value)
+        hint = f" ({hint})" if hint else ""
         return f"backbone {name} {value!r} Pa is below {MIN_MODULUS:g} Pa: moduli are in Pa{hint}"
     if value > MAX_MODULUS:
         return (
