@@ -1,5 +1,5 @@
 """Tendon-robot estimates on the generator's recordings (docs/tendon.md): the EKF
-(the command line's, compiled) and the MHE on IPOPT, tilt and raw IMUs, with the
+(the command line's, compiled), the UKF and the MHE on IPOPT, tilt and raw IMUs, with the
 recording's tensions; prints one JSON line per run (tip and mid-robot mean error,
 mm; tip-force rms error, N; ms per sample; the rows after ``--skip`` whose tip is over 5 mm
 off and whose status is ``ok``), with the recording's model floor: the
@@ -12,7 +12,8 @@ TENSIONS.csv``, with ``--imu-model direct`` for raw IMUs): its defaults, unless
 e.g. ``--set force_accel_psd=0.1``; ``--set free_of_load_hypothesis=False``: the single
 loaded EKF instead of the two hypotheses, loaded and free of load).
 
-    python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
+    python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe|ukf] [--imu tilt|direct]
+        [--ukf-alpha A]
         [--horizon N] [--skip S] [--set NAME=VALUE] [--tip-imu-only] [--samples N] [--start S]
         [--no-gyro-bias] [--floor-only] [--errors CSV]
 """
@@ -31,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.estimators import MovingHorizonEstimator, make_estimator
+from continuum_mhe.estimators.kalman import SigmaPointSettings, UnscentedKalmanFilter
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
@@ -90,7 +92,11 @@ def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("folder", type=Path)
     p.add_argument("scenario")
-    p.add_argument("--method", choices=("ekf", "mhe"), default="ekf")
+    p.add_argument("--method", choices=("ekf", "mhe", "ukf"), default="ekf")
+    p.add_argument(
+        "--ukf-alpha", type=float, default=None,
+        help="the UKF's sigma-point spread (default: TendonFormulation.unscented_alpha)",
+    )  # fmt: skip
     p.add_argument("--imu", choices=("tilt", "direct"), default="tilt")
     p.add_argument("--horizon", type=int, default=10)
     p.add_argument("--skip", type=float, default=1.0)
@@ -141,7 +147,9 @@ def main() -> None:
                           "floor_mid_mm": round(floor[1], 3)}))  # fmt: skip
         return
     z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
-    if a.method == "ekf":
+    if a.method == "ukf":
+        est = UnscentedKalmanFilter(f, SigmaPointSettings(alpha=a.ukf_alpha))
+    elif a.method == "ekf":
         est = make_estimator("ekf", f)  # the command line's (compiled) EKF
     else:
         est = MovingHorizonEstimator(f, MHESettings(horizon=a.horizon, solver="ipopt"))

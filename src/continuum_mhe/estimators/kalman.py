@@ -259,14 +259,17 @@ class _KalmanHooks:
 
 @dataclass(frozen=True)
 class SigmaPointSettings:
-    """Van der Merwe's scaled sigma points (alpha, beta, kappa)."""
+    """Van der Merwe's scaled sigma points (alpha, beta, kappa). ``alpha`` None: the
+    formulation's (:attr:`~continuum_mhe.model.formulations.Formulation.unscented_alpha`:
+    0.5, and 0.01 for a tendon robot's mechanics, whose shooting is too nonlinear across
+    a wider spread)."""
 
-    alpha: float = 0.5
+    alpha: float | None = None
     beta: float = 2.0
     kappa: float = 0.0
 
     def __post_init__(self) -> None:
-        if not 0 < self.alpha <= 1:
+        if self.alpha is not None and not 0 < self.alpha <= 1:
             raise UserError(f"alpha must lie in (0, 1], got {self.alpha!r}")
 
 
@@ -302,13 +305,15 @@ class UnscentedKalmanInference(_KalmanBase):
         from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
 
         self.sigma = s = sigma or SigmaPointSettings()
+        #: the sigma points' spread in use (the settings', or the formulation's)
+        self.alpha = formulation.unscented_alpha if s.alpha is None else s.alpha
         functions = node_functions(formulation)
         self._node = NodeEvaluator(functions)
         self._q = ProcessNoiseCache(formulation)
         chart = [] if formulation.tilt_residual_wraps else tilt_rows(formulation)
         self._unscented = _core.UnscentedFilter(
             functions.transition, functions.residual, formulation.nx, formulation.nu,
-            formulation.nz, s.alpha, s.beta, s.kappa, chart,
+            formulation.nz, self.alpha, s.beta, s.kappa, chart,
             list(formulation.measurement_names),
         )  # fmt: skip
         super().__init__(formulation)

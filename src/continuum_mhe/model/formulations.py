@@ -198,6 +198,9 @@ class Formulation:
     #: formulation's tangent plane, singular at a half turn; formulations without tilt
     #: blocks inherit theirs unused)
     tilt_residual_wraps: ClassVar[bool] = True
+    #: the UKF's sigma-point spread (Van der Merwe's alpha, in (0, 1]) where its
+    #: :class:`~continuum_mhe.estimators.kalman.SigmaPointSettings` leave it to the model
+    unscented_alpha: ClassVar[float] = 0.5
     #: whether the fast MHE adds the measurement residuals' second derivatives to its
     #: Hessian (exact Newton steps); False for a model whose second derivatives are too
     #: large to form symbolically (a shooting model): Gauss-Newton steps, the same

@@ -309,6 +309,12 @@ class TendonFormulation(Formulation):
     )
     tilt_residual_wraps: ClassVar[bool] = False
     forward_mode_jacobian: ClassVar[bool] = True
+    #: the UKF's sigma points close about the mean: spread across several standard
+    #: deviations of the tip force and the base curvature, the shooting's curvature
+    #: makes the tip condition's residuals (standard deviation :attr:`equilibrium_std`)
+    #: average far from zero, an innovation the update meets by moving the state. Much
+    #: closer than this, the weights' rounding takes over (docs/tendon.md)
+    unscented_alpha: ClassVar[float] = 0.01
     #: each output evaluation is a shooting: the outputs' standard deviations are
     #: linearised (sigma points would cost a shooting per state the outputs depend on)
     sigma_point_output_std: ClassVar[bool] = False
