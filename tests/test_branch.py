@@ -201,26 +201,49 @@ def test_the_default_check_costs_no_evaluation_on_clean_data(clean_recording) ->
     assert np.array_equal(s.output, off.output)
 
 
-def test_the_compiled_first_test_keeps_the_answers_of_the_python_check(clean_recording) -> None:  # type: ignore[no-untyped-def]
-    """The compiled step applies the check's first test (``plausible_limit``) and keeps a
-    plausible window itself: the same estimates, standard deviations and statuses as the
-    Python check run on every window, and the same count of checked windows."""
-    rec = clean_recording
-    f = make_formulation("bend", TWO)
-    compiled = MovingHorizonEstimator(f, MHESettings(horizon=N))
-    python = MovingHorizonEstimator(f, MHESettings(horizon=N))
+def _compiled_and_python_check(f, t: np.ndarray, z: np.ndarray, settings: MHESettings):  # type: ignore[no-untyped-def]
+    """The MHE with the compiled first test of the check, and the same MHE with every
+    certified window through the Python check: their runs and branch checks, after
+    asserting that the two agree on every estimate, standard deviation, status and
+    count of the check."""
+    compiled = MovingHorizonEstimator(f, settings)
+    python = MovingHorizonEstimator(f, settings)
     window = python.inference._window
-    assert len(window.plausible_limit) == N * f.nz + 1
+    assert len(window.plausible_limit) == python.inference.settings.horizon * f.nz + 1
     window.plausible_limit = np.empty(0)  # every certified window through the Python hook
-    a, b = compiled.run(rec.t, rec.z), python.run(rec.t, rec.z)
+    a, b = compiled.run(t, z), python.run(t, z)
     assert np.array_equal(a.output, b.output)
     assert np.array_equal(a.output_std, b.output_std, equal_nan=True)
     assert np.array_equal(a.status, b.status)
     branch_a, branch_b = compiled.inference.branch, python.inference.branch
     assert branch_a is not None and branch_b is not None
     assert branch_a.stats == branch_b.stats
-    assert branch_a.stats.checked == len(rec.t)
+    assert branch_a.stats.checked == len(t)
+    return compiled, branch_a.stats
+
+
+def test_the_compiled_first_test_keeps_the_answers_of_the_python_check(clean_recording) -> None:  # type: ignore[no-untyped-def]
+    """The compiled step applies the check's first test (``plausible_limit``) and keeps a
+    plausible window itself: the same estimates, standard deviations and statuses as the
+    Python check run on every window, and the same count of checked windows; on clean
+    data every window is kept in compiled code."""
+    rec = clean_recording
+    compiled, stats = _compiled_and_python_check(
+        make_formulation("bend", TWO), rec.t, rec.z, MHESettings(horizon=N)
+    )
+    assert stats.evaluated == 0
     assert compiled.inference._window.plausible_kept == 0  # synced into the stats
+
+
+def test_the_compiled_first_test_passes_on_the_windows_the_python_check_restarts() -> None:
+    """The same comparison where the check fires: the first 200 samples of the
+    torsion-stiff rod with tilt IMUs (above), whose implausible windows the check
+    evaluates and restarts. The compiled first test hands each of them to the Python
+    check, which restarts the same windows."""
+    f = make_formulation("bend", read_robot("two-section"))
+    data = np.loadtxt(ROD / "spatial-stiff-torsion_tilt.csv", delimiter=",", skiprows=1)[:200]
+    _, stats = _compiled_and_python_check(f, data[:, 0], data[:, 1:], MHESettings())
+    assert stats.evaluated > 0 and stats.restarted > 0
 
 
 def test_the_section_tilt_inverse_recovers_random_bends_exactly() -> None:

@@ -270,29 +270,35 @@ def test_the_free_of_load_filter_keeps_its_force_at_zero_and_certain(
 def test_the_answer_covariance_is_the_mixture_with_the_prior_odds() -> None:
     """At each sample the covariance handed back is the two hypotheses' mixture about
     the chosen one's state, weighted by the evidence against the prior odds of a load
-    (``EVIDENCE_MARGIN``): at the first sample after the start (no evidence yet) the
-    loaded one, weighted ``1 / (1 + exp(-margin))``."""
-    from continuum_mhe.estimators.load_hypotheses import EVIDENCE_MARGIN
+    (``EVIDENCE_MARGIN``). The evidence is the two filters' innovation log densities'
+    difference (each checked against the CasADi model above), free of load over loaded,
+    plus ``EVIDENCE_MEMORY`` times the evidence before; zero before the first. At the
+    first sample after the start it is below the margin, and the loaded filter's is the
+    answer; after a second without a load, the free-of-load filter's."""
+    from continuum_mhe.estimators.load_hypotheses import EVIDENCE_MARGIN, EVIDENCE_MEMORY
 
     f, t, z = _shipped("unloaded", "tilt")
     inference = LoadHypothesesInference(f)
     inference.infer(Measurement(float(t[0]), z[0]))
     x, P, _ = inference.infer(Measurement(float(t[1]), z[1]))
+    evidence = inference.unloaded.log_likelihood - inference.loaded.log_likelihood
+    assert inference.evidence == pytest.approx(evidence, rel=1e-12, abs=0.0)
+    assert evidence < EVIDENCE_MARGIN and not inference.unloaded_chosen
     xl, Pl = inference.loaded._x, inference.loaded._P
     xu, Pu = inference.unloaded._x, inference.unloaded._P
-    log_odds = inference.evidence - EVIDENCE_MARGIN
-    if inference.unloaded_chosen:
-        want = mixture(xu, Pu, xl, Pl, log_odds)  # type: ignore[arg-type]
-    else:
-        want = mixture(xl, Pl, xu, Pu, -log_odds)  # type: ignore[arg-type]
+    assert x is xl or np.array_equal(x, xl)  # type: ignore[arg-type]
+    want = mixture(xl, Pl, xu, Pu, EVIDENCE_MARGIN - evidence)  # type: ignore[arg-type]
     assert P is not None and np.allclose(P, want, rtol=1e-12, atol=0.0)
     for ti, zi in zip(t[2:60], z[2:60]):
         x, P, _ = inference.infer(Measurement(float(ti), zi))
-    assert inference.unloaded_chosen and inference.evidence > EVIDENCE_MARGIN
+        ll_free, ll_loaded = inference.unloaded.log_likelihood, inference.loaded.log_likelihood
+        evidence = EVIDENCE_MEMORY * evidence + (ll_free - ll_loaded)
+    assert inference.evidence == pytest.approx(evidence, rel=1e-12, abs=1e-12)
+    assert inference.unloaded_chosen and evidence > EVIDENCE_MARGIN
     xl, Pl = inference.loaded._x, inference.loaded._P
     xu, Pu = inference.unloaded._x, inference.unloaded._P
     assert x is xu or np.array_equal(x, xu)  # type: ignore[arg-type]
-    want = mixture(xu, Pu, xl, Pl, inference.evidence - EVIDENCE_MARGIN)  # type: ignore[arg-type]
+    want = mixture(xu, Pu, xl, Pl, evidence - EVIDENCE_MARGIN)  # type: ignore[arg-type]
     assert P is not None and np.allclose(P, want, rtol=1e-12, atol=0.0)
 
 
