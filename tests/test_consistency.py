@@ -141,8 +141,7 @@ def test_ok_rows_normalised_errors_have_the_right_distribution(
     most rows stay ``ok`` and the tip error of ``ok`` rows over its standard deviation
     falls inside the 95 % interval at least 85 % of the time per axis and at most 99 %
     over the three axes; where it is three times larger, the readings disagree with
-    their noise model and almost no row is ``ok`` (those few, where there are 30 or
-    more, cover as above). The examples are fixed (``derandomize``):
+    their noise model and almost no row is ``ok``. The examples are fixed (``derandomize``):
     one short recording's rows are correlated, and its coverage can pass 99 % by
     chance (length 0.25 m, seed 2824: 0.995, 0.995, 0.990); the pooled
     test below holds the upper bound over many."""

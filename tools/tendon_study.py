@@ -119,6 +119,8 @@ def main() -> None:
         help="write t, tip and mid error (m) and tip-force error (N) per sample here",
     )
     a = p.parse_args()
+    if a.ukf_alpha is not None and a.method != "ukf":
+        p.error("--ukf-alpha is the UKF's (--method ukf)")
     robot = read_robot(a.robot)
     used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
     robot = replace(robot, imus=tuple(robot.imus[k] for k in used))

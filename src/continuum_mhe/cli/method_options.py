@@ -79,8 +79,8 @@ def add_method_option(p: argparse.ArgumentParser) -> None:
         choices=METHODS,
         default=None,
         help="estimator (default: mhe; ekf for a tendon robot, whose model the fast MHE "
-        "cannot take, and on which the UKF is far slower and less accurate than the EKF: "
-        "docs/tendon.md)",
+        "cannot take, and on which the UKF is slower and less accurate than the EKF, far "
+        "off with tilt IMUs: docs/tendon.md)",
     )
 
 

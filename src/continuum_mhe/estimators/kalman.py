@@ -264,8 +264,12 @@ class SigmaPointSettings:
     0.5, and 0.01 for a tendon robot's mechanics, whose shooting is too nonlinear across
     a wider spread)."""
 
+    #: the sigma points' spread about the mean, in (0, 1]; None: the formulation's
     alpha: float | None = None
+    #: the prior's kurtosis term of the central point's covariance weight (2: Gaussian)
     beta: float = 2.0
+    #: the secondary scaling (sigma points at ``sqrt(alpha^2 (n + kappa))`` standard
+    #: deviations along each factor column of an ``n``-state covariance)
     kappa: float = 0.0
 
     def __post_init__(self) -> None:
@@ -307,6 +311,8 @@ class UnscentedKalmanInference(_KalmanBase):
         self.sigma = s = sigma or SigmaPointSettings()
         #: the sigma points' spread in use (the settings', or the formulation's)
         self.alpha = formulation.unscented_alpha if s.alpha is None else s.alpha
+        if not 0 < self.alpha <= 1:
+            raise UserError(f"the UKF's alpha must lie in (0, 1], got {self.alpha!r}")
         functions = node_functions(formulation)
         self._node = NodeEvaluator(functions)
         self._q = ProcessNoiseCache(formulation)

@@ -143,7 +143,7 @@ def tension_scale_problem(
         i = int(np.argmax(bend))
         if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
             bb = robot.backbone
-            # a unit only for a modulus below soft silicone's, a material no backbone is
+            # a unit only for a modulus below 1e6 Pa, softer than any backbone's in Pa
             unit = modulus_unit_hint(bb.youngs_modulus) if bb.youngs_modulus < 1e6 else None
             soft = (
                 f"the robot file's [backbone] too soft (youngs_modulus {bb.youngs_modulus:g} "
