@@ -356,6 +356,11 @@ def test_robot_file_round_trip(tmp_path: Path) -> None:
         ("[[section]]\n[[imu]]\nsection = 1\n", "section 1: missing key 'length'"),
         ("[[section]]\nlength = -0.1\n[[imu]]\nsection = 1\n", "section 1: length: section"),
         ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 2\n", "imu 1: section must be"),
+        (
+            "[[section]]\nlength = 0.1\n[[imu]]\nsection = 1.0\n",
+            "imu 1: section must be a whole section number from 1 to 1, got 1.0 (write 1, "
+            "without a decimal point)",
+        ),
         ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\nat = 1.5\n", "imu 1: at must lie"),
         ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\nat = 0\n", "imu 1: at must lie"),
         ("[[section]]\nlength = 0.1\ncolour = 1\n[[imu]]\nsection = 1\n", "unknown key 'colour'"),
@@ -391,8 +396,8 @@ def test_bad_robot_file_is_one_line_exit_2_nothing_written(
     [
         ("t,roll_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3", True,
          "tilt columns for 3 IMU(s) (roll_1 ... roll_3) but the robot describes 2; "
-         "pass --robot FILE with a robot file of 3 IMU(s); a robot file of fewer of them "
-         "takes the file cut to their columns, numbered from 1 in its order"),
+         "pass --robot FILE with a robot file of 3 IMU(s); for a robot of fewer of them, "
+         "cut the file to their columns, numbered from 1 in the robot file's order"),
         # --robot forgotten: refused, not IMU 1's columns estimated as a one-section robot
         ("t,roll_1,pitch_1,roll_2,pitch_2", False,
          "tilt columns for 2 IMU(s) (roll_1 ... roll_2) but the robot describes 1; "

@@ -237,6 +237,9 @@ def test_view_user_mistakes_are_one_line(
         monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
         assert main(["view", est, "--robot", "two-section", "--spawn"]) == 2
         assert "needs a display" in _one_error_line(capsys)
+        # the default says it is the default, where the user gave no --spawn
+        assert main(["view", est, "--robot", "two-section"]) == 2
+        assert "--spawn (the default) needs a display" in _one_error_line(capsys)
     assert list(tmp_path.iterdir()) == []
 
 

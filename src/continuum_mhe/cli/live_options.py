@@ -107,7 +107,7 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
         else:  # an existing file is kept unless --overwrite, as every output
             sink = ViewerSink("save", check_output_target(choice, overwrite, "--view"), **ports)
     else:
-        option, others = "--spawn", "--serve-web or --save FILE.rrd"
+        option, others = "--spawn (the default)", "--serve-web or --save FILE.rrd"
         if args.save:
             target = check_output_target(args.save, overwrite, "--save")
             sink = ViewerSink("save", target, **ports)

@@ -56,8 +56,8 @@ def imu_count_error(
     more = ONE_IMU_FIX if found == 1 and "--robot" in fix else ""
     if found > n_imus and "--robot" in fix:  # a robot of some of the recording's IMUs
         more += (
-            "; a robot file of fewer of them takes the file cut to their columns, "
-            "numbered from 1 in its order"
+            "; for a robot of fewer of them, cut the file to their columns, numbered "
+            "from 1 in the robot file's order"
         )
     return InputError(
         f"{name}: line 1: the file has {kind} columns for {found} IMU(s) ({columns}) "

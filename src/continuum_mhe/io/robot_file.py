@@ -153,6 +153,14 @@ def _shown(value: object) -> str:
     return shorten(repr(value), 60)
 
 
+def _not_whole(value: object) -> str:
+    """``" (write it without a decimal point)"`` for a float with a whole value (TOML's
+    ``1.0`` where a count or number is meant), else ``""``."""
+    if isinstance(value, float) and math.isfinite(value) and value.is_integer():
+        return f" (write {int(value)}, without a decimal point)"
+    return ""
+
+
 def _number(path: Path, where: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise InputError(f"{path}: {where}: expected a finite number, got {_shown(value)}")
@@ -229,8 +237,8 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         sec = table["section"]
         if isinstance(sec, bool) or not isinstance(sec, int) or not 1 <= sec <= len(sections):
             raise InputError(
-                f"{path}: {where}: section must be a section number from 1 to "
-                f"{len(sections)}, got {_shown(sec)}"
+                f"{path}: {where}: section must be a whole section number from 1 to "
+                f"{len(sections)}, got {_shown(sec)}{_not_whole(sec)}"
             )
         at = _number(path, f"{where}: at", table.get("at", 1.0))
         if "disk" in table:
@@ -349,8 +357,8 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
         sec = table["section"]
         if isinstance(sec, bool) or not isinstance(sec, int) or not 1 <= sec <= n_sections:
             raise InputError(
-                f"{path}: {where}: section must be a section number from 1 to "
-                f"{n_sections}, got {sec!r}"
+                f"{path}: {where}: section must be a whole section number from 1 to "
+                f"{n_sections}, got {_shown(sec)}{_not_whole(sec)}"
             )
         angle = _number(path, f"{where}: angle", table["angle"])
         if not abs(angle) <= 360:
