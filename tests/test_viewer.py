@@ -669,8 +669,22 @@ def test_a_tendon_robots_live_shapes_are_its_replayed_ones(tendon_view: dict[str
                 np.testing.assert_allclose(
                     np.array(ra[comp], float), np.array(rb[comp], float), atol=1e-6
                 )
-    bare = tendon_view["tmp"] / "bare.rrd"
+    # without --inputs: the tensions its options line names, as plot takes them
+    recorded = tendon_view["tmp"] / "recorded.rrd"
     assert main(["view", str(tendon_view["est"]), "--robot", "tendon-two-section",
+                 "--save", str(recorded), "--points", str(POINTS)]) == 0  # fmt: skip
+    drawn = read_rrd(recorded)["/world/estimate/backbone"]
+    given = read_rrd(tendon_view["rrd"])["/world/estimate/backbone"]
+    assert [r["LineStrips3D:strips"] for _, r in drawn] == [
+        r["LineStrips3D:strips"] for _, r in given
+    ]
+    # where that file is not found: the tips alone, said in a note
+    moved = tendon_view["tmp"] / "moved.csv"
+    text = Path(tendon_view["est"]).read_text()
+    assert tendon_view["tensions"] in text
+    moved.write_text(text.replace(tendon_view["tensions"], "gone_tensions.csv"))
+    bare = tendon_view["tmp"] / "bare.rrd"
+    assert main(["view", str(moved), "--robot", "tendon-two-section",
                  "--save", str(bare)]) == 0  # fmt: skip
     rows = read_rrd(bare)
     assert "/world/estimate/backbone" not in rows and "/world/estimate/tip" in rows

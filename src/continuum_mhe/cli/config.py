@@ -309,6 +309,16 @@ def beside(path: str, value: str) -> str:
     return str(there)
 
 
+def recorded_inputs(source: str) -> tuple[str, str] | None:
+    """The tensions file the estimate ``source``'s options line names (``--inputs``), as
+    written there and as a path here, where it is a file here, else None."""
+    name = recorded_option(source, "inputs")
+    path = beside(source, name) if isinstance(name, str) else None
+    if path is None or not Path(path).is_file():
+        return None
+    return name, path
+
+
 def recorded_option(path: str, key: str) -> Any:
     """The value of option ``key`` on an estimate CSV's ``# options = {...}`` line (an
     estimate MCAP's ``options`` note), or None where the file has no such line or key

@@ -178,7 +178,7 @@ def _tendon_backbone(
     file the estimate's options line names, said in a note) and ``--inputs`` (checked
     against ``t`` as ``estimate`` checks it); None (the section ends joined, said in a
     note) without them."""
-    from continuum_mhe.cli.config import recorded_option
+    from continuum_mhe.cli.config import recorded_inputs, recorded_option
     from continuum_mhe.cli.robot_options import recorded_robot
     from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
     from continuum_mhe.io.tensions import read_tensions
@@ -191,7 +191,7 @@ def _tendon_backbone(
             )
         return None
     name = args.robot
-    recorded = None if args.inputs else _recorded_inputs(args.source)
+    recorded = None if args.inputs else recorded_inputs(args.source)
     inputs = args.inputs or (recorded[1] if recorded else None)
     if robot is None and inputs:  # the robot the estimate's options line names
         robot = recorded_robot(args.source, "drawn on that robot")
@@ -227,18 +227,6 @@ def _tendon_backbone(
     if len(t):
         tensions.check_span(float(t[0]), float(t[-1]))  # milliseconds?
     return tendon_backbone(robot, tensions)
-
-
-def _recorded_inputs(source: str) -> tuple[str, str] | None:
-    """The tensions file the estimate ``source``'s options line names, as written there
-    and as a path here, where it is a file here, else None."""
-    from continuum_mhe.cli.config import beside, recorded_option
-
-    name = recorded_option(source, "inputs")
-    path = beside(source, name) if isinstance(name, str) else None
-    if path is None or not Path(path).is_file():
-        return None
-    return name, path
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

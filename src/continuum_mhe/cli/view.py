@@ -32,10 +32,29 @@ def run(args: argparse.Namespace) -> int:
         if args.truth:
             _check_truth(args, robot)
         replay(
-            args.estimates, robot, sink, args.truth, args.trail, args.points, args.inputs
+            args.estimates, robot, sink, args.truth, args.trail, args.points,
+            args.inputs or _recorded_tensions(args.estimates, robot),
         )  # fmt: skip
         _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0
+
+
+def _recorded_tensions(estimates: str, robot: Robot) -> str | None:
+    """For a tendon robot (``robot``), the tensions file the estimate's options line
+    names where it is a file here, said in a note, as ``plot`` takes it; else None."""
+    from continuum_mhe.cli.config import recorded_inputs
+
+    if robot.backbone is None or not robot.n_tendons:
+        return None
+    recorded = recorded_inputs(estimates)
+    if recorded is None:
+        return None
+    print(
+        f"{PROG}: note: {estimates} was estimated with --inputs {recorded[0]} (its options "
+        "line): its backbone drawn with those tensions (pass --inputs for others)",
+        file=sys.stderr,
+    )
+    return recorded[1]
 
 
 def _refuse_tendon_estimate_on_another_robot(
@@ -161,7 +180,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_tensions_option(
         p, "a tendon robot's estimate: its backbone drawn from the mechanics model at the "
         "estimated tip force (a recording with its tension columns, as live --record "
-        "writes it, gives them too); without it, the tips alone"
+        "writes it, gives them too); without it, the file the estimate's options line "
+        "names, else the tips alone"
     )  # fmt: skip
     add_viewer_options(p)
     add_overwrite_option(p, "--save")
