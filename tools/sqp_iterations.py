@@ -1,12 +1,16 @@
 """How many SQP iterations the fast MHE's windows take, and their solve times.
 
 The fast MHE (N = 30, defaults) over ``continuum-mhe simulate paper3d --duration D``
-(2 deg noise, seed 0), one sample at a time; from the first full window on, prints the
-count of windows by SQP iterations, the median solve time of each count (the compiled
-step's ``solve_seconds``, us) and its share, and the mean over the median::
+(2 deg noise, seed 0), or with ``--sections K`` (2 or 3) ``spatial`` on a K-section
+robot of 0.3 m with a tilt IMU at each section's end (as ``tools/sections_ratio.py``),
+one sample at a time; from the first full window on, prints the count of windows by
+SQP iterations, the median solve time of each count (the compiled step's
+``solve_seconds``, us) and its share, and the mean over the median. ``--gauss-newton``:
+without the residuals' second-order term (``FastOptions(newton=False)``)::
 
     python tools/sqp_iterations.py          # 500 s: 10,001 samples
     python tools/sqp_iterations.py 40
+    python tools/sqp_iterations.py 20 --sections 3
 """
 
 from __future__ import annotations
@@ -16,11 +20,13 @@ import collections
 
 import numpy as np
 
+from continuum_mhe.estimators.fast import FastOptions
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.results import Measurement
 from continuum_mhe.settings import MHESettings
-from continuum_mhe.simulation.scenarios import simulate
+from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
 N = 30
 
@@ -30,11 +36,23 @@ def main() -> None:
     p.add_argument(
         "duration", nargs="?", type=float, default=500.0, help="the recording, s (default 500.0)"
     )
+    p.add_argument("--sections", type=int, choices=(1, 2, 3), default=1)
+    p.add_argument("--gauss-newton", action="store_true", help="FastOptions(newton=False)")
     a = p.parse_args()
     duration = a.duration
-    f = make_formulation("bend")
-    rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
-    est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver="fast"))
+    if a.sections == 1:
+        f = make_formulation("bend")
+        rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
+    else:
+        k = a.sections
+        robot = Robot(tuple(Section(0.3 / k, 3.0) for _ in range(k)),
+                      tuple(ImuPlacement(i) for i in range(k)))  # fmt: skip
+        f = make_formulation("bend", robot)
+        rec = simulate_robot("spatial", robot, duration=duration, seed=0)
+    est = MovingHorizonEstimator(
+        f, MHESettings(horizon=N, solver="fast"),
+        fast_options=FastOptions(newton=not a.gauss_newton),
+    )  # fmt: skip
     est.reset()
     iterations, seconds = [], []
     for t, z in zip(rec.t, rec.z):
