@@ -3082,3 +3082,31 @@ def test_tensions_on_a_clock_s_absolute_time_are_said_to_be() -> None:
     with pytest.raises(InputError) as info:
         short.at(0.1, "rec.csv")
     assert "since 1970" not in str(info.value)
+
+
+def test_uncertain_rows_of_a_wide_standard_deviation_are_said(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``estimate`` says how many rows are ``uncertain`` for their width (the written
+    tip standard deviation over ``--uncertain-fraction`` times the robot's length) where
+    they are more than a tenth of the run: the UKF on the first 80 tilt samples of
+    ``unloaded``. The count is that of the file's own rows; a run without such rows (the
+    EKF on the same samples) says nothing of it."""
+    meas = tmp_path / "t80.csv"
+    meas.write_text("\n".join((DATA / "unloaded_tilt.csv").read_text().splitlines()[:81]) + "\n")
+    for method, said in (("ukf", True), ("ekf", False)):
+        out = tmp_path / f"{method}.csv"
+        assert main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
+                     str(DATA / "unloaded_tensions.csv"), "--method", method,
+                     "-o", str(out)]) == 0  # fmt: skip
+        notes = [ln for ln in capsys.readouterr().err.splitlines() if "pin the shape" in ln]
+        header, *rows = [ln.split(",") for ln in out.read_text().splitlines() if ln[:1] != "#"]
+        std = np.array([[float(r[header.index(f"std_{c}")]) for c in "xyz"] for r in rows])
+        status = np.array([r[header.index("status")] for r in rows])
+        wide = int(np.sum((np.linalg.norm(std, axis=1) > 0.04) & (status == "uncertain")))
+        if said:
+            assert wide > 8 and len(notes) == 1
+            assert notes[0].startswith(f"continuum-mhe: note: {wide} of 80 estimates")
+            assert "over --uncertain-fraction 0.1 of the robot's length (40 mm)" in notes[0]
+        else:
+            assert wide <= 8 and not notes

@@ -53,6 +53,7 @@ from continuum_mhe.estimators.run_notices import (
     ForceBeyondTensions,
     TensionGainFromOne,
     TwistWithTiltImus,
+    WideUncertain,
     drifted_notice,
     free_of_load_clause,
     glitch_clause,
@@ -100,6 +101,7 @@ class _Tally:
     force: ForceBeyondTensions
     gain: TensionGainFromOne
     twist: TwistWithTiltImus
+    wide: WideUncertain
     counts: dict[str, int] = field(default_factory=dict)
     frozen: dict[str, int] = field(default_factory=dict)
     outliers: int = 0
@@ -141,6 +143,7 @@ def _estimate_block(
     tally.force.add(z, batch.output)
     tally.twist.add(batch.output)
     tally.gain.add(batch.output, batch.output_std)
+    tally.wide.add(batch.output_std, statuses)
     tally.readings += int(np.isfinite(z).any(axis=1).sum())
     behind.submit(sink.write_batch, t, batch.output, batch.output_std, batch.outlier,
                   statuses, batch.solve_ms)  # fmt: skip
@@ -237,6 +240,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             ForceBeyondTensions(formulation),
             TensionGainFromOne(formulation),
             TwistWithTiltImus(formulation),
+            WideUncertain(formulation, args.uncertain_fraction),
         )
         made = f"{version()} estimate {Path(args.measurements).name}"
         notes = [
@@ -384,6 +388,8 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         print(f"{PROG}: warning: {gain_note}", file=sys.stderr)
     if twist_note := tally.twist.notice():
         print(f"{PROG}: warning: {twist_note}", file=sys.stderr)
+    if wide_note := tally.wide.notice(n):
+        print(f"{PROG}: note: {wide_note}", file=sys.stderr)
     if drift_note := drifted_notice(tally.counts.get("drifted", 0), n, formulation):
         print(f"{PROG}: warning: {drift_note}", file=sys.stderr)
     if load_note := untrusted_start_notice(diag, n):

@@ -266,6 +266,48 @@ class TwistWithTiltImus:
         )
 
 
+#: The share of a run's estimates ``uncertain`` for a wide tip standard deviation above
+#: which ``estimate`` says why (:class:`WideUncertain`).
+WIDE_NOTICE_SHARE = 0.1
+
+
+class WideUncertain:
+    """The estimates ``uncertain`` whose written tip standard deviation,
+    ``sqrt(std_x^2 + std_y^2 + std_z^2)``, exceeds ``fraction`` times the robot's
+    length (the policy's test for that status), counted block by block (:meth:`add`),
+    for one line at the end (:meth:`notice`) where they are more than
+    :data:`WIDE_NOTICE_SHARE` of the run: ``uncertain`` has several causes, and this
+    one says the readings do not pin the shape down."""
+
+    def __init__(self, formulation: Formulation, fraction: float) -> None:
+        outs = formulation.outputs
+        self._tip = [i for i, o in enumerate(outs) if o.section == 0 and o.unit == "m"]
+        self.limit = fraction * formulation.robot.length  # m
+        self.fraction = fraction
+        self.count = 0
+
+    def add(self, output_std: FloatArray, statuses: Sequence[str]) -> None:
+        """Count the standard deviations ``output_std`` (n, ny) of rows ``statuses``."""
+        if len(self._tip) != 3 or not len(output_std):
+            return
+        with np.errstate(invalid="ignore"):
+            wide = np.linalg.norm(output_std[:, self._tip], axis=1) > self.limit
+        uncertain = np.asarray(statuses) == "uncertain"
+        self.count += int(np.sum(wide & uncertain))
+
+    def notice(self, n: int) -> str | None:
+        """One line where more than :data:`WIDE_NOTICE_SHARE` of the ``n`` estimates
+        are ``uncertain`` for their width; None otherwise."""
+        if n == 0 or self.count <= WIDE_NOTICE_SHARE * n:
+            return None
+        return (
+            f"{self.count} of {n} estimates are uncertain with their tip standard deviation "
+            f"over --uncertain-fraction {self.fraction:g} of the robot's length "
+            f"({self.limit * 1e3:.0f} mm): the readings do not pin the shape down there "
+            "(docs/uncertainty.md, the uncertain status)"
+        )
+
+
 #: A tendon robot's tension gain (:attr:`~continuum_mhe.model.tendon.TendonFormulation.
 #: estimate_tension_gain`) that ends more than this many of its standard deviations from
 #: 1 is said at the end of ``estimate`` (:class:`TensionGainFromOne`).
