@@ -319,6 +319,15 @@ def recorded_inputs(source: str) -> tuple[str, str] | None:
     return name, path
 
 
+def recorded_inputs_note(source: str, written: str) -> str:
+    """The note that the estimate ``source``'s backbone is drawn with the tensions file
+    its options line names (``written``, as written there)."""
+    return (
+        f"{PROG}: note: {source} was estimated with --inputs {written} (its options line): "
+        "its backbone drawn with those tensions (pass --inputs for others)"
+    )
+
+
 def recorded_option(path: str, key: str) -> Any:
     """The value of option ``key`` on an estimate CSV's ``# options = {...}`` line (an
     estimate MCAP's ``options`` note), or None where the file has no such line or key

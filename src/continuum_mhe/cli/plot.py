@@ -178,7 +178,7 @@ def _tendon_backbone(
     file the estimate's options line names, said in a note) and ``--inputs`` (checked
     against ``t`` as ``estimate`` checks it); None (the section ends joined, said in a
     note) without them."""
-    from continuum_mhe.cli.config import recorded_inputs, recorded_option
+    from continuum_mhe.cli.config import recorded_inputs, recorded_inputs_note, recorded_option
     from continuum_mhe.cli.robot_options import recorded_robot
     from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
     from continuum_mhe.io.tensions import read_tensions
@@ -207,12 +207,7 @@ def _tendon_backbone(
             "options line): give that robot's file, or no --robot for the one it names"
         )
     if robot is not None and recorded:
-        print(
-            f"{PROG}: note: {args.source} was estimated with --inputs {recorded[0]} (its "
-            "options line): its backbone drawn with those tensions (pass --inputs for "
-            "others)",
-            file=sys.stderr,
-        )
+        print(recorded_inputs_note(args.source, recorded[0]), file=sys.stderr)
     if robot is None or not inputs:
         print(
             f"{PROG}: note: the backbone is drawn through the section ends; give "

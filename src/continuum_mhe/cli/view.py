@@ -42,18 +42,14 @@ def run(args: argparse.Namespace) -> int:
 def _recorded_tensions(estimates: str, robot: Robot) -> str | None:
     """For a tendon robot (``robot``), the tensions file the estimate's options line
     names where it is a file here, said in a note, as ``plot`` takes it; else None."""
-    from continuum_mhe.cli.config import recorded_inputs
+    from continuum_mhe.cli.config import recorded_inputs, recorded_inputs_note
 
     if robot.backbone is None or not robot.n_tendons:
         return None
     recorded = recorded_inputs(estimates)
     if recorded is None:
         return None
-    print(
-        f"{PROG}: note: {estimates} was estimated with --inputs {recorded[0]} (its options "
-        "line): its backbone drawn with those tensions (pass --inputs for others)",
-        file=sys.stderr,
-    )
+    print(recorded_inputs_note(estimates, recorded[0]), file=sys.stderr)
     return recorded[1]
 
 

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.base import Inference, tension_rows
 from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
+from continuum_mhe.model.descriptions import tip_position_indices
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX
@@ -280,8 +281,7 @@ class WideUncertain:
     one says the readings do not pin the shape down."""
 
     def __init__(self, formulation: Formulation, fraction: float) -> None:
-        outs = formulation.outputs
-        self._tip = [i for i, o in enumerate(outs) if o.section == 0 and o.unit == "m"]
+        self._tip = list(tip_position_indices(formulation.outputs))
         self.limit = fraction * formulation.robot.length  # m
         self.fraction = fraction
         self.count = 0

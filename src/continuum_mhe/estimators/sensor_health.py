@@ -64,6 +64,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.io.input_options import check_mounting
 from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.tensions import tension_scale_problem
+from continuum_mhe.model.descriptions import tip_position_indices
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
@@ -322,7 +323,7 @@ class Estimator(Generic[InferenceT]):
             blocks=[(b.start, b.size) for b in blocks],
             imu_blocks=[(b.start, b.size) for b in blocks if b.is_imu],
             tilt_rows=tilt_rows(f),
-            tip_rows=[i for i, o in enumerate(f.outputs) if o.section == 0 and o.unit == "m"],
+            tip_rows=list(tip_position_indices(f.outputs)),
             freeze=off(r.freeze),
             freeze_samples=r.freeze_samples,
             gap_reset=off(r.gap_reset),

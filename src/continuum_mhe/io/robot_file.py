@@ -154,8 +154,8 @@ def _shown(value: object) -> str:
 
 
 def _not_whole(value: object) -> str:
-    """``" (write it without a decimal point)"`` for a float with a whole value (TOML's
-    ``1.0`` where a count or number is meant), else ``""``."""
+    """``" (write 1, without a decimal point)"`` for a float with a whole value (TOML's
+    ``1.0`` where a whole number is meant), else ``""``."""
     if isinstance(value, float) and math.isfinite(value) and value.is_integer():
         return f" (write {int(value)}, without a decimal point)"
     return ""

@@ -110,6 +110,11 @@ def wrapped_indices(outputs: Sequence[OutputSpec]) -> tuple[int, ...]:
     return tuple(i for i, o in enumerate(outputs) if o.wrapped)
 
 
+def tip_position_indices(outputs: Sequence[OutputSpec]) -> tuple[int, ...]:
+    """The columns of the tip's position (section 0, in m: ``x, y, z``)."""
+    return tuple(i for i, o in enumerate(outputs) if o.section == 0 and o.unit == "m")
+
+
 def imu_suffix(i: int, n_imus: int) -> str:
     """Column suffix of IMU ``i`` (0-based): ``""`` with one IMU, else ``"_1"``, ``"_2"``."""
     return "" if n_imus == 1 else f"_{i + 1}"
