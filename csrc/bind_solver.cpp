@@ -108,7 +108,7 @@ void cmhe::bind_solver(nb::module_& m) {
       .def_ro("outcome", &SqpResult::outcome,
               "0 converged (certified), else the failure (continuum_mhe's OUTCOMES order).")
       .def_ro("iterations", &SqpResult::iterations, "SQP iterations taken.")
-      .def_ro("step", &SqpResult::step, "The last QP step's largest entry (state units).")
+      .def_ro("step", &SqpResult::step, "The last QP step's largest entry, each state's weighted by its step_scale.")
       .def_ro("cost", &SqpResult::cost, "The window cost at the last evaluated iterate.")
       .def_ro("buffer", &SqpResult::buffer, "The buffer (0 or 1) of Xb holding the answer.");
   nb::class_<WindowSolver>(
@@ -189,6 +189,11 @@ void cmhe::bind_solver(nb::module_& m) {
       .def_prop_ro("u",
                    [](WindowSolver& s) { return view(s, s.u, {size_t(s.n - 1), size_t(s.nu)}); })
       .def_prop_ro("dt", [](WindowSolver& s) { return view(s, s.dt, {size_t(s.n - 1)}); })
+      .def_prop_ro(
+          "step_scale", [](WindowSolver& s) { return view(s, s.step_scale, {size_t(s.nx)}); },
+          "(nx,) what a unit of each state counts for in the certificate's max-norm (the QP "
+          "step and its error bound): ones unless set (a rate's, the time over which its "
+          "error moves the angle it is the rate of)")
       .def_prop_ro("Xb",
                    [](WindowSolver& s) { return view(s, s.Xb, {2, size_t(s.n), size_t(s.nx)}); })
       .def_prop_ro("out", [](WindowSolver& s) { return view(s, s.out, {2, size_t(s.window_size)}); })

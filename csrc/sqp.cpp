@@ -379,7 +379,9 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
     if (qp.status != CONVERGED) return {qp.status, it, step, cost, cur};
     const bool step_exact = exact;  // d is an exact Newton step
     step = 0.0;
-    for (Index i = 0; i < size; ++i) step = std::max(step, std::fabs(d[i]));
+    const double* scale = w.step_scale.data();
+    for (Index i = 0; i < n; ++i)
+      for (Index j = 0; j < nx; ++j) step = std::max(step, std::fabs(d[i * nx + j]) * scale[j]);
     const int tr = 1 - cur;
     const bool contracted = qp.active == 0 && prev < kInf && step <= 0.5 * prev;
     double err = kInf;  // the estimated error of X_k + d_k
@@ -526,6 +528,7 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   m.assign(n * nz, 0.0);
   u.assign((n - 1) * nu, 0.0);
   dt.assign(n - 1, 0.0);
+  step_scale.assign(nx, 1.0);
   Xb.assign(2 * n * nx, 0.0);
   out.assign(2 * window_size, 0.0);
   D.assign(2 * n * bs, 0.0);

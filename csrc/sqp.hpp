@@ -65,6 +65,7 @@ class WindowSolver {
   // certification the other buffer holds the last evaluated iterate X_k, whose blocks
   // give the answer's covariance.
   //
+  // Steps and errors are measured in the max-norm weighted by step_scale.
   // Certified when the QP step d is below step_tol, or, with no constraint active, when
   // the observed contraction rho = |d_k| / |d_k-1| <= 1/2 of two full steps bounds the
   // error of X_k + d_k by rho / (1 - rho) |d_k| <= err_tol; when both steps were exact
@@ -116,6 +117,10 @@ class WindowSolver {
   // watchdog: the full step overshoots such rows to second order, which the next step
   // corrects; shortening it instead creeps)
   bool watchdog = false;
+  // (nx,) what a unit of each state counts for in the certificate's max-norm (the QP
+  // step and the error bound): 1 for an angle (rad); a rate's error (rad/s) counts as
+  // the angle it moves over a time (s) its model gives. Ones by default.
+  std::vector<double> step_scale;
   double loss_scale;
   bool linear;
 

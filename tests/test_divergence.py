@@ -103,10 +103,12 @@ def test_mhe_survives_the_rows_that_stopped_it() -> None:
     est = make_estimator("mhe", make_formulation("bend"))
     series = est.run(data.t, data.z)
     assert np.all(np.isfinite(series.output))
-    # the flip onto the bound (t = 0.02 s) leaves the window's model non-finite at its
-    # start: the MHE restarts from that reading, as the EKF and UKF do, instead of
-    # keeping the start as its answer (not-converged) on every later row
-    assert est.diagnostics.restarts >= 1 and series.status[2] == "reset", list(series.status)
+    # a flip onto the bound leaves a window's model non-finite at IPOPT's start (a
+    # window the fast solver does not certify): the MHE restarts from that reading, as
+    # the EKF and UKF do, instead of keeping the start as its answer (not-converged) on
+    # every later row
+    statuses = list(series.status)
+    assert est.diagnostics.restarts >= 1 and "reset" in statuses[:8], statuses
     assert "Invalid_Number_Detected" in str(est.diagnostics.last_failure)
     assert "not-converged" not in set(series.status)
     # and it follows the readings again: the bend leaves the bound where they do

@@ -386,6 +386,24 @@ def test_default_backend_is_fast_and_settings_validate() -> None:
         fm.FastOptions(step_tol=1.0)
 
 
+def test_the_certificate_weighs_a_rate_by_the_time_its_error_moves_its_angle() -> None:
+    """``step_scale``: 1 for angles, gyro biases and positions; 0.1 s for a rate named
+    ``NAME_dot`` beside ``NAME``, its square for ``NAME_ddot``; and the window solver
+    the workspace builds carries it into the core."""
+    from continuum_mhe.estimators.fast.model import step_scale
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+    robot = Robot((Section(0.15, 3.0), Section(0.15, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("direct", robot, own_acceleration=True)
+    by_name = dict(zip(f.state_names, step_scale(f).tolist()))
+    assert by_name["a_1"] == by_name["b_2"] == by_name["bgz_2"] == 1.0
+    assert by_name["a_1_dot"] == by_name["b_2_dot"] == 0.1
+    assert by_name["a_2_ddot"] == pytest.approx(0.01, rel=1e-15)
+    assert step_scale(make_formulation("paper")).tolist() == [1.0] * 5
+    model = fm.build_window_model(BendFormulation(), 5)
+    assert np.array(fm.Workspace(model).core.step_scale).tolist() == [1.0, 1.0, 0.1, 0.1]
+
+
 def test_cost_matches_the_ipopt_objective() -> None:
     f = make_formulation("paper")
     rec = simulate("paper3d", duration=1.5, seed=8)

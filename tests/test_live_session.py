@@ -1105,6 +1105,34 @@ def test_a_stream_that_ends_in_tilt_degrees_is_found_without_the_stop(
         assert s.fatal is None and s.counts.garbled == garbled
 
 
+def test_the_summary_says_how_many_estimates_are_uncertain_for_their_width() -> None:
+    """As ``estimate`` does: with ``uncertain_fraction`` far below the estimates' tip
+    standard deviation, every estimate after the start is ``uncertain`` for its width,
+    and the summary counts them (the start's own ``uncertain`` row counts too, its
+    standard deviation as wide); at the default it says nothing of it."""
+    from continuum_mhe.settings import RecoverySettings
+
+    for fraction, said in ((1e-5, True), (0.1, False)):
+        out = io.StringIO()
+        f = make_formulation("bend", Robot.single(), NoiseSettings())
+        est = make_estimator("ekf", f, recovery=RecoverySettings(uncertain_fraction=fraction))
+        s = LiveSession(LiveSettings(port="x", fmt="tilt"), est, None, out, say=[].append)
+        now = time.monotonic()
+        noise = np.random.default_rng(1).normal(0.0, 0.01, (60, 2))
+        for i in range(60):
+            line = f"{10 * i},{0.1 + noise[i, 0]},{0.1 + noise[i, 1]}"
+            s.handle_line(line.encode(), now + 0.01 * i)
+        statuses = [r.split(",")[-2] for r in out.getvalue().splitlines()[1:]]
+        summary = s.summary()
+        if said:
+            n = statuses.count("uncertain")
+            assert n == len(statuses) > 50
+            assert f"; note: {n} of {len(statuses)} estimates are uncertain" in summary
+            assert "over --uncertain-fraction 1e-05 of the robot's length (0 mm)" in summary
+        else:
+            assert statuses.count("ok") > 50 and "pin the shape down" not in summary
+
+
 def test_a_glitch_is_skipped_and_said_in_the_summary() -> None:
     """One tilt line whose roll is 1 rad off between steady ones: the session skips it
     as a glitch (its row inconsistent, the estimates after it as before) and its summary

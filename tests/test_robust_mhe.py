@@ -558,9 +558,9 @@ def test_second_start_chooses_alike_on_both_backends() -> None:
 def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(loss: str) -> None:
     """The SQP's certificate (step, contraction or quadratic-rate estimate) against the
     answer iterated far beyond it, window by window, on the benchmark's 40 s recording
-    at N = 30: within ``err_tol`` (1e-8; measured 1.7e-9, 3.5e-10 and 3.2e-9 for l2, Huber
-    and Cauchy). Huber's kink would let 4.3e-8 through the quadratic-rate estimate, which
-    Huber therefore does not use."""
+    at N = 30: within ``err_tol`` (1e-8) in the certificate's norm, the rates' errors
+    weighted by 0.1 s (``WindowModel.step_scale``). Huber's kink would let 4.3e-8 through
+    the quadratic-rate estimate, which Huber therefore does not use."""
     rec = simulate("paper3d", duration=40.0, noise_deg=2.0, seed=0)
     z = rec.z
     f = BendFormulation()
@@ -573,8 +573,9 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
         res = fm.solve_window(model, problem, X0, lam0=lam0)
         ref = fm.solve_window(model, problem, X0, tight, lam0=lam0)
         assert res.converged and ref.converged
-        worst = max(worst, float(np.max(np.abs(res.X - ref.X))))
+        worst = max(worst, float(np.max(np.abs(res.X - ref.X) * model.step_scale)))
     assert len(windows) > 700
+    assert_allclose(model.step_scale, [1.0, 1.0, 0.1, 0.1], rtol=0, atol=0)
     assert worst <= fm.FastOptions().err_tol
 
 

@@ -116,7 +116,9 @@ class SqpResult:
 
     @property
     def step(self) -> float:
-        """The last QP step's largest entry (state units)."""
+        """
+        The last QP step's largest entry, each state's weighted by its step_scale.
+        """
 
     @property
     def cost(self) -> float:
@@ -167,6 +169,12 @@ class WindowSolver:
 
     @property
     def dt(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def step_scale(self) -> NDArray[numpy.float64]:
+        """
+        (nx,) what a unit of each state counts for in the certificate's max-norm (the QP step and its error bound): ones unless set (a rate's, the time over which its error moves the angle it is the rate of)
+        """
 
     @property
     def Xb(self) -> NDArray[numpy.float64]: ...

@@ -23,6 +23,7 @@ from continuum_mhe.estimators.run_notices import (
     ForceBeyondTensions,
     TensionGainFromOne,
     TwistWithTiltImus,
+    WideUncertain,
     drifted_notice,
     free_of_load_clause,
     glitch_clause,
@@ -252,6 +253,9 @@ class LiveSession:
         #: section's theta_max, for the summary's warnings (as estimate's)
         self.force = ForceBeyondTensions(self.formulation)
         self.beyond = BendsBeyondBound(self.formulation)
+        #: the estimates ``uncertain`` for their width, for the summary's note (as
+        #: estimate's)
+        self.wide = WideUncertain(self.formulation, estimator.recovery.uncertain_fraction)
         #: the estimates written, by status (the summary's drifted warning counts them)
         self.status_counts: Counter[str] = Counter()
         columns = estimate_columns(self.formulation.outputs, outlier=self.flags_outliers)
@@ -961,6 +965,8 @@ class LiveSession:
             self.twist.add(np.asarray(est.output)[None])
         if self.beyond.active and est.output is not None:
             self.beyond.add(np.asarray(est.output)[None])
+        if est.output_std is not None:
+            self.wide.add(np.asarray(est.output_std)[None], [str(est.status)])
         if self.out is None:
             return
         ny = self.formulation.ny
@@ -1088,6 +1094,8 @@ class LiveSession:
             msg += "; warning: " + beyond_note
         if force_note := self.force.notice():
             msg += "; warning: " + force_note
+        if wide_note := self.wide.notice(c.estimates):
+            msg += "; note: " + wide_note
         if glitches := glitch_clause(self.estimator.diagnostics):
             msg += f"; {glitches}"
         if chains := self.estimator.diagnostics.bad_start_chains:

@@ -26,7 +26,9 @@ Algorithm (see ``docs/fast-solver.md``):
   satisfy the bounds exactly: clipping for boxes, radial scaling for each ball).
 * **Certificate.** The QP at an iterate has the NLP's KKT conditions as its own at
   ``d = 0`` (nonnegative multipliers by construction). Converged when the QP step
-  is below ``step_tol`` in the max norm, or, with no constraint active, when the
+  is below ``step_tol`` in the max norm (a rate's entry weighted by 0.1 s, the angle
+  its error moves in that time: :func:`~.model.step_scale`), or, with no constraint
+  active, when the
   contraction of two successive full steps bounds the answer's error by
   ``err_tol``. Otherwise (iteration limit, failed line search, QP failure) the
   caller falls back to IPOPT.

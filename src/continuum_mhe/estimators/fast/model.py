@@ -167,6 +167,9 @@ class WindowModel:
     #: the last node and stage of a window shifted by one sample (a TailFunction)
     tail: _core.ModelFunction | None = None
     block_columns: IntArray | None = None
+    #: (nx,) what a unit of each state counts for in the SQP's certificate
+    #: (:func:`step_scale`); None: ones
+    step_scale: FloatArray | None = None
 
     @property
     def window_size(self) -> int:
@@ -311,6 +314,31 @@ class NodeEvaluator:
         return self._core.output(f64(x))
 
 
+#: The time (s) over which a rate's error counts in the SQP's certificate: a rate 1e-8
+#: rad/s off moves its angle 1e-9 rad over it (:func:`step_scale`).
+RATE_CERTIFICATE_SECONDS = 0.1
+
+
+def step_scale(formulation: Formulation) -> FloatArray:
+    """Per state, what a unit of it counts for in the max-norm of the fast SQP's
+    certificate (its QP steps and error bound, ``FastOptions.step_tol`` and
+    ``err_tol``): 1 for a state in its own units (an angle, rad; a gyro bias), and for a
+    state named ``NAME_dot`` (``NAME_ddot``) beside a state ``NAME``, its time
+    derivative, :data:`RATE_CERTIFICATE_SECONDS` (squared): the angle its error moves
+    over that time. A window's rates follow its angles through the process model, so
+    their error is about the angles' divided by the sample period; in state units the
+    certificate would hold the angles to a sample period's fraction of ``err_tol``."""
+    names = formulation.state_names
+    known = set(names)
+    scale = np.ones(len(names))
+    for i, name in enumerate(names):
+        for suffix, order in (("_ddot", 2), ("_dot", 1)):
+            if name.endswith(suffix) and name[: -len(suffix)] in known:
+                scale[i] = RATE_CERTIFICATE_SECONDS**order
+                break
+    return scale
+
+
 @lru_cache(maxsize=32)
 def build_window_model(
     formulation: Formulation,
@@ -356,4 +384,5 @@ def build_window_model(
         linear_transition=transition_is_linear(formulation),
         second_order_residuals=formulation.second_order_residuals,
         block_columns=block_columns(formulation, blocks),
+        step_scale=step_scale(formulation),
     )

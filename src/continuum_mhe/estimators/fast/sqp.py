@@ -36,10 +36,12 @@ class FastOptions:
 
     Attributes:
         max_iter: SQP (Gauss-Newton) iterations per window before falling back.
-        step_tol: convergence certificate: max-norm of the QP step, state units
-            (rad, rad/s, m).
+        step_tol: convergence certificate: max-norm of the QP step, each state in
+            its own units (rad, m, a gyro bias's rad/s) but a rate, whose error counts
+            as the angle it moves over 0.1 s (:func:`~.model.step_scale`).
         err_tol: convergence certificate: error bound of the answer estimated from
-            the contraction of successive steps, state units.
+            the contraction of successive steps, in the same norm: the angles to
+            ``err_tol`` rad, their rates to ``10 * err_tol`` rad/s.
         max_qp_iter: active-set changes allowed per QP subproblem.
         newton: add the measurement residuals' second-order term to the Hessian
             (exact Newton; Gauss-Newton where that is not positive definite).
@@ -82,7 +84,8 @@ class FastResult:
         converged: True if the KKT certificate holds at ``X``.
         outcome: one of :data:`OUTCOMES`.
         iterations: SQP iterations (QP solves).
-        step: max-norm of the last QP step, state units.
+        step: max-norm of the last QP step, in the certificate's norm
+            (:attr:`FastOptions.step_tol`).
         cost: the window cost at the last evaluated iterate (the answer minus the last
             step when certified).
         lam: (N, nb) multipliers of the ball constraints at ``X``.
@@ -122,6 +125,8 @@ class Workspace:
         # Gauss-Newton steps (no second-order term): a rejected full step is corrected
         # by one more step from its trial point before it is shortened (csrc/sqp.hpp)
         core.watchdog = not model.second_order_residuals
+        if model.step_scale is not None:
+            core.step_scale[:] = model.step_scale
         self.z, self.m, self.u, self.dt = core.z, core.m, core.u, core.dt
         self.Xb, self.out, self.D, self.E, self.g = core.Xb, core.out, core.D, core.E, core.g
         self.d, self.lam_qp, self.wgt, self.extra = core.d, core.lam_qp, core.wgt, core.extra
