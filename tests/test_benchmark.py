@@ -483,8 +483,8 @@ def test_the_peers_multipliers_move_by_one_sample_as_their_states(ng: int) -> No
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--robot", ""], "continuum-mhe: error: --robot names no file or folder"),
-        (["--acados", " "], "continuum-mhe: error: --acados names no file or folder"),
+        (["--robot", ""], "error: argument --robot: an empty name (a shell variable left"),
+        (["--acados", " "], "error: argument --acados: an empty name (a shell variable left"),
         (["--horizons", "10,,30"], "horizons must be integers separated by commas, got '10,,30'"),
         (["--horizons", ",10"], "horizons must be integers separated by commas, got ',10'"),
         (["--horizons", "10", "--duration", "2", "--skip", "fast", "--loss-horizons", "10"],

@@ -1343,3 +1343,64 @@ def test_an_options_line_that_makes_no_robot_is_said(tmp_path, capsys, edit, sai
     assert main(["evaluate", str(est), str(truth)]) == 0
     err = capsys.readouterr().err
     assert f"note: {est}: {said}" in err and "the default one section of 0.2 m is used" in err
+
+
+@pytest.mark.skipif(not Path("/proc/self/mem").exists(), reason="needs Linux's /proc")
+@pytest.mark.parametrize("command", ["estimate", "evaluate"])
+def test_a_file_that_fails_to_read_is_named_in_the_error(tmp_path, capsys, command) -> None:
+    """A read that fails after the file opened (``/proc/self/mem`` opens and then gives
+    an I/O error, as a device or a lost network share may) is one line naming the file,
+    exit 2: the error carried no file name and was said as "reading or writing a
+    file"."""
+    from continuum_mhe.cli import main
+
+    meas, est, truth = tmp_path / "m.csv", tmp_path / "e.csv", tmp_path / "t.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth",
+                 str(truth)]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est)]) == 0
+    capsys.readouterr()
+    argv = {
+        "estimate": ["estimate", "/proc/self/mem", "-o", str(tmp_path / "x.csv")],
+        "evaluate": ["evaluate", str(est), "/proc/self/mem"],
+    }[command]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["continuum-mhe: error: /proc/self/mem: cannot read (Input/output error)"]
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_plot_of_a_folder_without_results_says_so_before_its_options(tmp_path, capsys) -> None:
+    """``plot FOLDER -o P.png`` on a folder that ``reproduce`` did not write: the folder
+    holds no results (it said the folder was a reproduce folder and -o was the fault)."""
+    from continuum_mhe.cli import main
+
+    folder = tmp_path / "empty"
+    folder.mkdir()
+    assert main(["plot", str(folder), "-o", str(tmp_path / "p.png")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith(f"continuum-mhe: error: {folder}: no experiment data (expected "), line
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_a_nan_in_a_truth_file_is_named_by_its_column(tmp_path, capsys) -> None:
+    """A truth row with a NaN (a marker the motion capture lost) is one line naming the
+    line and the column (it said "NaN or infinite value", no column), exit 2."""
+    from continuum_mhe.cli import main
+
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth",
+                 str(truth)]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est)]) == 0
+    lines = truth.read_text().splitlines()
+    header = lines[0].split(",")
+    row = lines[5].split(",")
+    row[header.index("y")] = "nan"
+    lines[5] = ",".join(row)
+    truth.write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line == (
+        f"continuum-mhe: error: {truth}: line 6: column y is nan (every row needs a finite "
+        "value in each column)"
+    )

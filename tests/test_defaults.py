@@ -252,6 +252,46 @@ def test_a_hanging_recording_run_from_python_on_a_z_up_robot_is_refused(method: 
     assert len(series.t) == len(rec.t)
 
 
+@pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
+def test_step_and_continue_run_check_the_first_readings_against_the_mounting(method: str) -> None:
+    """``step`` and ``continue_run`` check the first 25 readings after a reset as ``run``
+    checks a recording's: a hanging robot stepped as z-up is refused at its 25th sample
+    in one line naming ``mounting`` (``step``: 24 estimates before it; without the check
+    they went on at the bound), and every later sample until a reset; ``continue_run``
+    refuses a first block that holds them before stepping any sample; as it hangs, both
+    run on."""
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.io.input_options import MOUNTING_START_SAMPLES, MountingError
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.results import Measurement
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    sections = (Section(0.16, theta_max=3.0), Section(0.14, theta_max=3.0))
+    imus = (ImuPlacement(0), ImuPlacement(1))
+    down = Robot(sections, imus, mounting="z-down")
+    rec = simulate_robot("s-curve", down, duration=2.0, seed=1)
+    up = make_estimator(method, make_formulation("bend", Robot(sections, imus)))
+    said = "step: mounting: the robot is described as z-up, but at the start gravity puts IMU 1"
+    stepped = 0
+    with pytest.raises(MountingError, match=said) as refused:
+        for t, z in zip(rec.t, rec.z):
+            up.step(Measurement(float(t), z))
+            stepped += 1
+    assert stepped == MOUNTING_START_SAMPLES - 1 and "\n" not in str(refused.value)
+    assert str(refused.value).endswith('make the Robot with mounting="z-down"')
+    with pytest.raises(MountingError):  # every later sample, until a reset
+        up.step(Measurement(float(rec.t[stepped + 1]), rec.z[stepped + 1]))
+    up.reset()
+    with pytest.raises(MountingError, match="continue_run: mounting: the robot is described"):
+        up.continue_run(rec.t, rec.z)
+    up.reset()
+    assert len(up.continue_run(rec.t[:10], rec.z[:10]).status) == 10  # not yet 25 samples
+    hanging = make_estimator(method, make_formulation("bend", down))
+    assert all(hanging.step(Measurement(float(t), z)) is not None for t, z in zip(rec.t, rec.z))
+    hanging.reset()
+    assert len(hanging.continue_run(rec.t, rec.z).status) == len(rec.t)
+
+
 def test_a_hanging_robot_that_starts_bent_is_said_naming_the_mounting(tmp_path) -> None:
     """A hanging two-section robot whose recording starts bent (spatial: IMU 1 about 80
     degrees from hanging straight, 100 from standing) estimated with a z-up robot file:

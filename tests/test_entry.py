@@ -187,3 +187,24 @@ def test_the_formulation_registry_and_its_names_agree():
 
     assert set(REGISTRY) == set(get_args(FormulationName))
     assert set(FORMULATIONS) <= set(REGISTRY)
+
+
+def test_the_errors_and_warnings_the_library_raises_are_public_names():
+    """Each error and warning the library raises, importable from ``continuum_mhe`` as
+    the library's guide lists them (they were only in the modules that raise them), and
+    each of the kind it is documented as."""
+    import continuum_mhe
+    from continuum_mhe.estimators.reading_units import ReadingUnitsError
+    from continuum_mhe.io.input_options import MountingError
+
+    errors = ("UserError", "InputError", "SampleTimeError", "ReadingUnitsError", "MountingError")
+    for name in errors:
+        assert issubclass(getattr(continuum_mhe, name), continuum_mhe.UserError), name
+    warned = ("RobotWarning", "RobotFileWarning", "MountingWarning", "UnitWarning",
+              "DropoutWarning", "OptionWarning", "CutLineWarning",
+              "UnobservableShapeWarning")  # fmt: skip
+    for name in warned:
+        assert issubclass(getattr(continuum_mhe, name), UserWarning), name
+        assert name in continuum_mhe.__all__
+    assert continuum_mhe.MountingError is MountingError
+    assert continuum_mhe.ReadingUnitsError is ReadingUnitsError

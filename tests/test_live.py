@@ -492,6 +492,37 @@ def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Pat
     assert sum("gyro magnitude" in ln for ln in err) == 1
 
 
+def test_live_stops_on_a_hanging_robot_described_z_up_and_keeps_no_estimate(
+    tmp_path: Path,
+) -> None:
+    """Tilt lines of a hanging robot read with the default (z-up) robot: at its 25th
+    sample the mounting check stops live, the summary then estimate's line for such a
+    file (naming the port, and the option that fixes it), exit 2; the estimates made
+    until then are removed (the 25th a no-estimate row), the recording of the readings
+    kept."""
+    from continuum_mhe.simulation.scenarios import simulate
+
+    rec = simulate("paper3d", duration=4.0, seed=2, mounting="z-down")
+    lines = [f"{round(1000 * t)},{z[0]:.9f},{z[1]:.9f}" for t, z in zip(rec.t, rec.z)]
+    port, out, raw = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "rec.csv"
+    master = new_pty(port)
+    args = ["--port", str(port), "--format", "tilt", "--method", "ekf", "--duration", "30"]
+    live = LiveProcess([*args, "-o", str(out), "--record", str(raw)])
+    code = send_and_finish(live, master, lines)
+    assert code == 2, live.err
+    err = live.err.splitlines()
+    assert err[-1].startswith(
+        f"continuum-mhe: error: {port}: mounting: the robot is described as z-up"
+    ), live.err
+    assert err[-1].endswith("the robot hangs from its base? give --mounting z-down"), err[-1]
+    removed = (
+        f"live: the 25 estimates made with the robot described the wrong way up are not "
+        f"kept: {out} removed ({raw} keeps the readings as received)"
+    )
+    assert removed in err and not out.exists(), live.err
+    assert data_rows(raw) == 25
+
+
 def test_live_cli_warns_once_about_a_deg_s_gyro_it_does_not_use(tmp_path: Path) -> None:
     """Tilt from the accelerometer (``--imu-model tilt``): estimate's warning, once, and
     the session goes on to estimate every sample (exit 0)."""

@@ -792,6 +792,34 @@ def test_live_stops_when_the_estimator_finds_readings_in_the_wrong_units(monkeyp
     assert s.counts.estimator_failures == 1 and s.counts.samples == 21  # later lines ignored
 
 
+def test_live_stops_where_the_first_readings_put_the_robot_the_other_way_up() -> None:
+    """A hanging robot's tilt lines read by a session whose robot is z-up: at the 25th
+    sample the estimator's mounting check stops the session in one line naming the port
+    and ``mounting`` (not an estimator failure to restart from, sample after sample), and
+    the estimates made before it are the ones not kept; a z-down robot runs on."""
+    from continuum_mhe.simulation.scenarios import simulate
+
+    rec = simulate("paper3d", duration=3.0, seed=2, mounting="z-down")
+    lines = [f"{round(1000 * t)},{z[0]:.9f},{z[1]:.9f}" for t, z in zip(rec.t, rec.z)]
+    for mounting, stops in (("z-up", True), ("z-down", False)):
+        f = make_formulation("bend", Robot.single(mounting=mounting), NoiseSettings())
+        s = LiveSession(
+            LiveSettings(port="/dev/ttyIMU", fmt="tilt"), make_estimator("ekf", f), None,
+            io.StringIO(), say=[].append,
+        )  # fmt: skip
+        _handle(s, lines)
+        if stops:
+            assert s.fatal is not None and s.fatal.startswith(
+                "/dev/ttyIMU: step: mounting: the robot is described as z-up"
+            )
+            assert s.counts.samples == 25 and s.counts.estimator_failures == 1
+            assert s.wrong_mounting and not s.wrong_units
+            assert s.discarded == "made with the robot described the wrong way up"
+        else:
+            assert s.fatal is None and s.discarded is None
+            assert s.counts.estimates >= len(lines) - 1
+
+
 def test_live_checks_the_gyro_again_after_a_board_reset() -> None:
     """The gyro's unit is checked again after a board reset, which may bring firmware
     that sends deg/s: a device clock restart re-arms the check on the samples after it."""

@@ -275,6 +275,15 @@ def test_two_tendons_on_one_path_are_said(tmp_path: Path) -> None:
     ).read_text()
     twin = tmp_path / "twin.toml"
     twin.write_text(shipped + "\n[[tendon]]\nsection = 1\nangle = 0\nradius = 0.01\n")
+    # the same angle a turn apart (360 for 0), and -120 for 240: the same paths
+    for angle, first in (("360", "tendon 1 (section 1, angle 360"), ("-120", "tendon 3 (")):
+        turned = tmp_path / f"turned{angle}.toml"
+        turned.write_text(shipped + f"\n[[tendon]]\nsection = 1\nangle = {angle}\nradius = 0.01\n")
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            read_robot(turned)
+        (line,) = [str(w.message) for w in seen if w.category is RobotFileWarning]
+        assert "is at the same place as " + first in line, line
     for path, said in ((twin, True), (tmp_path / "apart.toml", False)):
         if not said:
             path.write_text(shipped)

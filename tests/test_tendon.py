@@ -1584,6 +1584,33 @@ def test_the_check_skips_the_shift_that_a_tendon_robot_does_not_judge() -> None:
             assert core.shift == 0.0, k
 
 
+@pytest.mark.parametrize("name", ["bend", "direct"])
+def test_the_estimators_refuse_a_model_that_ignores_the_robots_tendons(name: str) -> None:
+    """A ``bend`` or ``direct`` model of a robot with tendons, given to an estimator
+    (the library's ``make_estimator`` or a class), is one UserError saying what the
+    model leaves out and how to get the tendon model: it ignores the tendons' loads,
+    and on ``force-29`` with tilt IMUs the EKF's rows were 27 mm off on average, 400
+    of 401 ``ok``. The same robot without its tendons is the constant-curvature model's
+    to estimate."""
+    from dataclasses import replace
+
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
+    from continuum_mhe.model.registry import make_formulation
+
+    robot = read_robot("tendon-two-section")
+    f = make_formulation(name, robot)
+    said = f"the robot has 6 tendons, but the {name} model ignores their loads"
+    for method in ("mhe", "ekf", "ukf"):
+        with pytest.raises(UserError, match=said):
+            make_estimator(method, f)
+    with pytest.raises(UserError, match=said):
+        ExtendedKalmanFilter(f)
+    bare_robot = replace(robot, tendons=(), backbone=None)
+    assert make_estimator("ekf", make_formulation(name, bare_robot)).formulation.nx > 0
+
+
 def test_the_estimators_refuse_a_negative_tension_as_the_tensions_file_does() -> None:
     """A negative tension given to ``step``, ``run`` or ``continue_run`` is one
     UserError naming the sample and the tendon (a tendon cannot push), as the tensions

@@ -2451,6 +2451,35 @@ def test_a_file_cut_off_inside_its_last_line_is_said(tmp_path, capsys) -> None:
         assert main(["evaluate", str(whole), str(cut_truth)]) == 0
 
 
+def test_a_last_line_cut_short_of_its_fields_is_one_error_without_the_cut_warning(
+    tmp_path, capsys
+) -> None:
+    """A file cut off before its last line's last field: the error that the line has
+    too few fields, alone (the cut-line warning said it was read as written, and then
+    the error that it could not be), for a recording and for an estimate file."""
+    meas, truth = tmp_path / "m.csv", tmp_path / "truth.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth",
+                 str(truth)]) == 0  # fmt: skip
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(est)]) == 0
+    last = len(meas.read_text().splitlines())
+    cut, cut_est = tmp_path / "cut.csv", tmp_path / "cut_e.csv"
+    _cut_last_line(meas, cut, chars=len(meas.read_text().splitlines()[-1].split(",")[-1]) + 1)
+    _cut_last_line(est, cut_est, chars=30)
+    capsys.readouterr()
+    for argv, name in (
+        (["estimate", str(cut), "-o", str(tmp_path / "x.csv")], cut),
+        (["evaluate", str(cut_est), str(truth)], cut_est),
+    ):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", CutLineWarning)
+            assert main(argv) == 2
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert line.startswith(f"continuum-mhe: error: {name}: line "), line
+        assert "expected" in line and "fields, found" in line and "(truncated" in line, line
+    assert not (tmp_path / "x.csv").exists() and last > 2
+
+
 def test_a_bend_recording_with_a_bad_value_names_no_skip_bad_calibrate_lacks(tmp_path, capsys):
     rod = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
     lines = (rod / "spatial_bend.csv").read_text().splitlines()
@@ -2745,6 +2774,41 @@ def test_an_empty_robot_name_is_refused_not_taken_as_none(tmp_path, capsys, comm
 
 
 @pytest.mark.parametrize(
+    ("argv", "name"),
+    [
+        (["calibrate", "--from", "rest.csv", "--write-robot", ""], "--write-robot"),
+        (["simulate", "paper3d", "-o", "m.csv", "--truth", ""], "--truth"),
+        (["estimate", "m.csv", "-o", "e.csv", "--config", ""], "--config"),
+        (["estimate", "m.csv", "-o", "e.csv", "--inputs", " "], "--inputs"),
+        (["plot", "e.csv", "-o", ""], "-o/--output"),
+        (["estimate", "", "-o", "e.csv"], "measurements"),
+        (["evaluate", "", "t.csv"], "estimates"),
+        (["view", "e.csv", "--save", ""], "--save"),
+        (["demo", "--out", ""], "--out"),
+    ],
+)
+def test_an_empty_file_name_is_refused_not_taken_as_left_out(tmp_path, capsys, argv, name) -> None:
+    """A file, folder or port given as an empty string (a shell variable left unset) was
+    taken as the option left out (no truth or robot file written, the options file
+    ignored, a plot beside its input) or as the current folder: one line naming the
+    argument, exit 2, nothing written."""
+    import os
+
+    here = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        with pytest.raises(SystemExit) as stopped:
+            main(argv)
+    finally:
+        os.chdir(here)
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert f"error: argument {name}: an empty name (a shell variable left unset?)" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
     "make",
     [
         lambda big: Section(big),
@@ -2839,3 +2903,34 @@ def test_a_tension_stream_refuses_what_is_no_tension_in_one_line() -> None:
     with pytest.raises(UserError, match="a sample's time must be a number of seconds"):
         stream.push("0.07", [1.0, 2.0])  # type: ignore[arg-type]
     assert stream.push(0.1, [1.0, 2.0]) == []  # (its derivatives need two more)
+
+
+def test_a_time_that_jumps_ahead_alone_is_named_as_the_likely_fault(tmp_path, capsys) -> None:
+    """One row whose t jumps far ahead (a corrupted stamp) makes every later row a
+    decreasing one: the error at the next row says that the row before it jumped ahead
+    of the rows around it, naming its line; a row that goes back alone is named by its
+    own error, without that note."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    lines = meas.read_text().splitlines()
+    for line, t, hint in ((10, "1000", True), (10, "0.2", False)):
+        bad = tmp_path / f"bad{t}.csv"
+        rows = list(lines)
+        rows[line - 1] = t + "," + rows[line - 1].split(",", 1)[1]
+        bad.write_text("\n".join(rows) + "\n")
+        capsys.readouterr()
+        assert main(["estimate", str(bad), "-o", str(tmp_path / "e.csv")]) == 2
+        (said,) = capsys.readouterr().err.strip().splitlines()
+        if hint:
+            assert said.endswith(
+                f"line {line + 1}: decreasing timestamp t=0.45 after t=1000 on line {line} "
+                f"(t must strictly increase); line {line}'s t jumps ahead of the rows around "
+                "it (t=0.35 before it): is it the wrong one? every later row before its t is "
+                "refused too"
+            ), said
+        else:
+            assert said.endswith(
+                f"line {line}: decreasing timestamp t=0.2 after t=0.35 on line {line - 1} "
+                "(t must strictly increase)"
+            ), said
+        assert not (tmp_path / "e.csv").exists()

@@ -343,7 +343,7 @@ def test_a_live_view_of_readings_in_the_wrong_units_says_it_holds_them(tmp_path:
     live, master, lines = _live_with_a_gyro_in_degrees(tmp_path / "tty", out, rrd)
     code = send_and_finish(live, master, lines)  # kills it and closes master in any case
     assert code == 2 and not out.exists(), live.err
-    said = f"live: the view in {rrd} (with the estimates from readings in the wrong units)"
+    said = f"live: the view in {rrd} (with the estimates made from readings in the wrong units)"
     assert said in live.err.splitlines(), live.err
 
 

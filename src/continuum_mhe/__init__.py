@@ -30,8 +30,19 @@ _EXPORTS: dict[str, str] = {
     "MovingHorizonEstimator": "continuum_mhe.estimators",
     "UnscentedKalmanFilter": "continuum_mhe.estimators",
     "make_estimator": "continuum_mhe.estimators",
+    "InputError": "continuum_mhe.errors",
     "SampleTimeError": "continuum_mhe.errors",
+    "UnobservableShapeWarning": "continuum_mhe.errors",
     "UserError": "continuum_mhe.errors",
+    "ReadingUnitsError": "continuum_mhe.estimators.reading_units",
+    "DropoutWarning": "continuum_mhe.io.csv_files",
+    "UnitWarning": "continuum_mhe.io.csv_files",
+    "MountingError": "continuum_mhe.io.input_options",
+    "MountingWarning": "continuum_mhe.io.input_options",
+    "OptionWarning": "continuum_mhe.io.input_options",
+    "RobotFileWarning": "continuum_mhe.io.robot_file",
+    "CutLineWarning": "continuum_mhe.io.text_rows",
+    "RobotWarning": "continuum_mhe.model.robot",
     "Metrics": "continuum_mhe.evaluation.metrics",
     "compute_metrics": "continuum_mhe.evaluation.metrics",
     "DirectFormulation": "continuum_mhe.model.direct",
@@ -73,7 +84,12 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
-    from continuum_mhe.errors import SampleTimeError, UserError
+    from continuum_mhe.errors import (
+        InputError,
+        SampleTimeError,
+        UnobservableShapeWarning,
+        UserError,
+    )
     from continuum_mhe.estimators import (
         METHODS,
         Diagnostics,
@@ -86,14 +102,26 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
         UnscentedKalmanFilter,
         make_estimator,
     )
+    from continuum_mhe.estimators.reading_units import ReadingUnitsError
     from continuum_mhe.evaluation.metrics import Metrics, compute_metrics
+    from continuum_mhe.io.csv_files import DropoutWarning, UnitWarning
+    from continuum_mhe.io.input_options import MountingError, MountingWarning, OptionWarning
+    from continuum_mhe.io.robot_file import RobotFileWarning
+    from continuum_mhe.io.text_rows import CutLineWarning
     from continuum_mhe.model.bend import BendFormulation
     from continuum_mhe.model.direct import DirectFormulation
     from continuum_mhe.model.formulations import Formulation
     from continuum_mhe.model.paper import PaperFormulation
     from continuum_mhe.model.pcc import backbone_points
     from continuum_mhe.model.registry import make_formulation
-    from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
+    from continuum_mhe.model.robot import (
+        Backbone,
+        ImuPlacement,
+        Robot,
+        RobotWarning,
+        Section,
+        Tendon,
+    )
     from continuum_mhe.results import Status
     from continuum_mhe.settings import (
         MHESettings,

@@ -99,6 +99,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     command = commands.choices[args.command]
     if unknown:  # said by the command's parser, so the usage shown is the command's
         command.error(f"unrecognized arguments: {' '.join(unknown)}")
+    _refuse_empty_values(command, args)
     on_command_line = _given_options(parser, command, argv)
     sources: dict[str, str] = {}
     tables: dict[str, str] = {}
@@ -119,6 +120,23 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
         args.options_parser = command  # the record is written anew once defaults resolve
         args.options_record = options_record(command, args)
     return args
+
+
+def _refuse_empty_values(command: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """An error (one line, exit 2) for a value given as an empty string to an argument
+    that names a file, a folder or a port (a shell variable left unset): taken as
+    given, it would read as the argument left out, or as the current folder."""
+    for action in command._actions:
+        if action.choices is not None or action.type not in (None, str):
+            continue  # (choices and typed values are checked by their own rules)
+        value = getattr(args, action.dest, None)
+        values = value if isinstance(value, list) else [value]
+        if any(isinstance(v, str) and not v.strip() for v in values) and action.default != "":
+            name = "/".join(action.option_strings) or str(action.metavar or action.dest)
+            command.error(
+                f"argument {name}: an empty name (a shell variable left unset?): give one, "
+                "or leave the argument out where it may be"
+            )
 
 
 def _given_options(

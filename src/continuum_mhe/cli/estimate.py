@@ -121,7 +121,9 @@ def _estimate_block(
     between two samples, and only the samples stepped are counted and written. Returns
     the last stepped sample's time (None: none)."""
     freezes_before = len(est.diagnostics.first_freezes)
-    batch = est.continue_run(t, z, check_units=False, should_stop=lambda: bool(SIGNALS_SEEN))
+    batch = est.continue_run(
+        t, z, check_units=False, should_stop=lambda: bool(SIGNALS_SEEN), check_mounting_start=False
+    )
     done = len(batch.status)  # (read checked the units)
     if done == 0:
         return None

@@ -38,6 +38,7 @@ from continuum_mhe.cli.recovery_options import add_recovery_options, recovery_se
 from continuum_mhe.errors import InputError
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.estimate_csv import estimate_columns
+from continuum_mhe.io.input_options import MountingWatch
 from continuum_mhe.io.inputs import serial_input
 from continuum_mhe.io.output_files import refuse_inputs
 from continuum_mhe.live.run import WARM_UP_STEPS, open_plot, run_live, warm_up
@@ -94,6 +95,10 @@ def run(args: argparse.Namespace) -> int:
     # buffer is full)
     estimator = make_estimator(
         method, formulation, mhe_settings, recovery=recovery_settings_from_args(args)
+    )
+    # the first readings against the mounting, named as estimate's reader names them
+    estimator.mounting_watch = MountingWatch(
+        formulation, name=settings.port, robot_file=args.robot, python=False
     )
     warm_up(make_estimator(method, formulation, mhe_settings), WARM_UP_STEPS[method])
     gc.collect()
@@ -162,15 +167,15 @@ def run(args: argparse.Namespace) -> int:
                     say(str(exc))
             if view_sink.kind == "save" and view_error is None:
                 path = view_sink.path
-                mixed = " (with the estimates from readings in the wrong units)"
+                why = None if session is None else session.discarded
                 say(
-                    f"the view in {path}"
-                    + (mixed if session is not None and session.wrong_units else "")
+                    f"the view in {path}" + (f" (with the estimates {why})" if why else "")
                     if view.estimates
                     else f"no sample arrived: {path} not written"
                 )
-        removed = False  # the estimates from readings in the wrong units, and the file
-        if session is not None and session.wrong_units and out is not None:
+        removed = False  # the estimates not kept (session.discarded), and the file
+        why = None if session is None else session.discarded
+        if session is not None and why and out is not None:
             mark = session.units_mark or (0, 0)
             wrong = out.rows - mark[0]
             if wrong:
@@ -178,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
                     f"{out.path} keeps the {mark[0]} before" if mark[0] else f"{out.path} removed"
                 )
                 say(
-                    f"the {wrong} estimates made from readings in the wrong units are not "
+                    f"the {wrong} estimates {why} are not "
                     f"kept: {kept}"
                     + (f" ({record.path} keeps the readings as received)" if record else "")
                 )

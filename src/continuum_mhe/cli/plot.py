@@ -42,14 +42,14 @@ def _reproduction(args: argparse.Namespace) -> int:
     from continuum_mhe.reproduce.figures import render_all
     from continuum_mhe.reproduce.pipeline import load_results
 
-    for flag, given in (("--truth", args.truth), ("--robot", args.robot), ("-o", args.output)):
-        if given is not None:
-            raise InputError(f"{args.source}: a reproduce folder; {flag} is for an estimate file")
     out = Path(args.out) if args.out else Path(args.source)
     refuse_missing_parent(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: not a folder: give --out a folder for the figures")
-    results = load_results(args.source)
+    results = load_results(args.source)  # a folder without them: said before its options
+    for flag, given in (("--truth", args.truth), ("--robot", args.robot), ("-o", args.output)):
+        if given is not None:
+            raise InputError(f"{args.source}: a reproduce folder; {flag} is for an estimate file")
     # re-rendering a folder's own figures is what plot of a folder is for; figures in
     # another folder are kept unless --overwrite
     overwrite = args.overwrite or args.out is None

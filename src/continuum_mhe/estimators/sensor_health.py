@@ -61,7 +61,7 @@ from continuum_mhe.io.csv_files import (
     UnitWarning,
     check_time_steps,
 )
-from continuum_mhe.io.input_options import check_mounting
+from continuum_mhe.io.input_options import MountingWatch, check_mounting
 from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.tensions import tension_scale_problem
 from continuum_mhe.model.descriptions import tip_position_indices
@@ -218,6 +218,25 @@ _NOT_COPIED = (
 )
 
 
+def refuse_tendons_ignored(formulation: Formulation) -> None:
+    """Refuse, in one line, a model without tendons of a robot with tendons (a ``bend``
+    or ``direct`` formulation of a tendon robot's file): it ignores the tendons' loads,
+    the backbone bends off constant curvature under them, and its rows would say ``ok``
+    tens of millimetres off. ``load_input`` and ``open_input`` make the tendon
+    formulation from such a base, with the tensions; the command line refuses a tendon
+    robot without its tensions."""
+    robot = formulation.robot
+    k = robot.n_tendons if isinstance(robot, Robot) else 0
+    if k and formulation.name != "tendon":
+        raise UserError(
+            f"the robot has {k} tendons, but the {formulation.name} model ignores their "
+            "loads (the estimates would be far off and say ok): estimate it with its "
+            "tensions, make_formulation('tendon', robot, ...) or load_input / open_input "
+            "with InputOptions(tensions=...), which make that model; for the "
+            "constant-curvature model, give a Robot without tendons"
+        )
+
+
 class Estimator(Generic[InferenceT]):
     """An estimator: ``step(measurement) -> Estimate`` and ``run``, the sensor-health
     policy (:meth:`step`) around the inference object :attr:`inference`.
@@ -233,6 +252,7 @@ class Estimator(Generic[InferenceT]):
         #: the filter or window solver this estimator steps
         self.inference: InferenceT = inference
         formulation = inference.formulation
+        refuse_tendons_ignored(formulation)
         self.formulation: Formulation = formulation
         #: the estimator's name (``mhe``, ``ekf``, ``ukf``)
         self.name: str = inference.name
@@ -273,6 +293,10 @@ class Estimator(Generic[InferenceT]):
         self._units = ReadingUnitsWatch(self._direct_rows)
         #: the unit of the times that step and continue_run hand over
         self._time_steps = TimeStepWatch()
+        #: the robot's mounting against the first readings that step and continue_run
+        #: hand over (run checks its whole recording); a command line sets its own,
+        #: whose messages name its input and its options
+        self.mounting_watch = MountingWatch(formulation)
         self._policy = self._compiled_policy()
         self.reset()
 
@@ -400,9 +424,10 @@ class Estimator(Generic[InferenceT]):
             self.diagnostics.clear()
             self.inference.clear_counts()
         self._ran = False
-        if not keep_counts:  # a new recording: its units are checked anew
+        if not keep_counts:  # a new recording: its units and mounting are checked anew
             self._units.reset()
             self._time_steps.reset()
+            self.mounting_watch.reset()
         keep = keep_counts if keep_sensors is None else keep_sensors
         self._policy.reset(keep_counts, keep_counts and keep)
 
@@ -488,6 +513,12 @@ class Estimator(Generic[InferenceT]):
                 again for every later sample until a reset), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
+            ~continuum_mhe.io.input_options.MountingError: at the
+                :data:`~continuum_mhe.io.input_options.MOUNTING_START_SAMPLES`-th sample
+                after a reset, where the first readings put the robot the other way up
+                (as :meth:`run` checks a recording's: a
+                :class:`~continuum_mhe.io.input_options.MountingWarning` where they start
+                bent past 90 degrees), and for every later sample until a reset.
         """
         expect_type("measurement", measurement, Measurement, "a Measurement(t, z)")
         if measurement.labels is not None:
@@ -506,6 +537,8 @@ class Estimator(Generic[InferenceT]):
             problem = self._units.see(np.array([t], dtype=float), z[None, :])
             if problem is not None:
                 raise ReadingUnitsError(problem)
+        if not self.mounting_watch.done or self.mounting_watch.error is not None:
+            self.mounting_watch.see(z[None, :], "step")
         r = self._policy.step(t, z)
         if r.input_error:
             self._refuse(r.input_error, t, z)
@@ -759,6 +792,7 @@ class Estimator(Generic[InferenceT]):
         block: int | None = None,
         check_units: bool = True,
         should_stop: Callable[[], bool] | None = None,
+        check_mounting_start: bool = True,
     ) -> Batch:
         """Step the samples ``t`` (n,) s, ``z`` (n, nz) on from the last one, in the
         compiled policy, ``block`` samples per call (a positive integer) from each of
@@ -771,7 +805,10 @@ class Estimator(Generic[InferenceT]):
         sample times that step like milliseconds are warned of as :meth:`step` warns),
         and one for arrays whose shapes do not fit (as :meth:`run`), a ``block`` that
         is not a positive integer, or ``starts`` that skip, repeat or leave out
-        samples. ``should_stop()`` (a caller's signal flag, say) is asked before the
+        samples. The first readings since a reset are checked against the robot's
+        mounting as :meth:`step` checks them, unless ``check_mounting_start`` is False
+        (a caller that checked them itself). ``should_stop()`` (a caller's signal flag,
+        say) is asked before the
         first sample and then every 10 ms or so, between two samples: once it says True
         the call returns the samples stepped so far (a shorter batch; the next call goes
         on from there)."""
@@ -787,6 +824,8 @@ class Estimator(Generic[InferenceT]):
             if problem is not None:
                 raise ReadingUnitsError(problem)
         self._refuse_before_stepping(t, z)
+        if check_mounting_start and (not self.mounting_watch.done or self.mounting_watch.error):
+            self.mounting_watch.see(z, "continue_run")
         if check_units:
             self._warn_time_unit(t, "continue_run")
         if should_stop is not None and not callable(should_stop):

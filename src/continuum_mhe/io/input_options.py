@@ -275,6 +275,63 @@ class MountingWarning(UserWarning):
     the stated one's (a robot bent past 90 degrees, or described the wrong way up)."""
 
 
+class MountingError(InputError):
+    """A start that gravity puts near the other mounting's straight pose: the robot is
+    mounted the other way (:func:`check_mounting`)."""
+
+
+class MountingWatch:
+    """:func:`check_mounting` of samples handed over one at a time or in blocks
+    (``Estimator.step`` and ``continue_run``): the first
+    :data:`MOUNTING_START_SAMPLES` samples since :meth:`reset` are checked once they
+    have arrived. Its :class:`MountingError` is raised again for every later sample
+    until :meth:`reset` (the robot is still mounted the other way).
+
+    ``name`` (else the method given to :meth:`see`) begins the messages;
+    ``robot_file`` and ``python`` choose the fix they name, as :func:`check_mounting`'s
+    (the Robot's field by default; a command line's option or robot file key)."""
+
+    def __init__(
+        self,
+        formulation: Formulation,
+        name: str | None = None,
+        robot_file: str | None = None,
+        python: bool = True,
+    ) -> None:
+        self.formulation = formulation
+        self.name, self.robot_file, self.python = name, robot_file, python
+        self.reset()
+
+    def reset(self) -> None:
+        """Watch a new recording."""
+        self._rows: list[FloatArray] = []
+        self._seen = 0
+        self.done = False
+        self.error: MountingError | None = None
+
+    def see(self, z: FloatArray, what: str) -> None:
+        """Take the samples ``z`` (n, nz) handed over to ``what`` (the method, for the
+        message); check the first ones once there are enough. Raises the
+        :class:`MountingError` where they put the robot the other way up; warns as
+        :func:`check_mounting` does."""
+        if self.error is not None:
+            raise self.error
+        if self.done:
+            return
+        take = z[: MOUNTING_START_SAMPLES - self._seen]
+        self._rows.append(np.array(take, dtype=float))
+        self._seen += len(take)
+        if self._seen < MOUNTING_START_SAMPLES:
+            return
+        self.done = True
+        first, self._rows = np.vstack(self._rows), []
+        try:
+            check_mounting(self.name or what, first, self.formulation, self.robot_file, self.python)
+        except MountingError as exc:
+            self.error = exc
+            raise
+
+
 def start_bend_angle(z: FloatArray, formulation: Formulation) -> tuple[int, float] | None:
     """``(imu, angle)``: the IMU nearest the base (0-based) and the median angle, rad,
     between its tangent and the base axis over its first
@@ -471,7 +528,7 @@ def _check_base_mounting(
         else ""
     )
     if angle > MOUNTING_FLIPPED and not unread:
-        raise InputError(f"{where}: the robot {pose}? {fix}{alone}")
+        raise MountingError(f"{where}: the robot {pose}? {fix}{alone}")
     bound = ""
     if angle > reach + MOUNTING_MARGIN and not robot.has_mechanics:
         raise_it = robot_fix("theta_max", robot_file, python=python)

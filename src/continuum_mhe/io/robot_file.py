@@ -130,11 +130,12 @@ def warn_imu_order(path: Path, imus: Sequence[ImuPlacement]) -> None:
 
 def warn_tendon_twins(path: Path, tendons: Sequence[Tendon]) -> None:
     """Warn (:class:`RobotFileWarning`, one line) where two tendons are anchored at the
-    same section, angle and radius: a copied entry, which adds a tensions column that
-    pulls on the same path."""
+    same section, angle (modulo a turn: 360 and -120 degrees are 0 and 240) and radius:
+    a copied entry, which adds a tensions column that pulls on the same path."""
     seen: dict[tuple[int, float, float], int] = {}
     for i, tendon in enumerate(tendons):
-        key = (tendon.section, round(tendon.angle, 9), round(tendon.radius, 12))
+        turn = round(tendon.angle % math.tau, 9) % round(math.tau, 9)  # 2 pi - 1e-12 is 0
+        key = (tendon.section, turn, round(tendon.radius, 12))
         if key in seen:
             warnings.warn(
                 f"{path}: tendon {i + 1} is at the same place as tendon {seen[key] + 1} "

@@ -268,6 +268,7 @@ class _SampleChecks:
         self.problems = problems if problems is not None else RowProblems()
         self.last_t = -math.inf
         self.last_line = 0  # the line of the last sample given
+        self.before_last_t = -math.inf  # the time of the sample given before it
         self.last_bad = -1
         self.n_rows = 0  # data rows read
         self.n_out = 0  # samples given
@@ -292,8 +293,6 @@ class _SampleChecks:
         truncated = "expected {} fields, found {} (truncated row?)"
         for line, row in rows:
             self.n_rows += 1
-            if line == self.table.cut.line:  # its last value may be cut short: said
-                warn_cut_line(self.table.name, line)
             extra = has_extra_fields(row, width)
             if extra:  # which field is extra is unknown: no value of the row is trusted
                 bad(
@@ -317,6 +316,12 @@ class _SampleChecks:
                     f"{kind} timestamp t={time_text(t)} after t={time_text(self.last_t)} "
                     f"on line {self.last_line} (t must strictly increase)"
                 )
+                if t > self.before_last_t > -math.inf:  # line last_line jumped ahead alone
+                    msg += (
+                        f"; line {self.last_line}'s t jumps ahead of the rows around it "
+                        f"(t={time_text(self.before_last_t)} before it): is it the wrong "
+                        "one? every later row before its t is refused too"
+                    )
                 bad(line, msg, dropped=True)
                 continue
             vals: list[float] = []
@@ -348,8 +353,10 @@ class _SampleChecks:
                         )
                         v = math.nan  # with --skip-bad: a dropout, as the message says
                 vals.append(v)
-            self.last_t, self.last_line = t, line
+            self.before_last_t, self.last_t, self.last_line = self.last_t, t, line
             self.n_out += 1
+            if line == self.table.cut.line:  # read as written: its last value may be cut short
+                warn_cut_line(self.table.name, line)
             yield line, t, vals
 
     def blocks(self) -> Iterator[SampleBlock | tuple[int, float, list[float]] | _Drained]:
@@ -422,6 +429,7 @@ class _SampleChecks:
             return None
         if not self.empty_is_dropout and np.isnan(values).any():
             return None
+        self.before_last_t = float(t[-2]) if len(t) > 1 else self.last_t
         self.last_t, self.last_line = float(t[-1]), int(numbers[-1])
         self.n_rows += len(t)
         self.n_out += len(t)

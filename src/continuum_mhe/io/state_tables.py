@@ -17,7 +17,13 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.io.estimate_csv import STD_PREFIX
 from continuum_mhe.io.sample_rows import has_extra_fields
-from continuum_mhe.io.text_rows import TextRows, column_indices, open_rows, parse_float
+from continuum_mhe.io.text_rows import (
+    TextRows,
+    column_indices,
+    open_rows,
+    parse_float,
+    warn_cut_line,
+)
 from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
     angle_beyond_a_turn,
@@ -37,8 +43,11 @@ STATE_HEADER_HINT = "t,x,y,z,theta,phi (an estimate's or a truth's)"
 
 
 def _read_rows(path: str | os.PathLike[str]) -> tuple[TextRows, list[tuple[int, list[str]]]]:
-    """The opened table and all its ``(line_number, fields)`` rows (a small file)."""
+    """The opened table and all its ``(line_number, fields)`` rows (a small file); a
+    last line without an end is said by the caller once it has read it
+    (``rows.cut.line``)."""
     with open_rows(path, STATE_HEADER_HINT) as rows:
+        rows.cut.checked = True
         return rows, list(rows.rows)
 
 
@@ -150,7 +159,12 @@ def read_state_table(
             for c, j in zip(names, idx)
         ]
         if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):
-            raise InputError(f"{p}: line {line}: NaN or infinite value")
+            cells = zip(("t", *names), (row[t_idx], *(row[j] for j in idx)), (tv, *vals))
+            col, text = next((c, x) for c, x, v in cells if not math.isfinite(v))
+            raise InputError(
+                f"{p}: line {line}: column {table.as_written(col)} is {text or 'empty'} "
+                "(every row needs a finite value in each column)"
+            )
         sd.append(
             [
                 math.nan if j < 0 or row[j] == "" else _parse_std(p, line, c, row[j])
@@ -181,6 +195,8 @@ def read_state_table(
     turned = angle_beyond_a_turn(names, values)
     if turned is not None:
         raise InputError(f"{p}: line {lines[turned[0]]}: {turned[1]}")
+    if table.cut.line is not None:  # read as written: its last value may be cut short
+        warn_cut_line(p, table.cut.line)
     return StateTable(
         np.array(t), names, values,
         np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),

@@ -33,7 +33,7 @@ import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from typing import IO, cast
 
 from continuum_mhe.errors import InputError, expect_type
 
@@ -101,16 +101,62 @@ def _open(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:
             fd = os.dup(sys.stdin.fileno())
         except (OSError, ValueError, io.UnsupportedOperation):
             raise InputError("-: standard input is not readable") from None
-        return "<stdin>", open(fd, "rb")  # noqa: SIM115
+        return "<stdin>", _named("<stdin>", open(fd, "rb"))  # noqa: SIM115
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file")
     if p.is_dir():
         raise InputError(f"{p}: is a directory, expected a CSV file")
     try:
-        return str(p), p.open("rb")  # decoded line by line: errors name their line
+        return str(p), _named(str(p), p.open("rb"))  # decoded line by line
     except OSError as exc:
         raise InputError(f"{p}: cannot open ({exc.strerror})") from None
+
+
+def _named(name: str, raw: io.BufferedReader) -> IO[bytes]:
+    """``raw`` behind a :class:`_NamedReader` (a binary stream as ``open(..., "rb")``
+    gives)."""
+    return cast("IO[bytes]", _NamedReader(name, raw))
+
+
+class _NamedReader(io.BufferedIOBase):
+    """A binary stream whose read errors (an I/O error of the device, a file on a lost
+    network share) are one-line :class:`InputError` naming the input: an OSError from
+    a read carries no file name."""
+
+    def __init__(self, name: str, raw: io.BufferedReader) -> None:
+        self._name, self._raw = name, raw
+
+    def _failed(self, exc: OSError) -> InputError:
+        return InputError(f"{self._name}: cannot read ({exc.strerror or exc})")
+
+    def read(self, size: int | None = -1, /) -> bytes:
+        try:
+            return self._raw.read(size)
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def read1(self, size: int = -1, /) -> bytes:
+        try:
+            return self._raw.read1(size)
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def readline(self, size: int | None = -1, /) -> bytes:
+        try:
+            return self._raw.readline(size)
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def readable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self._raw.fileno()
+
+    def close(self) -> None:
+        self._raw.close()
+        super().close()
 
 
 class CutLineWarning(UserWarning):
@@ -433,14 +479,16 @@ def _data_rows(
     cut: CutLine,
 ) -> Iterator[tuple[int, list[str]]]:
     """The data rows of ``pending`` and ``lines``; a last data line without an end is
-    said (:func:`warn_cut_line`) unless the reader says it (``cut.checked``)."""
+    said (:func:`warn_cut_line`) unless the reader says it (``cut.checked``), once the
+    reader has taken it (asks for the row after it): a reader that refuses the row
+    says that alone."""
     for n, text in itertools.chain(pending, lines):
         s = text.strip()
         if not s or s.startswith("#"):
             continue
+        yield n, split_fields(text, sep)
         if n == cut.line and not cut.checked:
             warn_cut_line(name, n)
-        yield n, split_fields(text, sep)
 
 
 #: header names a recording's time column often has elsewhere; the files here name it ``t``

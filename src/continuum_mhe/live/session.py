@@ -32,6 +32,7 @@ from continuum_mhe.estimators.run_notices import (
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
+from continuum_mhe.io.input_options import MountingError
 from continuum_mhe.io.raw_imu import RawImuConverter
 from continuum_mhe.io.raw_units import (
     UNIT_CHECK_SAMPLES,
@@ -290,6 +291,9 @@ class LiveSession:
         #: a gyro in deg/s the estimate uses): the estimates made since
         #: :attr:`units_mark` are from them
         self.wrong_units = False
+        #: :attr:`fatal` says the first readings put the robot the other way up from its
+        #: stated mounting: the estimates made since :attr:`units_mark` assumed it
+        self.wrong_mounting = False
         #: the estimate sink's end (its ``mark()``, where it has one) when the units check
         #: was last armed: at the start, and at each board reset
         self.units_mark: tuple[int, int] | None = None
@@ -443,6 +447,16 @@ class LiveSession:
         )
         if DEGREES_FOR_RADIANS in why and self._degrees_run:
             self.wrong_units = True
+
+    @property
+    def discarded(self) -> str | None:
+        """Why the estimates made since :attr:`units_mark` are not to be kept (what
+        they were made from), or None."""
+        if self.wrong_units:
+            return "made from readings in the wrong units"
+        if self.wrong_mounting:
+            return "made with the robot described the wrong way up"
+        return None
 
     def only_garbled(self) -> str | None:
         """Why the session failed if it read lines but not one valid sample (every line
@@ -924,9 +938,13 @@ class LiveSession:
             problem = None
             if est.output is not None and not np.all(np.isfinite(est.output)):
                 problem = "a non-finite estimate"
-        except ReadingUnitsError as exc:  # every later reading alike: stop
-            self.fatal = f"{self.settings.port}: {exc}"
-            self.wrong_units = True
+        except (ReadingUnitsError, MountingError) as exc:  # every later reading alike: stop
+            port = self.settings.port
+            self.fatal = str(exc) if str(exc).startswith(f"{port}: ") else f"{port}: {exc}"
+            if isinstance(exc, MountingError):
+                self.wrong_mounting = True
+            else:
+                self.wrong_units = True
             self.counts.estimator_failures += 1
             return Estimate(t, None, None, None, Status.NO_ESTIMATE, 0.0)
         except Exception as exc:  # any failure of one window: flag, restart, go on
