@@ -483,8 +483,8 @@ def test_the_peers_multipliers_move_by_one_sample_as_their_states(ng: int) -> No
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--robot", ""], "error: argument --robot: an empty name (a shell variable left"),
-        (["--acados", " "], "error: argument --acados: an empty name (a shell variable left"),
+        (["--robot", ""], "error: argument --robot: an empty value (a shell variable left"),
+        (["--acados", " "], "error: argument --acados: an empty value (a shell variable left"),
         (["--horizons", "10,,30"], "horizons must be integers separated by commas, got '10,,30'"),
         (["--horizons", ",10"], "horizons must be integers separated by commas, got ',10'"),
         (["--horizons", "10", "--duration", "2", "--skip", "fast", "--loss-horizons", "10"],

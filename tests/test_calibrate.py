@@ -755,8 +755,8 @@ def test_a_rest_in_another_acceleration_unit_is_refused_naming_the_unit(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Readings in cm/s^2 (gravity 981, a noise 100 times larger) are refused for their
-    magnitude, not read as a motion, and not calibrated when the stillness bound is
-    raised for them."""
+    magnitude by the reader (as every command's), not read as a motion, and not
+    calibrated when the stillness bound is raised for them."""
     n = 400
     values = _rest_values(n, 0.02, 0.001)
     values[:, :3] *= 100.0
@@ -767,9 +767,9 @@ def test_a_rest_in_another_acceleration_unit_is_refused_naming_the_unit(
         code, out, err = _calibrate_main(capsys, "--from", str(path), *extra)
         assert code == 2 and out == ""
         assert err == (
-            f"continuum-mhe: error: {path}: IMU 1's accelerometer magnitude at rest is 980.7, "
-            "not about 9.81 m/s^2: another unit? (at rest cm/s^2 reads about 981, milli-g "
-            "1000, raw counts thousands); give ax, ay, az in m/s^2\n"
+            f"continuum-mhe: error: {path}: accelerometer magnitude is about 980.7: the "
+            "values look like cm/s^2 (or milli-g, which reads 1000 at rest); ax, ay, az must "
+            "be in m/s^2 (cm/s^2: divide by 100; milli-g: multiply by 0.00980665)\n"
         )
 
 

@@ -286,6 +286,15 @@ def test_step_and_continue_run_check_the_first_readings_against_the_mounting(met
         up.continue_run(rec.t, rec.z)
     up.reset()
     assert len(up.continue_run(rec.t[:10], rec.z[:10]).status) == 10  # not yet 25 samples
+    # run checks its recording's start; a continue_run after it goes on mid-recording,
+    # where the robot may be bent anyhow: not checked as a start again
+    up.reset()
+    with pytest.raises(MountingError, match="^run: mounting"):
+        up.run(rec.t, rec.z)
+    standing = simulate_robot("rest", Robot(sections, imus), duration=2.0, seed=1)
+    up.run(standing.t, standing.z)  # a z-up start, checked; then readings 180 degrees off
+    later = rec.t + standing.t[-1] + 0.02
+    assert len(up.continue_run(later, rec.z).status) == len(rec.t)
     hanging = make_estimator(method, make_formulation("bend", down))
     assert all(hanging.step(Measurement(float(t), z)) is not None for t, z in zip(rec.t, rec.z))
     hanging.reset()

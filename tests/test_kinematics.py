@@ -623,3 +623,23 @@ def test_a_long_evaluation_in_parts_equals_it_in_one(monkeypatch, columns: int) 
         assert_allclose(b, a, rtol=0, atol=0)
     one = kinematics.tip_position(0.5, 0.1, 0.2)
     assert one.shape == (3,)
+
+
+def test_the_kinematics_helpers_refuse_a_negative_length_shapes_apart_and_degrees() -> None:
+    """The public helpers refuse in one UserError what gave a mirrored tip (a negative
+    length), numpy's broadcasting error (shapes apart), or a drawing of bends in degrees
+    (``backbone_points``, theta past a turn; past pi is a file's EKF row, drawn); an arc
+    length of 0 is the base."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.pcc import backbone_points
+
+    with pytest.raises(UserError, match=r"^tip_position: length must be finite and not negative"):
+        tip_position(0.5, 0.3, -0.2)
+    with pytest.raises(UserError, match=r"^tip_jacobian_bend: length must be finite"):
+        tip_jacobian_bend(0.5, 0.3, math.nan)
+    with pytest.raises(UserError, match=r"shapes \(3,\), \(2,\), \(\) do not broadcast together"):
+        tip_position(np.zeros(3), np.zeros(2), 0.2)
+    assert_allclose(tip_position(0.5, 0.3, 0.0), [0.0, 0.0, 0.0], atol=1e-15)
+    with pytest.raises(UserError, match=r"a bend theta of 50 rad is beyond a turn: degrees\?"):
+        backbone_points((0.15, 0.15), [50.0, 30.0], [0.0, 0.0], [0.1])
+    assert backbone_points((0.15, 0.15), [3.2, 0.1], [0.0, 0.0], [0.1]).shape == (1, 3)

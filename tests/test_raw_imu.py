@@ -194,6 +194,11 @@ def _write(path: Path, text: str) -> Path:
         ("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.1,0,zz,9.8,0,0,0\n", "line 3: column ay: 'zz'"),
         ("t,ax,ay,az\n0,0,0,9.8\n0.1,0,0,9.8\n0.05,0,0,9.8\n", "line 4: decreasing timestamp"),
         ("t,ax,ay,az\n0,0,0,1.0\n0.1,0,0,1.0\n", "look like g"),
+        (
+            "t,ax,ay,az\n0,0,0,980.7\n0.1,0,0,980.7\n",
+            "look like cm/s^2 (or milli-g, which reads 1000 at rest); ax, ay, az must be",
+        ),
+        ("t,ax,ay,az\n0,0,0,9807\n0.1,0,0,9807\n", "like mm/s^2; ax, ay, az must be in m/s^2"),
         ("t,ax,ay\n0,0,0\n", "line 1: the IMU has no az column (an IMU's raw columns: ax,"),
         ("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0\n", "line 2: expected 7 fields, found 6"),
     ],

@@ -1,6 +1,6 @@
 """The block reader of sample tables (:func:`~continuum_mhe.io.sample_rows.sample_blocks`,
 numpy's ``loadtxt`` over blocks of lines) against the row-by-row reader
-(:func:`~continuum_mhe.io.sample_rows.iter_samples`): the same samples to the bit, the
+(:func:`~continuum_mhe.io.sample_rows.read_samples`): the same samples to the bit, the
 same problems counted, the same one-line error, on tricky inputs and on random text."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from continuum_mhe.errors import InputError
 from continuum_mhe.io import sample_rows, text_rows
-from continuum_mhe.io.sample_rows import RowProblems, iter_samples, sample_blocks
+from continuum_mhe.io.sample_rows import RowProblems, read_samples, sample_blocks
 from continuum_mhe.io.text_rows import open_rows
 
 Outcome = tuple[Any, ...]
@@ -26,7 +26,7 @@ def _by_rows(path: Path, columns: tuple[str, ...], **kw: bool) -> Outcome:
     problems = RowProblems(keep=1000)
     try:
         with open_rows(path) as rows:
-            got = list(iter_samples(rows, columns, problems=problems, **kw))
+            got = read_samples(rows, columns, problems=problems, **kw)
     except InputError as exc:
         return ("error", str(exc), len(problems.first))
     lines = [g[0] for g in got]

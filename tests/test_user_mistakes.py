@@ -1887,6 +1887,21 @@ def test_demo_refuses_an_out_folder_in_a_missing_folder(tmp_path, capsys) -> Non
     assert not out.parent.exists()
 
 
+def test_an_output_under_a_file_says_the_file_is_not_a_folder(tmp_path, capsys) -> None:
+    """``-o FILE/o.csv`` where FILE is a file: said as a file, not a folder (it said
+    that the folder did not exist, which it does, as a file); for a folder output too."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    capsys.readouterr()
+    for argv, target in (
+        (["estimate", str(meas), "-o", str(meas / "e.csv")], meas / "e.csv"),
+        (["demo", "--out", str(meas / "demo")], meas / "demo"),
+    ):
+        assert main(argv) == 2
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert line == f"continuum-mhe: error: {target}: {meas} is not a folder", line
+
+
 @pytest.mark.parametrize("name", ["time", "timestamp", "Time"])
 def test_a_time_column_named_otherwise_gets_the_name_t(tmp_path, capsys, name) -> None:
     rec = simulate("paper3d", duration=1.0, seed=0)
@@ -2804,7 +2819,7 @@ def test_an_empty_file_name_is_refused_not_taken_as_left_out(tmp_path, capsys, a
     assert stopped.value.code == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
-    assert f"error: argument {name}: an empty name (a shell variable left unset?)" in err, err
+    assert f"error: argument {name}: an empty value (a shell variable left unset?)" in err, err
     assert list(tmp_path.iterdir()) == []
 
 
@@ -2934,3 +2949,79 @@ def test_a_time_that_jumps_ahead_alone_is_named_as_the_likely_fault(tmp_path, ca
                 "(t must strictly increase)"
             ), said
         assert not (tmp_path / "e.csv").exists()
+
+
+def test_rows_separated_otherwise_than_their_header_are_said_so(tmp_path, capsys) -> None:
+    """A header separated by ``;`` over rows separated by ``,`` (two tools' output
+    joined): one line saying which separator each uses (it said the time column's value
+    was not a number, quoting the whole row)."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    lines = meas.read_text().splitlines()
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("\n".join([lines[0].replace(",", ";"), *lines[1:]]) + "\n")
+    capsys.readouterr()
+    assert main(["estimate", str(mixed), "-o", str(tmp_path / "e.csv")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert (
+        line
+        == f"continuum-mhe: error: {mixed}: line 2: fields separated by ',', the header's by ';'"
+    )
+    assert not (tmp_path / "e.csv").exists()
+
+
+def test_skip_bad_drops_a_time_that_jumped_ahead_alone_not_the_rows_after_it(
+    tmp_path, capsys
+) -> None:
+    """With ``--skip-bad`` one row whose t jumps far ahead is the row dropped, in a
+    recording (read in blocks) and in a tensions file (read whole): every row after it
+    was dropped as decreasing (92 of 101; the tensions interpolated across 99.7 s, 17
+    rows on them ``ok`` and the tip 10 mm off). A row that goes back alone is the one
+    dropped, as before."""
+    from continuum_mhe.io import read_measurements
+    from continuum_mhe.io.csv_files import DropoutWarning
+
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "5", "-o", str(meas)]) == 0
+    lines = meas.read_text().splitlines()
+    for t, dropped in (("1000", 10), ("0.2", 10)):
+        bad = tmp_path / f"bad{t}.csv"
+        rows = list(lines)
+        rows[9] = t + "," + rows[9].split(",", 1)[1]
+        bad.write_text("\n".join(rows) + "\n")
+        out = tmp_path / f"e{t}.csv"
+        capsys.readouterr()
+        assert main(["estimate", str(bad), "--skip-bad", "-o", str(out)]) == 0
+        err = capsys.readouterr().err
+        assert f"wrote {len(lines) - 2} estimates" in err, err
+        assert (
+            f"bad rows: 1 sample(s) dropped (bad or non-increasing t); first: line {dropped}:"
+            in err
+        )
+        kept = read_measurements(bad, skip_bad=True)
+        assert len(kept.t) == len(lines) - 2 and kept.t.max() < 100  # line 10 (t = 0.4) left
+        assert not np.isclose(kept.t, 0.4).any() and (np.diff(kept.t) > 0).all()
+    # a duplicated row, and one that steps back a little: the row after is the one
+    # dropped, and no jump is said (the row before did not jump ahead)
+    for label, t_new, dropped_line in (("dup", None, 11), ("back", "0.38", 11)):
+        rows = list(lines)
+        rows.insert(10, rows[9] if t_new is None else t_new + "," + rows[9].split(",", 1)[1])
+        bad = tmp_path / f"{label}.csv"
+        bad.write_text("\n".join(rows) + "\n")
+        kept = read_measurements(bad, skip_bad=True)
+        assert len(kept.t) == len(lines) - 1 and np.isclose(kept.t, 0.45).any()
+        assert kept.skipped[0].startswith(f"line {dropped_line}: "), kept.skipped
+        capsys.readouterr()
+        assert main(["estimate", str(bad), "-o", str(tmp_path / f"{label}.out")]) == 2
+        assert "jumps ahead" not in capsys.readouterr().err
+    # a tensions file (the tendon robot's): one row dropped and interpolated across
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/tendon"
+    raw = tmp_path / "raw.csv"
+    raw.write_text("\n".join((data / "force-08_raw.csv").read_text().splitlines()[:101]) + "\n")
+    tension_lines = (data / "force-08_tensions.csv").read_text().splitlines()[:101]
+    tension_lines[19] = "100," + tension_lines[19].split(",", 1)[1]
+    tensions = tmp_path / "tensions.csv"
+    tensions.write_text("\n".join(tension_lines) + "\n")
+    with pytest.warns(DropoutWarning, match=r"1 tension row\(s\) .*line 20: t=100 jumps ahead"):
+        assert main(["estimate", str(raw), "--robot", "tendon-two-section", "--inputs",
+                     str(tensions), "--skip-bad", "-o", str(tmp_path / "te.csv")]) == 0  # fmt: skip

@@ -134,7 +134,7 @@ def _refuse_empty_values(command: argparse.ArgumentParser, args: argparse.Namesp
         if any(isinstance(v, str) and not v.strip() for v in values) and action.default != "":
             name = "/".join(action.option_strings) or str(action.metavar or action.dest)
             command.error(
-                f"argument {name}: an empty name (a shell variable left unset?): give one, "
+                f"argument {name}: an empty value (a shell variable left unset?): give one, "
                 "or leave the argument out where it may be"
             )
 

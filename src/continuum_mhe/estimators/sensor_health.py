@@ -669,6 +669,7 @@ class Estimator(Generic[InferenceT]):
         check_mounting("run", z, self.formulation, python=True)
         self.reset()
         self._time_steps.done = True  # the whole recording's times were checked above
+        self.mounting_watch.done = True  # and its mounting: a continue_run goes on from it
         self._refuse_before_stepping(t, z)
         n = len(t)
         block = RUN_BLOCK if progress is not None else max(n, 1)

@@ -27,7 +27,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, expect_type, is_integer
 from continuum_mhe.io.imu_columns import READER_FIX, ROBOT_FIX, TILT_IMU_COLUMNS, imu_suffixes
-from continuum_mhe.io.sample_rows import RowProblems, iter_samples
+from continuum_mhe.io.sample_rows import RowProblems, read_samples
 from continuum_mhe.io.text_rows import MEASUREMENT_HEADER_HINT, TextRows, open_rows
 from continuum_mhe.model.descriptions import (
     tilt_blocks,
@@ -69,13 +69,13 @@ def read_sample_rows(
     skip_bad: bool = False,
     empty_is_dropout: bool = False,
 ) -> SampleRows:
-    """All validated rows of a sample table (see :func:`~continuum_mhe.io.text_rows.
-    iter_samples`); every skipped row is listed in ``skipped``."""
+    """All validated rows of a sample table (see :func:`~continuum_mhe.io.sample_rows.
+    read_samples`); every skipped row is listed in ``skipped``."""
     problems = RowProblems(keep=sys.maxsize)
     lines: list[int] = []
     t: list[float] = []
     values: list[list[float]] = []
-    for line, tv, vals in iter_samples(
+    for line, tv, vals in read_samples(
         rows, columns, skip_bad=skip_bad, empty_is_dropout=empty_is_dropout, problems=problems
     ):
         lines.append(line)

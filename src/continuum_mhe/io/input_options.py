@@ -283,9 +283,9 @@ class MountingError(InputError):
 class MountingWatch:
     """:func:`check_mounting` of samples handed over one at a time or in blocks
     (``Estimator.step`` and ``continue_run``): the first
-    :data:`MOUNTING_START_SAMPLES` samples since :meth:`reset` are checked once they
-    have arrived. Its :class:`MountingError` is raised again for every later sample
-    until :meth:`reset` (the robot is still mounted the other way).
+    :data:`MOUNTING_START_SAMPLES` samples with a reading since :meth:`reset` are
+    checked once they have arrived. Its :class:`MountingError` is raised again for every
+    later sample until :meth:`reset` (the robot is still mounted the other way).
 
     ``name`` (else the method given to :meth:`see`) begins the messages;
     ``robot_file`` and ``python`` choose the fix they name, as :func:`check_mounting`'s
@@ -318,7 +318,8 @@ class MountingWatch:
             raise self.error
         if self.done:
             return
-        take = z[: MOUNTING_START_SAMPLES - self._seen]
+        valid = np.asarray(z, dtype=float)[np.isfinite(z).any(axis=1)]  # a reading in it
+        take = valid[: MOUNTING_START_SAMPLES - self._seen]
         self._rows.append(np.array(take, dtype=float))
         self._seen += len(take)
         if self._seen < MOUNTING_START_SAMPLES:

@@ -74,7 +74,7 @@ def check_output_target(
         )
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
-        raise InputError(f"{target}: folder {folder} does not exist")
+        raise InputError(f"{target}: {missing_folder(folder)}")
     if target.is_dir():
         raise InputError(f"{target}: is a directory, expected a file name")
     if target.exists() and not target.is_file():
@@ -213,8 +213,16 @@ def refuse_missing_parent(folder: Path) -> None:
     """A one-line error where ``folder`` does not exist and neither does the folder it
     would be made in: an output folder is made, but not the folders above it (a mistyped
     path), as an output file's folder must exist."""
-    if not folder.exists() and not folder.absolute().parent.exists():
-        raise InputError(f"{folder}: folder {folder.parent} does not exist")
+    if not folder.exists() and not folder.absolute().parent.is_dir():
+        raise InputError(f"{folder}: {missing_folder(folder.parent)}")
+
+
+def missing_folder(folder: Path) -> str:
+    """Why ``folder``, which is not a folder, cannot hold an output: it does not exist,
+    or it is a file."""
+    if folder.exists():
+        return f"{folder} is not a folder"
+    return f"folder {folder} does not exist"
 
 
 def check_new_folder(folder: Path, overwrite: bool, names: Sequence[str]) -> None:

@@ -78,16 +78,36 @@ def check_accel_range(label: str, acc_norm: FloatArray) -> None:
     )
 
 
+#: Other units an accelerometer's readings come in: the unit, and the factor from m/s^2
+#: (a median magnitude within :data:`_LOOKS_LIKE_G` times g in it is refused).
+_OTHER_ACCEL_UNITS = (
+    ("cm/s^2 (or milli-g, which reads 1000 at rest)", 100.0,
+     "cm/s^2: divide by 100; milli-g: multiply by 0.00980665"),
+    ("mm/s^2", 1000.0, "divide by 1000"),
+)  # fmt: skip
+
+
 def check_accel_units(path: Path | str, acc: FloatArray) -> None:
     """An accelerometer whose median magnitude is about 1 (within :data:`_LOOKS_LIKE_G`)
-    is in g, not m/s^2: a one-line :class:`InputError` naming ``path``."""
+    is in g, not m/s^2, and one whose median is about 100 or 1000 times g is in cm/s^2
+    or mm/s^2: a one-line :class:`InputError` naming ``path``."""
     norm = np.linalg.norm(acc, axis=1)
     norm = norm[np.isfinite(norm)]
-    if len(norm) and _LOOKS_LIKE_G[0] < float(np.median(norm)) < _LOOKS_LIKE_G[1]:
+    if not len(norm):
+        return
+    median = float(np.median(norm))
+    if _LOOKS_LIKE_G[0] < median < _LOOKS_LIKE_G[1]:
         raise InputError(
-            f"{path}: accelerometer magnitude is about {float(np.median(norm)):.2f}: the "
+            f"{path}: accelerometer magnitude is about {median:.2f}: the "
             f"values look like g; ax, ay, az must be in m/s^2 (multiply by {STANDARD_GRAVITY})"
         )
+    for unit, factor, fix in _OTHER_ACCEL_UNITS:
+        g = STANDARD_GRAVITY * factor
+        if _LOOKS_LIKE_G[0] * g < median < _LOOKS_LIKE_G[1] * g:
+            raise InputError(
+                f"{path}: accelerometer magnitude is about {median:.4g}: the values look "
+                f"like {unit}; ax, ay, az must be in m/s^2 ({fix})"
+            )
 
 
 def gyro_units_problem(gyr: FloatArray, names: str = "gx, gy, gz") -> str | None:

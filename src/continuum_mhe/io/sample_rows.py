@@ -1,5 +1,5 @@
 """Validated samples of a sample table (:mod:`~continuum_mhe.io.text_rows`' rows): the time
-and the readings of each row checked and converted, row by row (:func:`iter_samples`) or
+and the readings of each row checked and converted, row by row (:func:`read_samples`) or
 a block of rows at a time (:func:`sample_blocks`, the same values, errors and problems);
 bad rows counted (:class:`RowProblems`) where ``skip_bad`` keeps or drops them.
 """
@@ -10,7 +10,7 @@ import math
 import os
 import re
 import stat
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import IO
 
@@ -70,7 +70,7 @@ def has_extra_fields(row: Sequence[str], width: int) -> bool:
     return any(f != "" for f in row[width:])
 
 
-def iter_samples(
+def read_samples(
     rows: TextRows,
     columns: Sequence[str],
     *,
@@ -78,24 +78,36 @@ def iter_samples(
     empty_is_dropout: bool = False,
     problems: RowProblems | None = None,
     skip_hint: str | None = None,
-) -> Iterator[tuple[int, float, list[float]]]:
-    """Validated ``(line, t, values)`` of a sample table whose ``columns[0]`` is the
-    time ``t`` (converted to s), one row at a time.
+) -> list[tuple[int, float, list[float]]]:
+    """Validated ``(line, t, values)`` of every row of a sample table whose
+    ``columns[0]`` is the time ``t`` (converted to s).
 
     A missing, non-numeric or non-finite value is an error, or with ``skip_bad`` a
     dropout (NaN, row kept); so is a row with fewer or more fields than the header
     (every value of a row with an extra field is a dropout: which one is extra is
     unknown); a bad, duplicate or decreasing ``t`` is an error, or with ``skip_bad`` the
-    row is dropped; each skip is counted in ``problems``. With
-    ``empty_is_dropout`` an empty value is a dropout without complaint. ``skip_hint``:
-    what the error of a non-finite value says ``--skip-bad`` does with it (default
-    :data:`DROPOUT_HINT`).
+    row is dropped, unless the row before it jumped ahead alone (:meth:`_SampleChecks.
+    _retracted_jump`), which is dropped instead; each skip is counted in ``problems``.
+    With ``empty_is_dropout`` an empty value is a dropout without complaint.
+    ``skip_hint``: what the error of a non-finite value says ``--skip-bad`` does with
+    it (default :data:`DROPOUT_HINT`).
     """
     checks = _SampleChecks(
         rows, columns, skip_bad, empty_is_dropout, problems, skip_hint or DROPOUT_HINT
     )
-    yield from checks.rows(rows.rows)
+    out: list[tuple[int, float, list[float]]] = []
+
+    def retract(line: int) -> bool:
+        if out and out[-1][0] == line:
+            out.pop()
+            return True
+        return False
+
+    checks.retract = retract
+    for sample in checks.rows(rows.rows):  # one at a time: retract sees the last one
+        out.append(sample)
     checks.finish()
+    return out
 
 
 @dataclass(frozen=True)
@@ -121,7 +133,7 @@ def sample_blocks(
     empty_is_dropout: bool = False,
     problems: RowProblems | None = None,
 ) -> Iterator[SampleBlock]:
-    """The samples of :func:`iter_samples`, the same values, errors and ``problems``,
+    """The samples of :func:`read_samples`, the same values, errors and ``problems``,
     as blocks of ``size`` rows (the last one shorter, and a block shorter wherever a
     read took all that the input had, the first one once it holds
     :data:`FIRST_STREAMED_ROWS`: a pipe whose writer is behind gets its rows
@@ -133,7 +145,7 @@ def sample_blocks(
     finds in it: ASCII digits, signs, points and exponents, separators and blanks; every
     data line with the header's number of fields; finite values, empty ones only where
     they are dropouts; ``t`` increasing. Any other block is read row by row, as
-    :func:`iter_samples` reads it, so a problem is reported exactly as there (file, line,
+    :func:`read_samples` reads it, so a problem is reported exactly as there (file, line,
     what is wrong), after the samples before it.
     """
     checks = _SampleChecks(rows, columns, skip_bad, empty_is_dropout, problems)
@@ -141,6 +153,19 @@ def sample_blocks(
     loose: list[tuple[int, float, list[float]]] = []  # rows read one at a time
     count = 0
     given = 0  # blocks yielded
+
+    def retract(line: int) -> bool:  # the last row read, if not yet yielded
+        nonlocal count
+        if loose and loose[-1][0] == line:
+            loose.pop()
+        elif not loose and pieces and pieces[-1].lines[-1:] == [line]:
+            pieces[-1] = _part(pieces[-1], 0, len(pieces[-1]) - 1)
+        else:
+            return False
+        count -= 1
+        return True
+
+    checks.retract = retract
     for item in checks.blocks():
         if isinstance(item, _Drained):  # the input has nothing more for now: estimate what came
             if given == 0 and count < min(size, FIRST_STREAMED_ROWS):
@@ -160,7 +185,9 @@ def sample_blocks(
         else:
             loose.append(item)
             count += 1
-        while count >= size:  # as soon as a block is complete: errors after it come later
+        # as soon as a block is complete and a row after it has come (the block's last
+        # row may yet be taken back, a time that jumped ahead): errors after it come later
+        while count > size:
             if loose:
                 pieces.append(_block_of(loose, len(columns) - 1))
                 loose = []
@@ -205,6 +232,13 @@ def _part(block: SampleBlock, i: int, j: int) -> SampleBlock:
     return SampleBlock(block.lines[i:j], block.t[i:j], block.values[i:j])
 
 
+def _other_separator(text: str, width: int, sep: str) -> str | None:
+    """The separator other than ``sep`` that splits a row's ``text`` (one field by
+    ``sep``) into the header's ``width`` fields, if one does: a file whose header and
+    rows were written with different separators."""
+    return next((c for c in (",", ";", "\t") if c != sep and text.count(c) == width - 1), None)
+
+
 def empty_field_pattern(sep: bytes) -> re.Pattern[bytes]:
     """An empty or blank (spaces, tabs) field of lines separated by ``sep``."""
     blank = b"[" + b" \t".replace(sep, b"") + b"]*"
@@ -245,7 +279,7 @@ DROPOUT_HINT = "a dropout; --skip-bad keeps it, skip_bad=True in Python"
 
 
 class _SampleChecks:
-    """The checks of :func:`iter_samples` over one table, row by row or a block at a
+    """The checks of :func:`read_samples` over one table, row by row or a block at a
     time, with their state: the last ``t``, the rows seen, the problems."""
 
     def __init__(
@@ -266,6 +300,10 @@ class _SampleChecks:
         self.skip_bad = skip_bad
         self.empty_is_dropout = empty_is_dropout
         self.problems = problems if problems is not None else RowProblems()
+        #: takes back the last sample given, by its line, where it has not been handed
+        #: on yet (True); :func:`sample_blocks` and :func:`read_samples` set it: with
+        #: ``skip_bad`` a time that jumped ahead alone is dropped, not every row after it
+        self.retract: Callable[[int], bool] | None = None
         self.last_t = -math.inf
         self.last_line = 0  # the line of the last sample given
         self.before_last_t = -math.inf  # the time of the sample given before it
@@ -290,6 +328,7 @@ class _SampleChecks:
         """The checked samples of ``(line, fields)`` rows, one at a time."""
         columns, idx, bad, shown = self.columns, self.idx, self.bad, self.shown
         name, scale, width = self.table.name, self.table.time_scale, len(self.table.header)
+        sep = self.table.separator
         truncated = "expected {} fields, found {} (truncated row?)"
         for line, row in rows:
             self.n_rows += 1
@@ -302,6 +341,9 @@ class _SampleChecks:
             if len(row) <= idx[0]:
                 bad(line, truncated.format(width, len(row)), dropped=True)
                 continue
+            if len(row) == 1 < width and (other := _other_separator(row[0], width, sep)):
+                bad(line, f"fields separated by {other!r}, the header's by {sep!r}", dropped=True)
+                continue
             try:
                 t = parse_float(name, line, shown[0], row[idx[0]]) * scale
             except InputError as exc:
@@ -310,13 +352,18 @@ class _SampleChecks:
             if not math.isfinite(t):
                 bad(line, f"{shown[0]} is {row[idx[0]]}", dropped=True)
                 continue
-            if t <= self.last_t:
+            if t <= self.last_t and self._retracted_jump(t):
+                pass  # the row before jumped ahead alone, and is dropped instead
+            elif t <= self.last_t:
                 kind = "duplicate" if t == self.last_t else "decreasing"
                 msg = (
                     f"{kind} timestamp t={time_text(t)} after t={time_text(self.last_t)} "
                     f"on line {self.last_line} (t must strictly increase)"
                 )
-                if t > self.before_last_t > -math.inf:  # line last_line jumped ahead alone
+                before = self.before_last_t
+                if before > -math.inf and before < t < self.last_t - (t - before):
+                    # line last_line jumped ahead alone: further past the row before it
+                    # than this row is from that one, twice over
                     msg += (
                         f"; line {self.last_line}'s t jumps ahead of the rows around it "
                         f"(t={time_text(self.before_last_t)} before it): is it the wrong "
@@ -358,6 +405,29 @@ class _SampleChecks:
             if line == self.table.cut.line:  # read as written: its last value may be cut short
                 warn_cut_line(self.table.name, line)
             yield line, t, vals
+
+    def _retracted_jump(self, t: float) -> bool:
+        """With ``skip_bad``, where the last sample given jumped ahead of the samples
+        around it (``t``, the next row's time, lies after the one before it) and could be
+        taken back (:attr:`retract`): count it as a bad row, dropped, and go on from the
+        sample before it (True)."""
+        before, last = self.before_last_t, self.last_t
+        if not (self.skip_bad and self.retract is not None and before < t < last):
+            return False
+        # a jump: the last sample lies further past the one before it than twice the
+        # span from that one to this row (two steps); not a row that stepped back a little
+        jumped = before > -math.inf and last - before > 2.0 * (t - before)
+        if not jumped or self.last_bad == self.last_line or not self.retract(self.last_line):
+            return False  # (a row already counted bad is left as it was counted)
+        self.problems.add(
+            f"line {self.last_line}: t={time_text(self.last_t)} jumps ahead of the rows "
+            f"around it (t={time_text(self.before_last_t)} before it, {time_text(t)} after "
+            "it): dropped"
+        )
+        self.problems.dropped += 1
+        self.n_out -= 1
+        self.last_t, self.before_last_t = self.before_last_t, -math.inf
+        return True
 
     def blocks(self) -> Iterator[SampleBlock | tuple[int, float, list[float]] | _Drained]:
         """The table's samples, read from its input: a :class:`SampleBlock` for each

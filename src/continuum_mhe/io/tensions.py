@@ -45,7 +45,7 @@ from continuum_mhe.errors import (
 )
 from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_time_units
 from continuum_mhe.io.input_options import InputOptions, OptionWarning
-from continuum_mhe.io.sample_rows import RowProblems, iter_samples
+from continuum_mhe.io.sample_rows import RowProblems, read_samples
 from continuum_mhe.io.tension_derivatives import (
     TENSION_ACCELERATION_NOISE,
     TENSION_RATE_NOISE,
@@ -555,8 +555,8 @@ def read_tensions(
             )
         problems = RowProblems()
         hint = "--skip-bad, skip_bad=True in Python, leaves the row out and interpolates across it"
-        data = list(
-            iter_samples(rows, ["t", *names], skip_bad=skip_bad, problems=problems, skip_hint=hint)
+        data = read_samples(
+            rows, ["t", *names], skip_bad=skip_bad, problems=problems, skip_hint=hint
         )
         kept = [d for d in data if all(math.isfinite(v) for v in d[2])]
         left_out = len(data) - len(kept) + problems.dropped  # a bad value, or a bad t

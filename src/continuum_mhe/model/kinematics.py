@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
 
 Sym = Any  # casadi.SX or casadi.MX
 
@@ -112,8 +113,27 @@ def _numeric() -> dict[str, ca.Function]:
 CALL_COLUMNS = 1 << 16
 
 
+#: The public function of each numeric one, for messages.
+_CALLER = {"R": "rotation", "p": "tip_position", "J": "tip_jacobian", "Rb": "rotation_bend",
+           "pb": "tip_position_bend", "Jb": "tip_jacobian_bend"}  # fmt: skip
+
+
 def _call(name: str, *args: ArrayLike) -> tuple[FloatArray, tuple[int, ...]]:
-    arrays = np.broadcast_arrays(*[np.asarray(x, dtype=float) for x in args])
+    """The numeric function ``name`` over the broadcast ``args`` (the last a length, m,
+    for the positions and Jacobians: finite, not negative)."""
+    given = [np.asarray(x, dtype=float) for x in args]
+    try:
+        arrays = np.broadcast_arrays(*given)
+    except ValueError:
+        shapes = ", ".join(str(x.shape) for x in given)
+        raise UserError(
+            f"{_CALLER[name]}: the arguments' shapes {shapes} do not broadcast together"
+        ) from None
+    if name in ("p", "J", "pb", "Jb") and not (np.isfinite(given[-1]) & (given[-1] >= 0)).all():
+        raise UserError(
+            f"{_CALLER[name]}: length must be finite and not negative (m, an arc length from "
+            f"the base), got {args[-1]!r}"
+        )
     shape = arrays[0].shape
     flat = [x.reshape(1, -1) for x in arrays]
     f = _numeric()[name]

@@ -18,6 +18,7 @@ compiled from the same expressions.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from functools import cache, lru_cache
 
@@ -26,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import Mounting, _up_sign, gravity_direction_bend_sym
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym, tip_position_bend_sym
 from continuum_mhe.model.robot import Robot
@@ -180,6 +182,11 @@ def backbone_points(
         raise ValueError(
             f"theta and phi must both be (..., {n}) for a {n}-section robot, got "
             f"{th.shape} and {ph.shape}"
+        )
+    if np.any(np.abs(th[np.isfinite(th)]) > math.tau):
+        raise UserError(
+            f"backbone_points: a bend theta of {float(np.nanmax(np.abs(th))):g} rad is "
+            "beyond a turn: degrees? give radians"
         )
     a, b = th * np.cos(ph), th * np.sin(ph)
     lead = th.shape[:-1]

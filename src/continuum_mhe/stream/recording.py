@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.output_files import check_folder_takes, current_umask
+from continuum_mhe.io.output_files import check_folder_takes, current_umask, missing_folder
 
 
 def check_target(path: str | os.PathLike[str], overwrite: bool, option: str) -> Path:
@@ -29,7 +29,7 @@ def check_target(path: str | os.PathLike[str], overwrite: bool, option: str) -> 
         raise InputError(f"{p}: {option} writes CSV (.csv or .txt), not {p.suffix}")
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.is_dir():
-        raise InputError(f"{p}: folder {folder} does not exist")
+        raise InputError(f"{p}: {missing_folder(folder)}")
     if p.is_dir():
         raise InputError(f"{p}: is a directory, expected a file name")
     if not os.access(folder, os.W_OK | os.X_OK):
