@@ -1382,10 +1382,15 @@ def test_plot_of_a_folder_without_results_says_so_before_its_options(tmp_path, c
     assert not (tmp_path / "p.png").exists()
 
 
-def test_a_nan_in_a_truth_file_is_named_by_its_column(tmp_path, capsys) -> None:
-    """A truth row with a NaN (a marker the motion capture lost) is one line naming the
-    line and the column (it said "NaN or infinite value", no column), exit 2."""
+def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_path, capsys):
+    """A truth row with a NaN or an empty cell (a marker the motion capture lost):
+    ``evaluate`` compares the other rows and counts it "without a finite truth" (it was
+    refused, and "NaN or infinite value" named no column); a reader that takes no gaps
+    (``read_state_table``, as ``plot`` and ``view`` read a truth) names the line and the
+    column."""
     from continuum_mhe.cli import main
+    from continuum_mhe.errors import InputError
+    from continuum_mhe.io.state_tables import read_state_table
 
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth",
@@ -1393,14 +1398,17 @@ def test_a_nan_in_a_truth_file_is_named_by_its_column(tmp_path, capsys) -> None:
     assert main(["estimate", str(meas), "-o", str(est)]) == 0
     lines = truth.read_text().splitlines()
     header = lines[0].split(",")
-    row = lines[5].split(",")
-    row[header.index("y")] = "nan"
-    lines[5] = ",".join(row)
+    for i, cell in ((5, "nan"), (9, "")):
+        row = lines[i].split(",")
+        row[header.index("y")] = cell
+        lines[i] = ",".join(row)
     truth.write_text("\n".join(lines) + "\n")
     capsys.readouterr()
-    assert main(["evaluate", str(est), str(truth)]) == 2
-    (line,) = capsys.readouterr().err.strip().splitlines()
-    assert line == (
-        f"continuum-mhe: error: {truth}: line 6: column y is nan (every row needs a finite "
-        "value in each column)"
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    out = capsys.readouterr().out
+    assert "(0 without estimate, 2 without a finite truth)" in out, out
+    with pytest.raises(InputError) as refused:
+        read_state_table(truth)
+    assert str(refused.value) == (
+        f"{truth}: line 6: column y is nan (every row needs a finite value in each column)"
     )

@@ -179,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _evaluate(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
-    truth = read_state_table(args.truth)
+    truth = read_state_table(args.truth, gaps=True)  # a motion capture's lost markers
     if args.truth_shift:  # the truth read at t + shift: its rows that much earlier
         truth = replace(truth, t=truth.t - args.truth_shift)
     refuse_an_estimate_as_truth(

@@ -112,13 +112,14 @@ STATE_LIMIT = 1e9
 
 
 def read_state_table(
-    path: str | os.PathLike[str], required: Sequence[str] = TIP_COLUMNS
+    path: str | os.PathLike[str], required: Sequence[str] = TIP_COLUMNS, gaps: bool = False
 ) -> StateTable:
     """Read an estimate or truth CSV with at least ``t`` and ``required`` columns; every
     other numeric output column (``theta``, ``phi_2``, ``std_x``...) is kept. A
     recording that carries its truth beside the measurements (``x_true, y_true, z_true``,
     as the shipped ``rod_planar.csv``) is read as that truth: each ``NAME_true`` column
-    is the output ``NAME``."""
+    is the output ``NAME``. ``gaps``: an empty or NaN value (not ``t``) is read as NaN,
+    a gap of a truth (a marker the motion capture lost), not refused."""
     table, body = _read_rows(path)
     table.header = truth_named(table.header, required)
     p, header = table.name, table.header
@@ -154,11 +155,12 @@ def read_state_table(
         tv = parse_float(p, line, table.as_written("t"), row[t_idx]) * table.time_scale
         vals = [
             math.nan
-            if (row[j] == "" and st == Status.NO_ESTIMATE)
+            if (row[j] == "" and (st == Status.NO_ESTIMATE or gaps))
             else parse_float(p, line, table.as_written(c), row[j])
             for c, j in zip(names, idx)
         ]
-        if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):
+        finite = [tv, *(v for v in vals if not (gaps and math.isnan(v)))]
+        if st != "no-estimate" and not all(map(math.isfinite, finite)):
             cells = zip(("t", *names), (row[t_idx], *(row[j] for j in idx)), (tv, *vals))
             col, text = next((c, x) for c, x, v in cells if not math.isfinite(v))
             raise InputError(
