@@ -1385,9 +1385,9 @@ def test_plot_of_a_folder_without_results_says_so_before_its_options(tmp_path, c
 def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_path, capsys):
     """A truth row with a NaN or an empty cell (a marker the motion capture lost):
     ``evaluate`` compares the other rows and counts it "without a finite truth" (it was
-    refused, and "NaN or infinite value" named no column); a reader that takes no gaps
-    (``read_state_table``, as ``plot`` and ``view`` read a truth) names the line and the
-    column."""
+    refused, and "NaN or infinite value" named no column), and leaves out a column of
+    text that no output is named as; a reader that takes no gaps (``read_state_table``,
+    as ``plot`` and ``view`` read a truth) names the line and the column."""
     from continuum_mhe.cli import main
     from continuum_mhe.errors import InputError
     from continuum_mhe.io.state_tables import read_state_table
@@ -1403,10 +1403,14 @@ def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_pa
         row[header.index("y")] = cell
         lines[i] = ",".join(row)
     truth.write_text("\n".join(lines) + "\n")
+    # and a column of text that no output is named as (a motion capture's marker label)
+    with_label = [lines[0] + ",marker"] + [ln + ",tip" for ln in lines[1:]]
+    truth.write_text("\n".join(with_label) + "\n")
     capsys.readouterr()
     assert main(["evaluate", str(est), str(truth)]) == 0
     out = capsys.readouterr().out
     assert "(0 without estimate, 2 without a finite truth)" in out, out
+    truth.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError) as refused:
         read_state_table(truth)
     assert str(refused.value) == (

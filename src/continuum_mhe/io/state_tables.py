@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -22,6 +23,7 @@ from continuum_mhe.io.text_rows import (
     column_indices,
     open_rows,
     parse_float,
+    to_float,
     warn_cut_line,
 )
 from continuum_mhe.model.descriptions import (
@@ -92,6 +94,23 @@ class StateTable:
 
 
 _NOT_STATES = {"t", "status", "solve_ms", "outlier"}
+#: The name of an output column (a tip or section-end coordinate, a bend, a twist, the
+#: tip force, a tension gain): a truth's column of text named otherwise is left out.
+_OUTPUT_NAME = re.compile(r"^(x|y|z|theta|phi|psi|fx|fy|fz)(_\d+)?$|^tension_gain_\d+$")
+
+
+def _holds_text(cells: list[str]) -> bool:
+    """Whether a column's ``cells`` hold a value that is not a number (nor empty)."""
+    for text in cells:
+        if text == "":
+            continue
+        try:
+            to_float(text)
+        except ValueError:
+            return True
+    return False
+
+
 #: the suffix of a truth column kept beside the measurements of a recording
 TRUE_SUFFIX = "_true"
 
@@ -125,6 +144,15 @@ def read_state_table(
     p, header = table.name, table.header
     column_indices(table, ("t", *required))
     names = tuple(h for h in header if h not in _NOT_STATES and h and not h.startswith(STD_PREFIX))
+    if gaps:  # a truth's columns of text that no output is named as (a marker's label)
+        whole = [row for _, row in body if len(row) == len(header)]
+        names = tuple(
+            c
+            for c in names
+            if c in required
+            or _OUTPUT_NAME.match(c)
+            or not _holds_text([row[header.index(c)] for row in whole])
+        )
     idx = [header.index(c) for c in names]
     sd_idx = [header.index(STD_PREFIX + c) if STD_PREFIX + c in header else -1 for c in names]
     sd: list[list[float]] = []
