@@ -229,8 +229,12 @@ def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
     cut.write_bytes(est.read_bytes()[:8])
     tiny = tmp_path / "tiny.mcap"  # shorter than the magic: the reader's struct.error
     tiny.write_bytes(b"hello\n")
+    tail_cut = tmp_path / "tail_cut.mcap"  # cut inside a record near its end: said so
+    tail_cut.write_bytes(est.read_bytes()[:-500])
     for path, why in ((tmp_path / "none.mcap", "no such file"), (tmp_path, "a folder"),
                       (cut, "cannot read it as an estimate MCAP"),
+                      (tail_cut, "cannot read it as an estimate MCAP \\(the file ends "
+                                 "inside a record, or is damaged: cut short\\?\\)$"),
                       (tiny, "cannot read it as an estimate MCAP \\(too short")):  # fmt: skip
         with pytest.raises(InputError, match=f"^{re.escape(str(path))}: {why}"):
             read_estimates_mcap(path)

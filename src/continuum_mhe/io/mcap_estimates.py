@@ -25,6 +25,7 @@ from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.extras import require
 from continuum_mhe.io.estimate_csv import STD_PREFIX
 from continuum_mhe.io.output_files import atomic_binary_writer
+from continuum_mhe.io.robot_logs import cut_short
 from continuum_mhe.io.state_tables import StateTable
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.pcc import backbone_frames
@@ -308,7 +309,13 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
     except IsADirectoryError:
         raise InputError(f"{path}: a folder, not an estimate MCAP") from None
     except (McapError, OSError, *_FOREIGN_FILE_ERRORS) as exc:  # not ours, or cut
-        why = "too short for an MCAP" if isinstance(exc, struct.error) else repr(exc)
+        why = (
+            "the file ends inside a record, or is damaged: cut short?"
+            if cut_short(exc) and not isinstance(exc, struct.error)
+            else "too short for an MCAP"
+            if isinstance(exc, struct.error)
+            else repr(exc)
+        )
         raise InputError(f"{path}: cannot read it as an estimate MCAP ({why})") from None
     if not t:
         raise InputError(

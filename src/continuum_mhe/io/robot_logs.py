@@ -255,7 +255,7 @@ def _bag_folder(path: Path) -> Path:
     return path.parent
 
 
-def _cut_short(exc: BaseException) -> bool:
+def cut_short(exc: BaseException) -> bool:
     """The reader's exception says the file ends inside a record (mcap's ``EndOfFile``,
     or a record length past the end)."""
     return (
@@ -267,7 +267,7 @@ def _cut_short(exc: BaseException) -> bool:
 
 def _why_unreadable(exc: BaseException) -> str:
     """The reader's exception of a corrupt or foreign log, as a few words."""
-    if _cut_short(exc):
+    if cut_short(exc):
         # mcap's: a record runs past the file's end, or its length is garbage
         return "the file ends inside a record, or is damaged: a recording cut short?"
     if isinstance(exc, AttributeError) and "'NoneType'" in str(exc):  # JSON null
@@ -291,7 +291,7 @@ def _mcap_reader(fh: Any) -> tuple[Any, Any]:
     try:
         summary = make_reader(fh).get_summary()
     except Exception as exc:
-        if not _cut_short(exc):
+        if not cut_short(exc):
             raise
         fh.seek(0)
         return NonSeekingReader(fh), None
@@ -327,7 +327,7 @@ def _mcap_topics(path: Path) -> dict[str, str]:
             for schema, channel, _ in _mcap_messages(_mcap_reader(fh)[0]):
                 topics.setdefault(channel.topic, schema.name if schema is not None else "")
         except Exception as exc:  # a file cut short: the topics up to the cut
-            if not (_cut_short(exc) and topics):
+            if not (cut_short(exc) and topics):
                 raise
     return topics
 
@@ -486,16 +486,16 @@ def read_imu_log(
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
         where = f"message {done + 1}: " if at else ""
-        if not (skip_bad and _cut_short(exc) and (stamps or unstamped)):
+        if not (skip_bad and cut_short(exc) and (stamps or unstamped)):
             hint = ""
-            if _cut_short(exc) and skip_bad:
+            if cut_short(exc) and skip_bad:
                 # a chunked MCAP's messages are read chunk by chunk: those in the chunk
                 # that the cut ends are lost with it
                 hint = (
                     "; no message could be read before the cut (the messages of a chunk "
                     "that the cut ends are lost with it)"
                 )
-            elif _cut_short(exc) and at:  # messages came whole before the cut
+            elif cut_short(exc) and at:  # messages came whole before the cut
                 hint = "; --skip-bad reads it up to the cut"
             raise InputError(
                 f"{p}: {where}cannot read robot log ({_why_unreadable(exc)}{hint})"
