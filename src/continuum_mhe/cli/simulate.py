@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +67,8 @@ def run(args: argparse.Namespace) -> int:
                 f"{args.truth}: --truth names the measurement file -o too; give two files"
             )
     robot = robot_from_args(args)
+    if robot.tendons and args.scenario == "rest":  # straight, still, its tendons slack:
+        robot = replace(robot, tendons=(), backbone=None)  # its sections' geometry reads it
     try:
         rec = simulate_robot(
             args.scenario,

@@ -13,6 +13,11 @@ from continuum_mhe.io.text_rows import TextRows, column_indices
 
 #: The fix named when a file's IMU count is not the robot's (``{found}``: the file's).
 ROBOT_FIX = "pass --robot FILE with a robot file of {found} IMU(s)"
+#: The same for a tendon robot, whose file a robot of one section without it is not.
+TENDON_ROBOT_FIX = (
+    "pass --robot FILE with a tendon robot file of {found} IMU(s) (its [[imu]] entries; "
+    "docs/tendon.md)"
+)
 #: The same for :func:`~continuum_mhe.io.csv_files.read_measurements`, called from Python
 #: and from ``calibrate``.
 READER_FIX = "pass the robot of {found} IMU(s) (--robot FILE; n_imus={found} in Python)"
@@ -53,7 +58,7 @@ def imu_count_error(
     """The one-line error of a file whose ``kind`` columns (``columns``, as shown) are
     for ``found`` IMUs when the robot has ``n_imus``; ``fix`` ends it (for one IMU with
     :data:`ONE_IMU_FIX` where it names ``--robot``)."""
-    more = ONE_IMU_FIX if found == 1 and "--robot" in fix else ""
+    more = ONE_IMU_FIX if found == 1 and fix == ROBOT_FIX else ""
     if found > n_imus and "--robot" in fix:  # a robot of some of the recording's IMUs
         more += (
             "; for a robot of fewer of them, cut the file to their columns, numbered "

@@ -51,7 +51,7 @@ from continuum_mhe.io.csv_files import (
     tilt_sample_columns,
     tilt_values,
 )
-from continuum_mhe.io.imu_columns import ROBOT_FIX
+from continuum_mhe.io.imu_columns import ROBOT_FIX, TENDON_ROBOT_FIX
 from continuum_mhe.io.imu_topics import read_imu_topics
 from continuum_mhe.io.input_options import (
     InputOptions,
@@ -661,6 +661,7 @@ def _table_stream(
     python: bool = False,
 ) -> MeasurementStream:
     n_imus, name = base.robot.n_imus, rows.name
+    fix = TENDON_ROBOT_FIX if getattr(base.robot, "n_tendons", 0) else ROBOT_FIX  # count off
     problems = RowProblems()
     convert: Convert
     kind: InputKind
@@ -668,7 +669,7 @@ def _table_stream(
     mounting_hint: Callable[[], str | None] | None = None  # what a mounting refusal adds
     if sample_kind(rows) == "raw":
         kind = "raw-csv"
-        cols, has_gyro = raw_layout(rows, n_imus)
+        cols, has_gyro = raw_layout(rows, n_imus, fix)
         options, f = resolve(name, kind, has_gyro, options, base)
         convs = imu_converters(options.raw, base.robot)
 
@@ -696,7 +697,7 @@ def _table_stream(
                 "formulation (make_formulation('bend', robot)), not 'direct', which takes raw "
                 "accelerometer and gyro readings"
             )
-        cols = tilt_sample_columns(rows, n_imus)
+        cols = tilt_sample_columns(rows, n_imus, fix)
         options, f = resolve(name, kind, False, options, base)
 
         degrees_seen = DegreesCheck()

@@ -164,12 +164,27 @@ class TendonTrajectory:
 def check_generated_robot(robot: Robot) -> None:
     """A :class:`~continuum_mhe.errors.UserError` for a robot whose recordings this
     generator does not write: it writes two sections with an IMU at each section's end
-    (its files' columns, its tendon drives per section)."""
+    (its files' columns, its tendon drives per section), standing on its base (``z-up``),
+    each IMU in its disk's frame (no ``mount_rpy``)."""
     ends = tuple((p.section, p.at) for p in robot.imus)
     if robot.n_sections != 2 or ends != ((0, 1.0), (1, 1.0)) or not robot.tendons:
         raise UserError(
             f"the tendon-robot generator writes two-section robots with an IMU at each "
             f"section's end and tendons (as tendon-two-section), not {robot.describe()}"
+        )
+    if robot.mounting != "z-up":
+        raise UserError(
+            f"mounting = {robot.mounting!r}: the tendon-robot generator simulates a robot "
+            'standing on its base (mounting = "z-up"): give that in a copy of the robot '
+            "file to generate, and estimate its recording with that copy"
+        )
+    rotated = [k + 1 for k, p in enumerate(robot.imus) if any(v != 0.0 for v in p.mount_rpy)]
+    if rotated:
+        raise UserError(
+            f"IMU {', '.join(map(str, rotated))} has a mount_rpy: the tendon-robot generator "
+            "reads each IMU in its disk's frame (mount_rpy = [0, 0, 0]); leave mount_rpy "
+            "out of the copy of the robot file to generate, and estimate its recording "
+            "with that copy"
         )
     for k, section in enumerate(robot.sections):
         if section.disks < 1:

@@ -79,7 +79,11 @@ def raw_readings(
     expect_type("rec", rec, Recording, "a Recording (simulate_robot(SCENARIO, robot))")
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     if robot.tendons:
-        raise UserError("raw readings are simulated for constant-curvature robots only")
+        raise UserError(
+            "raw readings are simulated for constant-curvature robots only (a tendon "
+            "robot straight and still, simulate_robot('rest', ...), reads as its robot "
+            "without tendons: dataclasses.replace(robot, tendons=(), backbone=None))"
+        )
     if not (isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0):
         raise UserError(f"seed must be a non-negative integer, got {seed!r}")
     names = tuple(o.name for o in rec.outputs)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -188,18 +188,21 @@ def simulate_robot(
     tip IMU on a one-section robot is :func:`simulate`'s.
 
     Raises:
-        UserError: for a tendon robot (its recordings come from
-            :mod:`continuum_mhe.simulation.cosserat_tendon`), or a scenario the robot's
-            sections and IMUs do not fit.
+        UserError: for a tendon robot but ``rest`` (straight and still, its tendons
+            slack: the readings of its sections' geometry; its other recordings come
+            from :mod:`continuum_mhe.simulation.cosserat_tendon`), or a scenario the
+            robot's sections and IMUs do not fit.
     """
     from continuum_mhe.model.bend import BendFormulation
 
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
+    if robot.tendons and scenario == "rest":  # straight and still: its tendons slack
+        robot = replace(robot, tendons=(), backbone=None)
     if robot.tendons:
         raise UserError(
-            f"a tendon robot ({robot.describe()}): the scenarios are the bends of a "
-            "constant-curvature robot without tensions; a tendon robot's recordings "
-            "(tensions, tip force) come from python -m "
+            f"a tendon robot ({robot.describe()}): the scenarios but rest (straight and "
+            "still) are the bends of a constant-curvature robot without tensions; a "
+            "tendon robot's recordings (tensions, tip force) come from python -m "
             "continuum_mhe.simulation.cosserat_tendon (two sections, an IMU at each end)"
         )
     if scenario not in _SHAPES and scenario not in (*MULTI_SECTION_SCENARIOS, "rest"):
