@@ -2788,6 +2788,22 @@ def test_an_empty_robot_name_is_refused_not_taken_as_none(tmp_path, capsys, comm
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_empty_value_in_an_options_file_is_refused_naming_its_line(tmp_path, capsys) -> None:
+    """``inputs = ""`` in a ``--config`` file was taken as the option left out: one line
+    naming the file, its line and the key, exit 2, nothing written."""
+    meas, cfg, out = tmp_path / "m.csv", tmp_path / "c.toml", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    cfg.write_text('inputs = ""\n')
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "-o", str(out), "--config", str(cfg)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line == (
+        f"continuum-mhe: error: {cfg}: line 1: inputs = '': an empty value: give one, or "
+        "leave the key out"
+    )
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("argv", "name"),
     [

@@ -26,7 +26,7 @@ from continuum_mhe.cli.options import check_option_ranges
 from continuum_mhe.cli.parser import OneLineParser
 from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, version
 from continuum_mhe.cli.program import signal_exit as _signal_exit
-from continuum_mhe.errors import UserError, one_line_warnings
+from continuum_mhe.errors import InputError, UserError, one_line_warnings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
 from continuum_mhe.signals import (
     interrupt_in_chain,
@@ -107,6 +107,9 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     if config:  # the file's options, then the command line's again
         sources, tables = apply_config(command, args.command, config)
         args = parser.parse_args(argv)
+        for dest, source in sources.items():  # an empty value from the file: as given
+            if isinstance(getattr(args, dest, None), str) and not getattr(args, dest).strip():
+                raise InputError(f"{source}: an empty value: give one, or leave the key out")
     # where each option that the options file set (and the command line did not) was given
     args.config_sources = {d: w for d, w in sources.items() if d not in on_command_line}
     # ... and in which of the file's tables (a profile's top level, its [command] table,
