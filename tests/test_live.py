@@ -167,6 +167,20 @@ def test_live_bad_port_is_one_line_with_causes(tmp_path: Path) -> None:
         assert cause in res.stderr
 
 
+def test_a_recording_given_as_the_port_is_said_to_be_no_serial_device(tmp_path: Path) -> None:
+    """``--port rec.csv`` (a recording's path): one line saying it is a regular file and
+    how a recording is estimated (it said the board might be unplugged)."""
+    from continuum_mhe.stream.reader import port_hint
+
+    rec = tmp_path / "rec.csv"
+    rec.write_text("t,roll,pitch\n")
+    said = port_hint(str(rec), OSError(25, "Inappropriate ioctl for device"))
+    assert said == (
+        f"{rec}: a regular file, not a serial device: give the device (Linux /dev/ttyACM0, "
+        "macOS /dev/cu.usbmodem*); a recording is estimated with continuum-mhe estimate FILE"
+    )
+
+
 @pytest.mark.skipif(os.name != "posix", reason="exclusive serial access is POSIX's")
 def test_a_second_reader_of_a_port_is_refused_with_the_port_in_use(tmp_path: Path) -> None:
     """Two readers of one port would each take some of its lines: the second ``live``

@@ -1053,6 +1053,10 @@ def test_device_message_repeats_not_shown_are_counted_for_the_summary() -> None:
     messages.show("continuum_imu v1", 6.0)
     assert said[-1] == "device says: continuum_imu v1 (and 2 more time(s) since)"
     assert messages.not_shown() == 0
+    # the host's own notes, rate-limited alike, are not counted as the device's
+    for now in (7.0, 8.0, 9.0):
+        messages.show("dropped a line longer than 4096 bytes", now, source="")
+    assert said[-1] == "dropped a line longer than 4096 bytes" and messages.not_shown() == 0
 
 
 @pytest.mark.parametrize(

@@ -351,7 +351,10 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             "a valid reading)"
         )
     if diag.gap_resets:
-        msg += f"; restarted after {diag.gap_resets} gap(s) longer than {args.gap_reset:g} s"
+        msg += (
+            f"; restarted after {diag.gap_resets} gap(s) longer than {args.gap_reset:g} s "
+            "without a valid reading (a gap in t, or IMUs silent or stuck on one value)"
+        )
     if diag.bad_starts:
         msg += (
             f"; restarted {diag.bad_starts} time(s) after readings inconsistent with the "

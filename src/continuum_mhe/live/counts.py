@@ -48,10 +48,14 @@ class DeviceMessages:
     def __init__(self, say: Any, every: float) -> None:
         self.say, self.every = say, every
         self._shown: dict[str, tuple[float, int]] = {}  # text -> (last shown, hidden since)
+        self._own: set[str] = set()  # the texts that are the host's own notes
 
     def show(self, text: str, now: float, source: str = "device says: ") -> None:
         """Say ``source`` and ``text`` (``source=""``: a note of the host's own, such as
-        an estimator failure, rate-limited the same way)."""
+        an estimator failure, rate-limited the same way and not counted as the
+        device's)."""
+        if not source:
+            self._own.add(text)
         last, hidden = self._shown.get(text, (-math.inf, 0))
         if now - last < self.every:
             self._shown[text] = (last, hidden + 1)
@@ -59,13 +63,14 @@ class DeviceMessages:
         more = f" (and {hidden} more time(s) since)" if hidden else ""
         self.say(f"{source}{text}{more}")
         if len(self._shown) > 1000:  # a device that never repeats itself: forget the oldest
-            self._shown.pop(next(iter(self._shown)))
+            self._own.discard(oldest := next(iter(self._shown)))
+            self._shown.pop(oldest)
         self._shown[text] = (now, 0)
 
     def not_shown(self) -> int:
-        """The repeats hidden since their message was last shown (none said yet): the
-        summary counts them."""
-        return sum(hidden for _, hidden in self._shown.values())
+        """The device messages' repeats hidden since they were last shown (none said
+        yet): the summary counts them (the host's own notes apart)."""
+        return sum(h for text, (_, h) in self._shown.items() if text not in self._own)
 
 
 class LatencyHistogram:

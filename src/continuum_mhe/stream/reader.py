@@ -35,6 +35,13 @@ def port_hint(port: str, exc: BaseException) -> str:
         p for pat in ("/dev/ttyACM*", "/dev/ttyUSB*", "/dev/cu.usb*") for p in glob.glob(pat)
     )
     text = str(exc).replace("\n", " ")
+    if os.path.isfile(port) or os.path.isdir(port):  # a recording's path, not a device
+        kind = "a folder" if os.path.isdir(port) else "a regular file"
+        return (
+            f"{port}: {kind}, not a serial device: give the device (Linux /dev/ttyACM0, "
+            "macOS /dev/cu.usbmodem*); a recording is estimated with continuum-mhe "
+            "estimate FILE"
+        )
     if isinstance(exc, PermissionError) or "Permission denied" in text:
         causes = (
             "no permission: on Linux add yourself to the dialout group "
