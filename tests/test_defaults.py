@@ -281,6 +281,16 @@ def test_step_and_continue_run_check_the_first_readings_against_the_mounting(met
     assert str(refused.value).endswith('make the Robot with mounting="z-down"')
     with pytest.raises(MountingError):  # every later sample, until a reset
         up.step(Measurement(float(rec.t[stepped + 1]), rec.z[stepped + 1]))
+    # a sample the policy refuses (a time not after the last) is not one of the 25
+    from continuum_mhe.errors import SampleTimeError
+
+    up.reset()
+    for t, z in zip(rec.t[:24], rec.z[:24]):
+        up.step(Measurement(float(t), z))
+    with pytest.raises(SampleTimeError):
+        up.step(Measurement(float(rec.t[23]), rec.z[24]))
+    with pytest.raises(MountingError):
+        up.step(Measurement(float(rec.t[24]), rec.z[24]))
     up.reset()
     with pytest.raises(MountingError, match="continue_run: mounting: the robot is described"):
         up.continue_run(rec.t, rec.z)

@@ -537,11 +537,13 @@ class Estimator(Generic[InferenceT]):
             problem = self._units.see(np.array([t], dtype=float), z[None, :])
             if problem is not None:
                 raise ReadingUnitsError(problem)
-        if not self.mounting_watch.done or self.mounting_watch.error is not None:
-            self.mounting_watch.see(z[None, :], "step")
+        if self.mounting_watch.error is not None:  # the robot is still the other way up
+            raise self.mounting_watch.error
         r = self._policy.step(t, z)
         if r.input_error:
             self._refuse(r.input_error, t, z)
+        if not self.mounting_watch.done:  # a sample the policy took, not one it refused
+            self.mounting_watch.see(z[None, :], "step")
         if not self._time_steps.done:
             self._warn_time_unit(np.array([t], dtype=float), "step")
         self._ran = False
