@@ -176,9 +176,7 @@ def run(args: argparse.Namespace) -> int:
         removed = False  # the estimates not kept (session.discarded), and the file
         why = None if session is None else session.discarded
         if session is not None and why and out is not None:
-            # readings in the wrong units: those since the check was last armed (a board
-            # reset re-arms it); the wrong mounting: every estimate of the session
-            mark = (session.units_mark or (0, 0)) if session.wrong_units else (0, 0)
+            mark = session.discard_from
             wrong = out.rows - mark[0]
             if wrong:
                 kept = (

@@ -827,7 +827,7 @@ class Estimator(Generic[InferenceT]):
             if problem is not None:
                 raise ReadingUnitsError(problem)
         self._refuse_before_stepping(t, z)
-        if check_mounting_start and (not self.mounting_watch.done or self.mounting_watch.error):
+        if check_mounting_start:  # (at once where its samples are in and checked)
             self.mounting_watch.see(z, "continue_run")
         if check_units:
             self._warn_time_unit(t, "continue_run")

@@ -319,8 +319,8 @@ class MountingWatch:
         if self.done:
             return
         valid = np.asarray(z, dtype=float)[np.isfinite(z).any(axis=1)]  # a reading in it
-        take = valid[: MOUNTING_START_SAMPLES - self._seen]
-        self._rows.append(np.array(take, dtype=float))
+        take = valid[: MOUNTING_START_SAMPLES - self._seen]  # (a copy: a boolean index)
+        self._rows.append(take)
         self._seen += len(take)
         if self._seen < MOUNTING_START_SAMPLES:
             return

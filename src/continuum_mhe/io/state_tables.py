@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -28,6 +27,7 @@ from continuum_mhe.io.text_rows import (
 )
 from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
+    TIP_FORCE_COLUMNS,
     angle_beyond_a_turn,
     output_names,
     pcc_outputs,
@@ -94,9 +94,6 @@ class StateTable:
 
 
 _NOT_STATES = {"t", "status", "solve_ms", "outlier"}
-#: The name of an output column (a tip or section-end coordinate, a bend, a twist, the
-#: tip force, a tension gain): a truth's column of text named otherwise is left out.
-_OUTPUT_NAME = re.compile(r"^(x|y|z|theta|phi|psi|fx|fy|fz)(_\d+)?$|^tension_gain_\d+$")
 
 
 def _holds_text(cells: list[str]) -> bool:
@@ -148,10 +145,8 @@ def read_state_table(
         whole = [row for _, row in body if len(row) == len(header)]
         names = tuple(
             c
-            for c in names
-            if c in required
-            or _OUTPUT_NAME.match(c)
-            or not _holds_text([row[header.index(c)] for row in whole])
+            for c, j in zip(names, (header.index(c) for c in names))
+            if c in required or _is_output_column(c) or not _holds_text([row[j] for row in whole])
         )
     idx = [header.index(c) for c in names]
     sd_idx = [header.index(STD_PREFIX + c) if STD_PREFIX + c in header else -1 for c in names]
@@ -238,6 +233,17 @@ def read_state_table(
 #: The per-section columns of a state table: ``theta, phi`` (one section), or
 #: ``theta_k, phi_k, x_k, y_k, z_k``.
 SECTION_FIELDS = ("theta", "phi", "x", "y", "z")
+
+
+def _is_output_column(name: str) -> bool:
+    """Whether ``name`` is an estimate's output column: the tip's position or force, a
+    section's column, a twist ``psi_k`` or a tension gain ``tension_gain_k``."""
+    base, _, k = name.rpartition("_")
+    return (
+        name in (*TIP_COLUMNS, *TIP_FORCE_COLUMNS)
+        or _is_section_column(name)
+        or (base in ("psi", "tension_gain") and k.isdigit())
+    )
 
 
 def _is_section_column(name: str) -> bool:

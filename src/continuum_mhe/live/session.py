@@ -292,7 +292,7 @@ class LiveSession:
         #: :attr:`units_mark` are from them
         self.wrong_units = False
         #: :attr:`fatal` says the first readings put the robot the other way up from its
-        #: stated mounting: the estimates made since :attr:`units_mark` assumed it
+        #: stated mounting: every estimate of the session assumed it
         self.wrong_mounting = False
         #: the estimate sink's end (its ``mark()``, where it has one) when the units check
         #: was last armed: at the start, and at each board reset
@@ -450,13 +450,20 @@ class LiveSession:
 
     @property
     def discarded(self) -> str | None:
-        """Why the estimates made since :attr:`units_mark` are not to be kept (what
-        they were made from), or None."""
+        """Why the estimates from :attr:`discard_from` on are not to be kept (what they
+        were made from), or None."""
         if self.wrong_units:
             return "made from readings in the wrong units"
         if self.wrong_mounting:
             return "made with the robot described the wrong way up"
         return None
+
+    @property
+    def discard_from(self) -> tuple[int, int]:
+        """The estimate sink's mark from which :attr:`discarded` applies: readings in
+        the wrong units, since the units check was last armed (a board reset re-arms
+        it); the wrong mounting, every estimate of the session."""
+        return (self.units_mark or (0, 0)) if self.wrong_units else (0, 0)
 
     def only_garbled(self) -> str | None:
         """Why the session failed if it read lines but not one valid sample (every line
