@@ -1386,8 +1386,8 @@ def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_pa
     """A truth row with a NaN or an empty cell (a marker the motion capture lost):
     ``evaluate`` compares the other rows and counts it "without a finite truth" (it was
     refused, and "NaN or infinite value" named no column), and leaves out a column of
-    text that no output is named as; a reader that takes no gaps (``read_state_table``,
-    as ``plot`` and ``view`` read a truth) names the line and the column."""
+    text that no output is named as; a reader that takes no gaps (``read_state_table``
+    without ``gaps``) names the line and the column."""
     from continuum_mhe.cli import main
     from continuum_mhe.errors import InputError
     from continuum_mhe.io.state_tables import read_state_table

@@ -2269,6 +2269,58 @@ def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(paper3d_pair, tmp_path
     assert said in capsys.readouterr().err
 
 
+def _truth_with_gaps(src: Path, dst: Path, rows: range, columns: set[str] | None) -> None:
+    """``src``'s truth with the ``columns`` (None: every one but ``t``) of data rows
+    ``rows`` (0-based) empty: a motion capture's lost marker."""
+    header, *body = src.read_text().splitlines()
+    names = header.split(",")
+    out = [header]
+    for i, line in enumerate(body):
+        f = line.split(",")
+        if i in rows:
+            f = [v if c == "t" or (columns and c not in columns) else "" for c, v in zip(names, f)]
+        out.append(",".join(f))
+    dst.write_text("\n".join(out) + "\n")
+
+
+def test_plot_view_and_evaluate_read_a_truth_with_gaps(paper3d_pair, tmp_path, capsys) -> None:
+    """A truth with lost markers (empty cells): evaluate compared the other rows, while
+    plot and view refused the file naming the line; each now takes it. A column empty
+    in every row (an angle the capture does not give) is left out: evaluate compared no
+    row at all (every row lacked a finite truth) and printed its coverage as nan, view
+    failed with a traceback. A truth without any tip value is refused in one line."""
+    e, t = paper3d_pair["e"], paper3d_pair["t"]
+    gaps, theta, empty = tmp_path / "gaps.csv", tmp_path / "theta.csv", tmp_path / "none.csv"
+    _truth_with_gaps(t, gaps, range(40, 50), None)
+    _truth_with_gaps(t, theta, range(0, 10**6), {"theta"})
+    _truth_with_gaps(t, empty, range(0, 10**6), None)
+    n = len(t.read_text().splitlines()) - 1
+    assert main(["evaluate", str(e), str(gaps)]) == 0
+    assert "without a finite truth)" in capsys.readouterr().out
+    assert main(["plot", str(e), "--truth", str(gaps), "-o", str(tmp_path / "f.png")]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(e), str(theta)]) == 0
+    out = capsys.readouterr().out
+    assert f"samples compared     {n} (0 without estimate)" in out, out
+    assert "RMSE theta" not in out and "nan" not in out and "phi 1.000" in out, out
+    refused = f"continuum-mhe: error: {empty}: no row has a value in each of x, y, z "
+    figure = str(tmp_path / "g.png")
+    for argv in (
+        ["evaluate", str(e), str(empty)],
+        ["plot", str(e), "--truth", str(empty), "-o", figure],
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err == refused + "(every row a gap)\n", err
+    assert not (tmp_path / "g.png").exists()
+    pytest.importorskip("rerun")
+    for truth in (gaps, theta):
+        out_rrd = tmp_path / f"{truth.stem}.rrd"
+        assert main(["view", str(e), "--truth", str(truth), "--save", str(out_rrd)]) == 0
+        assert out_rrd.stat().st_size > 0
+    assert "(tip and section ends only: no theta/phi" in capsys.readouterr().err
+
+
 def test_view_refuses_a_truth_with_t_in_milliseconds(paper3d_pair, tmp_path, capsys) -> None:
     """view wrote a recording "with truth" of a truth whose t is in ms (evaluate and plot
     refused it): refused in one line, nothing written."""

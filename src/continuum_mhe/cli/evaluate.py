@@ -310,7 +310,8 @@ def format_calibration(c: Calibration | None, std_columns: bool = False) -> str:
                 "without standard deviations)"
             )
         return "calibration          no std_ columns in the estimate file"
-    cover = ", ".join(f"{k} {v:.3f}" for k, v in c.coverage.items())
+    # a column without a finite truth (or std) in any row has no coverage to say
+    cover = ", ".join(f"{k} {v:.3f}" for k, v in c.coverage.items() if math.isfinite(v))
     lo, hi = c.tip_nees_band
     if c.tip_nees < lo:  # what each side means, for a reader who meets the NEES here
         inside = "outside, below: the intervals are wider than the errors"

@@ -104,7 +104,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
 
     est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS)
     require_an_estimate(args.source, est)
-    truth = read_state_table(args.truth) if args.truth else None
+    truth = read_state_table(args.truth, gaps=True) if args.truth else None
     if truth is not None:
         refuse_an_estimate_as_truth(args.truth, truth, "plot EST.csv --truth TRUTH.csv")
     lengths = None

@@ -102,7 +102,7 @@ def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
 
     try:
         est = read_estimates(args.estimates, "view EST.csv", TIP_COLUMNS)
-        truth = read_state_table(args.truth)
+        truth = read_state_table(args.truth, gaps=True)
     except UserError:
         return
     if len(est.t) < 2:  # one row: nothing to compare times with

@@ -157,8 +157,10 @@ def compute_metrics(
     """Metrics of ``estimate`` (n, k) with columns ``names`` against ``truth`` (n, k')
     with columns ``truth_names`` (default: the same), over a robot of ``length`` m.
     Columns in only one of them are ignored; both must have ``x, y, z``. Rows with a
-    NaN estimate are skipped (``n_without_estimate``), and so are rows whose truth is
-    not finite (``n_without_truth``: a gap in a motion capture).
+    NaN estimate are skipped (``n_without_estimate``), and so are rows whose tip truth
+    (``x, y, z``) is not finite (``n_without_truth``: a gap in a motion capture); a
+    column whose truth has gaps of its own is compared over its finite rows, and one
+    with none of them finite is left out.
 
     Raises:
         UserError: arrays that are not (n, k) numbers with a column per name, of
@@ -202,15 +204,20 @@ def compute_metrics(
     est = est_all[:, [names.index(c) for c in common]]
     tru = tru_all[:, [tnames.index(c) for c in common]]
     estimated = np.all(np.isfinite(est), axis=1)
-    has = estimated & np.all(np.isfinite(tru), axis=1)
+    tip_cols = [common.index(c) for c in TIP_COLUMNS]
+    has = estimated & np.all(np.isfinite(tru[:, tip_cols]), axis=1)
     if not has.any():
         raise UserError(
             "no sample has an estimate"
             if not estimated.any()
-            else "no estimated sample has a finite truth"
+            else "no estimated sample has a finite truth of the tip (x, y, z)"
         )
-    err = state_errors(est[has], tru[has], common)
-    rmse = np.sqrt(np.mean(err**2, axis=0))
+    # a column whose truth has gaps where the tip's has none (an angle a motion capture
+    # leaves undefined) is compared over its own finite rows; one without any is left out
+    kept = [j for j in range(len(common)) if np.isfinite(tru[has, j]).any()]
+    common = [common[j] for j in kept]
+    err = state_errors(est[has][:, kept], tru[has][:, kept], common)
+    rmse = np.sqrt(np.nanmean(err**2, axis=0))
     col = {c: i for i, c in enumerate(common)}
     tip = np.linalg.norm(err[:, [col["x"], col["y"], col["z"]]], axis=1)
     end_mean: dict[str, float] = {}
@@ -218,11 +225,14 @@ def compute_metrics(
     for k in section_numbers(col, "x"):  # every section end both sides have, gaps or not
         if all(f"{c}_{k}" in col for c in "yz"):
             e = np.linalg.norm(err[:, [col[f"x_{k}"], col[f"y_{k}"], col[f"z_{k}"]]], axis=1)
+            e = e[np.isfinite(e)]
             end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
     force = [col[c] for c in TIP_FORCE_COLUMNS if c in col]
     force_rms = None
     if len(force) == len(TIP_FORCE_COLUMNS):
-        force_rms = float(np.sqrt(np.mean(np.sum(err[:, force] ** 2, axis=1))))
+        sq = np.sum(err[:, force] ** 2, axis=1)
+        if np.isfinite(sq).any():
+            force_rms = float(np.sqrt(np.mean(sq[np.isfinite(sq)])))
     return Metrics(
         rmse={c: float(v) for c, v in zip(common, rmse)},
         srmse=float(sum(v for c, v in zip(common, rmse) if c in srmse_columns(common))),

@@ -220,6 +220,11 @@ def read_state_table(
     turned = angle_beyond_a_turn(names, values)
     if turned is not None:
         raise InputError(f"{p}: line {lines[turned[0]]}: {turned[1]}")
+    held = [names.index(c) for c in required]
+    if gaps and held and not np.all(np.isfinite(values[:, held]), axis=1).any():
+        raise InputError(
+            f"{p}: no row has a value in each of {', '.join(required)} (every row a gap)"
+        )
     if table.cut.line is not None:  # read as written: its last value may be cut short
         warn_cut_line(p, table.cut.line)
     return StateTable(

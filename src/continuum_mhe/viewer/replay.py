@@ -58,7 +58,7 @@ def replay(
     cols = [est.names.index(o.name) for o in outputs]
     truth_table = None
     if truth is not None:
-        truth_table = read_state_table(truth)  # t, x, y, z and any per-section columns
+        truth_table = read_state_table(truth, gaps=True)  # t, x, y, z and any per-section columns
         misfit = robot_misfit(truth_table.names, robot, complete=False)
         if misfit:
             raise InputError(f"{truth}: {misfit}; pass --robot with its robot")

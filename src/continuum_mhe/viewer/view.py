@@ -392,10 +392,19 @@ class BackboneView:
         z_k`` it has is a point (``world/truth/section_ends``); the backbone is drawn by
         the PCC model from its ``theta, phi`` columns, where it has them all (on rod
         data the PCC curve through the true bends, not the rod itself). Returns whether
-        the backbone was drawn."""
+        the backbone was drawn. A column without a value (every row NaN) is taken as
+        absent, and a row with a gap (NaN) in a column drawn is left out: the view holds
+        the truth drawn before it."""
         t = np.asarray(t, dtype=float)
         values = np.asarray(values, dtype=float)
+        some = [j for j in range(len(names)) if np.isfinite(values[:, j]).any()]
+        names, values = [names[j] for j in some], values[:, some]
         col = {c: i for i, c in enumerate(names)}
+        drawn = [col[c] for c in names if c in ("x", "y", "z") or c.startswith(("x_", "y_", "z_"))]
+        drawn += [col[o.name] for o in self.outputs if o.unit == "rad" and o.name in col]
+        drawn += [col[c] for c in names if c in TIP_FORCE_COLUMNS or c.startswith("tension_gain_")]
+        whole = np.all(np.isfinite(values[:, drawn]), axis=1)
+        t, values = t[whole], values[whole]
         tips = values[:, [col[c] for c in "xyz"]]
         geom = None
         if self.tendon is not None or all(o.name in col for o in self.outputs if o.unit == "rad"):
