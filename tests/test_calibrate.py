@@ -460,7 +460,56 @@ def test_calibrate_refuses_a_robot_file_whose_mounting_gravity_contradicts(
         capsys, "--from", str(turned), "--robot", "two-section", "--write-robot", str(out)
     )
     assert code == 0, err
-    assert "mounting" not in err
+    assert out.exists()
+    # calibrated, and said: a robot mounted the other way reads so in all but one board
+    assert "warning: " + str(turned) + ": IMU 2 of 2 reads gravity 178 degrees" in err, err
+    assert 'the robot hangs from its base, set mounting = "z-down" in the robot file' in err
+
+
+def test_calibrate_refuses_most_imus_upside_down_against_the_mounting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A robot hanging from its base (its tip board mounted upside down) described as
+    standing: at rest IMUs 1 and 2 of 3 read gravity upside down, IMU 3 upright. Only a
+    rest in which every IMU did was refused: calibrated, IMUs 1 and 2 got rolls of 180
+    degrees and the estimates were the truth mirrored, 197 mm off, every row ok. Refused
+    in one line naming mounting, nothing written; described as hanging, IMU 3 is
+    calibrated as upside down, with a warning."""
+    from continuum_mhe.cli import main
+
+    sections = "".join(f"[[section]]\nlength = {v}\ntheta_max = 3.0\n" for v in (0.12, 0.1, 0.08))
+    imus = "".join(f"[[imu]]\nsection = {k}\n" for k in (1, 2, 3))
+    up, down = tmp_path / "up.toml", tmp_path / "down.toml"
+    up.write_text('mounting = "z-up"\n' + sections + imus)
+    down.write_text('mounting = "z-down"\n' + sections + imus)
+    rest = tmp_path / "rest.csv"
+    assert main(["simulate", "rest", "--robot", str(up), "--imu", "raw", "-o", str(rest)]) == 0
+    header, *rows = rest.read_text().splitlines()
+    names = header.split(",")
+    flip = [names.index(f"{c}_{k}") for k in (1, 2) for c in ("ax", "az", "gx", "gz")]
+    turned = []
+    for row in rows:
+        v = row.split(",")
+        for j in flip:
+            v[j] = repr(-float(v[j]))
+        turned.append(",".join(v))
+    hanging = tmp_path / "hanging_rest.csv"
+    hanging.write_text("\n".join([header, *turned]) + "\n")
+    out = tmp_path / "cal.toml"
+    capsys.readouterr()
+    code, stdout, err = _calibrate_main(
+        capsys, "--from", str(hanging), "--robot", str(up), "--write-robot", str(out)
+    )
+    assert code == 2 and stdout == "" and not out.exists()
+    assert err.count("\n") == 1, err
+    assert f"{hanging}: mounting: the robot is described as z-up, but at rest gravity puts " \
+        "IMUs 1 and 2 of 3 180 degrees from where that mounting puts them: the robot hangs " \
+        'from its base? set mounting = "z-down" in the robot file' in err, err  # fmt: skip
+    code, stdout, err = _calibrate_main(
+        capsys, "--from", str(hanging), "--robot", str(down), "--write-robot", str(out)
+    )
+    assert code == 0 and out.exists(), err
+    assert "IMU 3 of 3 reads gravity 180 degrees" in err and "IMUs 1" not in err, err
 
 
 def test_calibrate_reads_files_and_writes_robot_files(tmp_path, capsys) -> None:

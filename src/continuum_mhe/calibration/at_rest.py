@@ -94,37 +94,70 @@ def mounting_from_gravity(mean_acc: FloatArray, mounting: Mounting) -> tuple[flo
     return (math.degrees(roll), math.degrees(pitch), 0.0)
 
 
-def check_rest_mounting(source: str, values: FloatArray, robot: Robot, robot_file: bool) -> None:
+def check_rest_mounting(
+    source: str, values: FloatArray, robot: Robot, robot_file: bool
+) -> str | None:
     """Refuse, in one line naming ``mounting``, raw readings at rest (n, 6 n_imus) in
-    which gravity puts every IMU more than the estimate's own threshold
-    (:data:`~continuum_mhe.io.input_options.MOUNTING_FLIPPED`) from its reading on the
-    straight robot as the robot file describes it (the robot's ``mounting``, each IMU's
-    ``mount_rpy``): the robot is mounted the other way. One IMU turned over on its
-    disk is a mounting to calibrate; all of them at once is the robot's. The line says
-    to change the robot file's ``mounting`` (``robot_file``), else ``--mounting``."""
+    which gravity puts most IMUs (every one, or more than half of two or more) more than
+    the estimate's own threshold (:data:`~continuum_mhe.io.input_options.MOUNTING_FLIPPED`)
+    from their reading on the straight robot as the robot file describes it (the robot's
+    ``mounting``, each IMU's ``mount_rpy``): the robot is mounted the other way (a
+    hanging robot described as standing, its tip board upside down, reads so in all but
+    that board; calibrated, every board but one got a roll of 180 degrees and the
+    estimates were mirrored, every row ``ok``). The line says to change the robot file's
+    ``mounting`` (``robot_file``), else ``--mounting``. Fewer such IMUs get a warning,
+    returned: each is calibrated as a board mounted upside down, which a robot mounted
+    the other way reads as well; a board declared upside down (its ``mount_rpy``) is
+    not one of them."""
     up = 1.0 if robot.mounting == "z-up" else -1.0
     angles = []
     for i, place in enumerate(robot.imus):
         acc = values[:, 6 * i : 6 * i + 3]
         acc = acc[np.all(np.isfinite(acc), axis=1)]
         if not len(acc):
-            return
+            return None
         m = acc.mean(axis=0)
         expected = mount_rotation(place.mount_rpy).T @ np.array([0.0, 0.0, up])
         cos = float(m @ expected / max(float(np.linalg.norm(m)), 1e-12))
         angles.append(math.acos(min(1.0, max(-1.0, cos))))
-    if not angles or min(angles) <= MOUNTING_FLIPPED:
-        return
+    flipped = [i for i, a in enumerate(angles) if a > MOUNTING_FLIPPED]
+    if not flipped:
+        return None
     other, pose = flipped_mounting(robot.mounting)
-    lo, hi = (round(math.degrees(a)) for a in (min(angles), max(angles)))
-    spread = f"{lo}" if lo == hi else f"{lo} to {hi}"
     fix = f'set mounting = "{other}" in the robot file' if robot_file else f"--mounting {other}"
-    boards, each = ("its board is", "its") if len(angles) == 1 else ("its boards are", "each one's")
-    raise InputError(
-        f"{source}: mounting: the robot is described as {robot.mounting}, but at rest gravity "
-        f"puts every IMU {spread} degrees from where that mounting puts it: the robot "
-        f"{pose}? {fix}; or, where the robot is mounted as described, {boards} upside "
-        f"down on it: give {each} mount_rpy (a roll of 180 degrees) in the robot file"
+    shown = [angles[i] for i in flipped]
+    lo, hi = (round(math.degrees(a)) for a in (min(shown), max(shown)))
+    spread = f"{lo}" if lo == hi else f"{lo} to {hi}"
+    if len(flipped) == len(angles):
+        boards, each = (
+            ("its board is", "its") if len(angles) == 1 else ("its boards are", "each one's")
+        )
+        raise InputError(
+            f"{source}: mounting: the robot is described as {robot.mounting}, but at rest "
+            f"gravity puts every IMU {spread} degrees from where that mounting puts it: the "
+            f"robot {pose}? {fix}; or, where the robot is mounted as described, {boards} "
+            f"upside down on it: give {each} mount_rpy (a roll of 180 degrees) in the robot file"
+        )
+    who = " and ".join(", ".join(str(i + 1) for i in flipped).rsplit(", ", 1))
+    imus = f"IMU {who}" if len(flipped) == 1 else f"IMUs {who}"
+    if 2 * len(flipped) > len(angles):
+        raise InputError(
+            f"{source}: mounting: the robot is described as {robot.mounting}, but at rest "
+            f"gravity puts {imus} of {len(angles)} {spread} degrees from where that mounting "
+            f"puts them: the robot {pose}? {fix} (a board then upside down on it reads "
+            "so, the others not); or, where the robot is mounted as described, give each "
+            "upside-down board's mount_rpy (a roll of 180 degrees) in the robot file"
+        )
+    reads, taken = (
+        ("reads", "is calibrated as a board")
+        if len(flipped) == 1
+        else ("read", "are calibrated as boards")
+    )
+    return (
+        f"{imus} of {len(angles)} {reads} gravity {spread} degrees from where mounting = "
+        f'"{robot.mounting}" puts it, and {taken} mounted upside down; if instead the robot '
+        f"{pose}, {fix} and calibrate again (a mount_rpy roll of 180 degrees in the robot "
+        "file says a board is upside down, and silences this)"
     )
 
 

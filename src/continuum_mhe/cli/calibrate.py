@@ -127,8 +127,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: {frozen}")
     if args.write_robot and fmt != "raw":
         raise InputError(f"{source}: --write-robot needs a raw recording (this one is {fmt})")
-    if fmt == "raw":
-        check_rest_mounting(source, values, robot, bool(args.robot))
+    if fmt == "raw" and (flipped := check_rest_mounting(source, values, robot, bool(args.robot))):
+        print(f"{PROG}: warning: {source}: {flipped}", file=sys.stderr)
     try:
         cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
     except InputError as exc:  # name the recording
