@@ -244,6 +244,52 @@ def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
         assert capsys.readouterr().err.count("\n") == 1
 
 
+def test_an_imu_log_cut_short_says_where_in_one_line(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An MCAP whose cut lies past its messages (in its index) named a message the
+    topic does not have ("message 151" of 150) and no topic; one shorter than its
+    footer gave the operating system's "[Errno 22] Invalid argument"; a ROS 2 bag folder
+    without metadata.yaml (a recorder killed) did not say it holds a readable file.
+    Each is one line that says where, exit status 2, nothing written."""
+    whole = write_mcap(tmp_path / "whole.mcap", recording)
+    n = len(recording["stamps"])
+    index_cut = tmp_path / "index_cut.mcap"
+    index_cut.write_bytes(whole.read_bytes()[:-10])
+    with pytest.raises(InputError) as info:
+        read_imu_log(index_cut)
+    assert str(info.value).startswith(
+        f"{index_cut}: topic /tip/imu: after message {n}: cannot read robot log (the file "
+        "ends inside a record, or is damaged: a recording cut short?; --skip-bad reads it "
+        "up to the cut)"
+    ), info.value
+    assert len(read_imu_log(index_cut, skip_bad=True).t) == n
+    short = tmp_path / "short.mcap"
+    short.write_bytes(whole.read_bytes()[:30])
+    with pytest.raises(InputError) as info:
+        read_imu_log(short)
+    assert str(info.value) == (
+        f"{short}: cannot read robot log (the file ends inside a record, or is damaged: a "
+        "recording cut short?)"
+    )
+    folder = tmp_path / "killed_bag"
+    folder.mkdir()
+    (folder / "killed_bag_0.mcap").write_bytes(whole.read_bytes())
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(folder), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert (
+        err
+        == (
+            f"continuum-mhe: error: {folder}: is a directory without metadata.yaml, expected a "
+            "CSV file or a ROS 2 bag folder; it holds killed_bag_0.mcap: give the file itself "
+            "(a recorder that stopped?)\n"
+        )
+        and not out.exists()
+    ), err
+
+
 def _wxyz(r: Rotation) -> np.ndarray:
     """scipy's quaternions are ``(x, y, z, w)``; the Imu message's order is ``(w, x, y, z)``."""
     return np.roll(r.as_quat(), 1, axis=-1)
@@ -793,7 +839,7 @@ def test_an_unreadable_message_is_named_by_its_position(tmp_path: Path) -> None:
     for bad, why in (({"linear_acceleration": "drop"}, "without the field 'linear_acceleration'"),
                      ({"linear_acceleration": None}, "a message with a null field")):  # fmt: skip
         path = log(tmp_path / "j.mcap", bad)
-        start = re.escape(f"{path}: message 4: cannot read robot log (")
+        start = re.escape(f"{path}: topic /imu: message 4: cannot read robot log (")
         with pytest.raises(InputError, match=start + ".*" + re.escape(why)):
             read_imu_log(path)
 

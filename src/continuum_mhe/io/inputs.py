@@ -475,9 +475,15 @@ def _open_measurements(
     if str(path) != "-" and is_robot_log(Path(path)):
         return _log_stream(Path(path), options, formulation, robot_name, python)
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
+        # a ROS 2 recorder killed before it wrote metadata.yaml leaves its storage file
+        inside = sorted(f.name for f in Path(path).iterdir() if f.is_file() and is_robot_log(f))
+        hint = ""
+        if inside:
+            named = ", ".join(inside[:3]) + (", ..." if len(inside) > 3 else "")
+            hint = f"; it holds {named}: give the file itself (a recorder that stopped?)"
         raise InputError(
             f"{path}: is a directory without metadata.yaml, expected a CSV file or a ROS 2 "
-            "bag folder"
+            f"bag folder{hint}"
         )
     rows = open_rows(path)
     try:

@@ -19,6 +19,7 @@ Estimates written as MCAP: :mod:`continuum_mhe.io.mcap_estimates`.
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -291,7 +292,9 @@ def _mcap_reader(fh: Any) -> tuple[Any, Any]:
     try:
         summary = make_reader(fh).get_summary()
     except Exception as exc:
-        if not cut_short(exc):
+        # a file shorter than a footer: the seek to where it would start fails (EINVAL)
+        shorter = isinstance(exc, OSError) and exc.errno == errno.EINVAL
+        if not (cut_short(exc) or shorter):
             raise
         fh.seek(0)
         return NonSeekingReader(fh), None
@@ -485,7 +488,13 @@ def read_imu_log(
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
-        where = f"message {done + 1}: " if at else ""
+        # where the read failed: a message that cannot be read, or, for a file cut
+        # short, after the last message read whole (the cut may lie past every message,
+        # in the file's index)
+        where = ""
+        if at:
+            where = f"after message {done}" if cut_short(exc) else f"message {done + 1}"
+            where = f"topic {name}: {where}: "
         if not (skip_bad and cut_short(exc) and (stamps or unstamped)):
             hint = ""
             if cut_short(exc) and skip_bad:
