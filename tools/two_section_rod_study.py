@@ -95,11 +95,11 @@ def evaluate(
     mhe: MHESettings | None = None,
     fit: tuple[int, int] | None = None,
     own: bool = False,
-) -> dict[str, tuple[float, float, float]]:
-    """``method -> (tip mean, tip max, section 1 end mean)``, mm (MHE: N = 30 unless
-    ``mhe`` says otherwise). With ``fit`` (tilt only), also prints the measurement cost
-    ``sum r^T R^-1 r`` over samples ``fit[0]:fit[1]`` of each method's bends and of the
-    rod's true PCC bends."""
+) -> dict[str, tuple[float, float, float, int]]:
+    """``method -> (tip mean, tip max, section 1 end mean, bad-start restarts)``, mm
+    (MHE: N = 30 unless ``mhe`` says otherwise). With ``fit`` (tilt only), also prints
+    the measurement cost ``sum r^T R^-1 r`` over samples ``fit[0]:fit[1]`` of each
+    method's bends and of the rod's true PCC bends."""
     truth = read_state_table(truth_path)
     opts = InputOptions(
         raw=RawImuSettings(imu_model=imu_model),  # type: ignore[arg-type]
@@ -129,7 +129,8 @@ def evaluate(
             )
         met = compute_metrics(s.output, truth.values, robot.length, names, truth.names)
         end1 = met.section_end_mean_mm.get("1", float("nan"))
-        out[m] = (met.tip_mean_mm, met.tip_max_mm, end1)
+        restarts = s.diagnostics.bad_starts if s.diagnostics is not None else 0
+        out[m] = (met.tip_mean_mm, met.tip_max_mm, end1, restarts)
         if fit and f.name == "bend":
             costs[m] = fit_cost(f, data.z, s.output, names, fit)
     if costs and fit:
@@ -257,10 +258,11 @@ def main() -> None:
                 mhe,
                 tuple(args.fit_cost) if args.fit_cost else None, own,
             )  # fmt: skip
-            for m, (mean, mx, end1) in res.items():
+            for m, (mean, mx, end1, restarts) in res.items():
                 print(
                     f"   {label:13s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.2f}x floor), "
-                    f"max {mx:6.1f} mm; section 1 end {end1:5.2f} mm"
+                    f"max {mx:6.1f} mm; section 1 end {end1:5.2f} mm; {restarts} bad-start "
+                    "restarts"
                 )
         if "mhe" in args.methods:
             one = one_section_mhe(robot, args.folder, name)
