@@ -10,7 +10,7 @@ import tempfile
 
 # Bytecode where PYTHONDONTWRITEBYTECODE is set: each interpreter the tests start (every
 # command-line run, and each pytest-xdist worker) would compile the package's modules
-# anew, about 0.4 s a run on 2 cores. Instead the session's interpreters share a
+# anew. Instead the session's interpreters share a
 # bytecode folder of the session's own (PYTHONPYCACHEPREFIX), removed when the session
 # ends; nothing is written beside the sources either way. Set by the first process only
 # (the xdist controller, before it starts its workers), which the workers inherit.

@@ -272,7 +272,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="without --robot: its bound on the bend that --write-robot writes (rad, "
         f"default {DEFAULT_THETA_MAX:g}, as a robot file without theta_max)",
     )
-    p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
+    p.add_argument(
+        "--mounting", choices=MOUNTINGS, default="z-up",
+        help="base orientation: z-up (default), its z axis up, or z-down, hanging from it",
+    )  # fmt: skip
     p.add_argument(
         "--still-acc-std",
         type=float,

@@ -65,7 +65,10 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
         default=math.pi / 2,
         help="upper bound on theta in rad (default pi/2)",
     )
-    g.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
+    g.add_argument(
+        "--mounting", choices=MOUNTINGS, default="z-up",
+        help="base orientation: z-up (default), its z axis up, or z-down, hanging from it",
+    )  # fmt: skip
     g.add_argument(
         "--formulation",
         choices=FORMULATIONS,
