@@ -1416,3 +1416,26 @@ def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_pa
     assert str(refused.value) == (
         f"{truth}: line 6: column y is nan (every row needs a finite value in each column)"
     )
+
+
+def test_a_value_of_many_digits_is_named_short(tmp_path, capsys) -> None:
+    """A field of 100,000 digits (a logger's garbage; it reads as inf) was echoed whole
+    in the one-line error, 100 KB long: the value is cut to a few dozen characters, in
+    a recording and in a truth file alike."""
+    from continuum_mhe.cli import main
+
+    digits = "1" * 100_000
+    meas = tmp_path / "m.csv"
+    meas.write_text(f"t,roll,pitch\n0,0.01,0.02\n0.05,{digits},0.02\n0.1,0.01,0.02\n")
+    est = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "-o", str(est)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and len(err) < 300, err[:300]
+    assert f"{meas}: line 3: column roll is {'1' * 40}... (a dropout" in err
+    assert not est.exists()
+    truth = tmp_path / "t.csv"
+    truth.write_text(f"t,x,y,z\n0,0,0,0.2\n0.05,{digits},0,0.2\n")
+    assert main(["evaluate", str(truth), str(truth)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and len(err) < 300, err[:300]

@@ -422,13 +422,19 @@ def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> 
             "fast motion, or quiet readings at 50 Hz or more, as simulate --imu raw writes "
             "them: --own-acceleration models it)"
         )
+    fast = ""
+    if "bend_accel_psd" in formulation.process_noise_source:  # --accel-psd sets it
+        fast = (
+            ", or moves faster than the motion model lets the bends change (a larger "
+            "--accel-psd, NoiseSettings.bend_accel_psd, follows a faster robot)"
+        )
     return (
         f"{inconsistent} of {n} estimates ({100 * inconsistent / n:.0f} %) are inconsistent: "
         "their readings disagree with the model of the robot beyond the readings' noise "
         "for much of the run; check "
         + "; ".join(checks)
         + "; or the robot does what the model cannot follow (a backbone that twists "
-        "about itself, a load that bends a section off constant curvature)"
+        f"about itself, a load that bends a section off constant curvature){fast}"
     )
 
 

@@ -504,19 +504,26 @@ def _check_base_mounting(
         for j in range(robot.n_imus)
         if j != k and (a := imu_start_angle(z, formulation, j)) is not None and a < math.pi / 2
     ]
-    alone = ""
-    if upright:
-        reads = "reads" if len(upright) == 1 else "read"
-        alone = (
-            f" (IMU {', '.join(map(str, upright))} {reads} upright: is IMU {k + 1} alone "
-            f"mounted upside down? its mount_rpy; {ORDER_HINT})"
-        )
-    fix = robot_fix("mounting", robot_file, other, python)
     imu = robot.imus[k]
     # the largest angle the sections up to the IMU can bend it through (theta_max each;
     # a tendon robot's mechanics model has no such bound)
     reach = sum(s.theta_max for s in robot.sections[: imu.section])
     reach += imu.at * robot.sections[imu.section].theta_max
+    alone = ""
+    if upright:
+        reads = "reads" if len(upright) == 1 else "read"
+        # a robot that starts bent this far, within its theta_max, reads so as well
+        bent = (
+            "; or a start bent this far, within the sections' theta_max? start the "
+            "recording where the robot is nearer straight"
+            if angle <= reach + MOUNTING_MARGIN or robot.has_mechanics
+            else ""
+        )
+        alone = (
+            f" (IMU {', '.join(map(str, upright))} {reads} upright: is IMU {k + 1} alone "
+            f"mounted upside down? its mount_rpy; {ORDER_HINT}{bent})"
+        )
+    fix = robot_fix("mounting", robot_file, other, python)
     # an IMU beyond the first section of a robot whose IMUs do not determine its shape:
     # the sections before it may have bent it this far, within their theta_max (a start
     # bent, not a robot mounted the other way)

@@ -24,6 +24,7 @@ from continuum_mhe.io.text_rows import (
     column_indices,
     decode_line,
     parse_float,
+    shorten,
     split_fields,
     warn_cut_line,
 )
@@ -396,7 +397,7 @@ class _SampleChecks:
                     if not math.isfinite(v):
                         bad(
                             line,
-                            f"column {col} is {row[j]} ({self.skip_hint})",
+                            f"column {col} is {shorten(row[j])} ({self.skip_hint})",
                         )
                         v = math.nan  # with --skip-bad: a dropout, as the message says
                 vals.append(v)

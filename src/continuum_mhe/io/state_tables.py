@@ -22,6 +22,7 @@ from continuum_mhe.io.text_rows import (
     column_indices,
     open_rows,
     parse_float,
+    shorten,
     to_float,
     warn_cut_line,
 )
@@ -187,7 +188,7 @@ def read_state_table(
             cells = zip(("t", *names), (row[t_idx], *(row[j] for j in idx)), (tv, *vals))
             col, text = next((c, x) for c, x, v in cells if not math.isfinite(v))
             raise InputError(
-                f"{p}: line {line}: column {table.as_written(col)} is {text or 'empty'} "
+                f"{p}: line {line}: column {table.as_written(col)} is {shorten(text) or 'empty'} "
                 "(every row needs a finite value in each column)"
             )
         sd.append(
