@@ -462,7 +462,7 @@ def test_calibrate_refuses_a_robot_file_whose_mounting_gravity_contradicts(
     assert code == 0, err
     assert out.exists()
     # calibrated, and said: a robot mounted the other way reads so in all but one board
-    assert "warning: " + str(turned) + ": IMU 2 of 2 reads gravity 178 degrees" in err, err
+    assert "warning: " + str(turned) + ": IMU 2 (of 2) reads gravity 178 degrees" in err, err
     assert 'the robot hangs from its base, set mounting = "z-down" in the robot file' in err
 
 
@@ -503,13 +503,13 @@ def test_calibrate_refuses_most_imus_upside_down_against_the_mounting(
     assert code == 2 and stdout == "" and not out.exists()
     assert err.count("\n") == 1, err
     assert f"{hanging}: mounting: the robot is described as z-up, but at rest gravity puts " \
-        "IMUs 1 and 2 of 3 180 degrees from where that mounting puts them: the robot hangs " \
+        "IMUs 1 and 2 (of 3) 180 degrees from where that mounting puts them: the robot hangs " \
         'from its base? set mounting = "z-down" in the robot file' in err, err  # fmt: skip
     code, stdout, err = _calibrate_main(
         capsys, "--from", str(hanging), "--robot", str(down), "--write-robot", str(out)
     )
     assert code == 0 and out.exists(), err
-    assert "IMU 3 of 3 reads gravity 180 degrees" in err and "IMUs 1" not in err, err
+    assert "IMU 3 (of 3) reads gravity 180 degrees" in err and "IMUs 1" not in err, err
 
 
 def test_calibrate_reads_files_and_writes_robot_files(tmp_path, capsys) -> None:

@@ -1357,6 +1357,50 @@ def force29_estimate(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, st
     return out, _estimate_with_own_tensions(DATA / "force-29_raw.csv", "force-29", out)
 
 
+def test_a_tendon_truth_with_gaps_in_its_tip_force_is_plotted_and_scored(
+    force29_estimate: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A truth whose force columns are empty in every third row (a force sensor's lost
+    samples): plot drew the truth's backbone at such an instant under a force of NaN and
+    warned "no equilibrium ... (a force in mN, or a backbone too soft?)"; now the
+    instant's truth is left out of the 3D panel, without a warning. evaluate --json
+    scores the force over the rows that have it, and writes valid JSON (no NaN), with
+    the fx, fy, fz columns empty throughout too."""
+    import json
+
+    from continuum_mhe.cli import main
+
+    out, _ = force29_estimate
+    header, *rows = (DATA / "force-29_truth.csv").read_text().splitlines()
+    names = header.split(",")
+    force = {names.index(c) for c in ("fx", "fy", "fz")}
+
+    def gapped(every: int) -> list[str]:
+        return [
+            ",".join("" if j in force and i % every == 0 else v for j, v in enumerate(r.split(",")))
+            for i, r in enumerate(rows)
+        ]
+
+    truth = tmp_path / "gapped_truth.csv"
+    truth.write_text("\n".join([header, *gapped(3)]) + "\n")
+    robot = ["--robot", "tendon-two-section"]
+    inputs = ["--inputs", str(DATA / "force-29_tensions.csv")]
+    fig = tmp_path / "f.png"
+    capsys.readouterr()
+    assert main(["plot", str(out), "--truth", str(truth), *robot, *inputs, "-o", str(fig)]) == 0
+    err = capsys.readouterr().err
+    assert "equilibrium" not in err and "nan" not in err.lower(), err
+    assert main(["evaluate", str(out), str(truth), *robot, "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["n_without_truth"] == 0 and 0 < report["tip_force_rms_n"] < 0.01
+    truth.write_text("\n".join([header, *gapped(1)]) + "\n")  # no force anywhere
+    assert main(["evaluate", str(out), str(truth), *robot, "--json"]) == 0
+    text = capsys.readouterr().out
+    report = json.loads(text)
+    assert "NaN" not in text and report["tip_force_rms_n"] is None
+    assert "fx" not in report["rmse"]
+
+
 def test_estimate_follows_the_loaded_robot_and_its_tip_force(
     force29_estimate: tuple[Path, str],
 ) -> None:

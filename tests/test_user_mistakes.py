@@ -3,6 +3,7 @@ user errors."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import re
@@ -2313,8 +2314,34 @@ def test_plot_view_and_evaluate_read_a_truth_with_gaps(paper3d_pair, tmp_path, c
         err = capsys.readouterr().err
         assert err == refused + "(every row a gap)\n", err
     assert not (tmp_path / "g.png").exists()
+    # a truth in mm with an empty angle column: refused by each, naming the truth (its
+    # angles said nothing, and view drew it 1000 times too large)
+    header, *rows = t.read_text().splitlines()
+    names = header.split(",")
+    in_mm = tmp_path / "mm.csv"
+    in_mm.write_text("\n".join([header, *(
+        ",".join(repr(float(v) * 1e3) if c in "xyz" else "" if c == "theta" else v
+                 for c, v in zip(names, r.split(",")))
+        for r in rows)]) + "\n")  # fmt: skip
+    rrd, png = str(tmp_path / "mm.rrd"), str(tmp_path / "mm.png")
+    for argv in (["evaluate", str(e), str(in_mm)],
+                 ["view", str(e), "--truth", str(in_mm), "--save", rrd],
+                 ["plot", str(e), "--truth", str(in_mm), "-o", png]):  # fmt: skip
+        if argv[0] == "view" and importlib.util.find_spec("rerun") is None:
+            continue
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"continuum-mhe: error: {in_mm}: its tip is ") and "in mm?" in err, (
+            err
+        )
+    # theta and phi empty in alternate rows: no row has both
+    alternate = tmp_path / "alternate.csv"
+    alternate.write_text("\n".join([header, *(
+        ",".join("" if c == ("theta", "phi")[i % 2] else v for c, v in zip(names, r.split(",")))
+        for i, r in enumerate(rows))]) + "\n")  # fmt: skip
+    assert main(["plot", str(e), "--truth", str(alternate), "-o", str(tmp_path / "a.png")]) == 0
     pytest.importorskip("rerun")
-    for truth in (gaps, theta):
+    for truth in (gaps, theta, alternate):
         out_rrd = tmp_path / f"{truth.stem}.rrd"
         assert main(["view", str(e), "--truth", str(truth), "--save", str(out_rrd)]) == 0
         assert out_rrd.stat().st_size > 0

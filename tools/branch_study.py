@@ -53,7 +53,7 @@ def rod(name: str, case: str) -> None:
             robot, DATA / f"{name}_{case}.csv", model, False, False, DATA / f"{name}_truth.csv",
             0.0, (method,), MHESettings(horizon=30, branch_check=check),
         )  # fmt: skip
-        mean, mx, _ = res[method]
+        mean, mx = res[method][:2]
         row.append(f"{label} {mean:.2f} ({mx:.0f})")
     print(f"rod {name} {case}: " + " / ".join(row), flush=True)
 

@@ -143,8 +143,8 @@ def check_rest_mounting(
     if 2 * len(flipped) > len(angles):
         raise InputError(
             f"{source}: mounting: the robot is described as {robot.mounting}, but at rest "
-            f"gravity puts {imus} of {len(angles)} {spread} degrees from where that mounting "
-            f"puts them: the robot {pose}? {fix} (a board then upside down on it reads "
+            f"gravity puts {imus} (of {len(angles)}) {spread} degrees from where that "
+            f"mounting puts them: the robot {pose}? {fix} (a board then upside down on it reads "
             "so, the others not); or, where the robot is mounted as described, give each "
             "upside-down board's mount_rpy (a roll of 180 degrees) in the robot file"
         )
@@ -154,7 +154,7 @@ def check_rest_mounting(
         else ("read", "are calibrated as boards")
     )
     return (
-        f"{imus} of {len(angles)} {reads} gravity {spread} degrees from where mounting = "
+        f"{imus} (of {len(angles)}) {reads} gravity {spread} degrees from where mounting = "
         f'"{robot.mounting}" puts it, and {taken} mounted upside down; if instead the robot '
         f"{pose}, {fix} and calibrate again (a mount_rpy roll of 180 degrees in the robot "
         "file says a board is upside down, and silences this)"

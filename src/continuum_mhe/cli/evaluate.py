@@ -279,8 +279,11 @@ def _evaluate(args: argparse.Namespace) -> int:
             "interpolated": aligned.interpolated,
             "warnings": warned,  # as said on standard error
         }
-        print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched, **made},
-                         indent=2))  # fmt: skip
+        from continuum_mhe.reproduce.experiments import to_jsonable
+
+        report = {**m.as_dict(), **extra, **srmse, "unmatched": unmatched, **made}
+        # a coverage without any row to count (a column without std) is null, not NaN
+        print(json.dumps(to_jsonable(report), indent=2, allow_nan=False))
     else:
         print(format_metrics(m, comparable=not hint))
         print(format_calibration(cal, est.std_columns))

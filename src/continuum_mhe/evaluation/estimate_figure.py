@@ -448,6 +448,8 @@ def _backbones(
         for table, row, style in ((est, i, "-"), (truth, truth_row.get(i), "--")):
             if table is None or row is None:
                 continue
+            if table is truth and not np.all(np.isfinite(table.values[row])):
+                continue  # a gap of the truth (a lost marker) at this instant: not drawn
             shown = points if table is est else [p for p in in_truth if p is not None]
             ends_xyz = np.array([[table.column(c)[row] for c in p.columns] for p in shown])
             solved = None

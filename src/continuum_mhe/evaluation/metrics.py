@@ -226,7 +226,8 @@ def compute_metrics(
         if all(f"{c}_{k}" in col for c in "yz"):
             e = np.linalg.norm(err[:, [col[f"x_{k}"], col[f"y_{k}"], col[f"z_{k}"]]], axis=1)
             e = e[np.isfinite(e)]
-            end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
+            if len(e):  # its three columns' gaps may leave no row with all of them
+                end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
     force = [col[c] for c in TIP_FORCE_COLUMNS if c in col]
     force_rms = None
     if len(force) == len(TIP_FORCE_COLUMNS):

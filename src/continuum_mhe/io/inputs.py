@@ -475,12 +475,20 @@ def _open_measurements(
     if str(path) != "-" and is_robot_log(Path(path)):
         return _log_stream(Path(path), options, formulation, robot_name, python)
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
-        # a ROS 2 recorder killed before it wrote metadata.yaml leaves its storage file
-        inside = sorted(f.name for f in Path(path).iterdir() if f.is_file() and is_robot_log(f))
+        # a ROS 2 recorder killed before it wrote metadata.yaml leaves its storage file:
+        # an MCAP (or a ROS 1 bag) reads alone, a SQLite .db3 needs its metadata
+        logs = sorted(f for f in Path(path).iterdir() if f.is_file() and is_robot_log(f))
+        alone = [f.name for f in logs if f.suffix.lower() != ".db3"]
         hint = ""
-        if inside:
-            named = ", ".join(inside[:3]) + (", ..." if len(inside) > 3 else "")
-            hint = f"; it holds {named}: give the file itself (a recorder that stopped?)"
+        if alone:
+            named = ", ".join(alone[:3]) + (", ..." if len(alone) > 3 else "")
+            one = "the file itself" if len(alone) == 1 else "one of them"
+            hint = f"; it holds {named}: give {one} (a recorder that stopped?)"
+        elif logs:
+            hint = (
+                f"; it holds {logs[0].name}, a ROS 2 bag's SQLite file, which needs the "
+                "metadata.yaml: a recorder that stopped? ros2 bag reindex writes it"
+            )
         raise InputError(
             f"{path}: is a directory without metadata.yaml, expected a CSV file or a ROS 2 "
             f"bag folder{hint}"

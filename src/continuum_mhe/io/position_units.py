@@ -52,8 +52,18 @@ def position_unit_problem(
     :func:`length_misfit`), or, without angles, a median tip distance over 100 times the
     robot's length (a shape the robot cannot take in any unit but another one)."""
     ratio = tip_ratio(names, values, lengths)
-    if ratio is None:
-        return ""
+    if ratio is None:  # angles that say nothing (some of a section's, of another robot,
+        # none in a row with the tip): beyond any shape in cm, a bent robot's tip in mm
+        tip = np.asarray(values, dtype=float)[:, [list(names).index(c) for c in "xyz"]]
+        dist = np.linalg.norm(tip, axis=1)
+        dist = dist[np.isfinite(dist)]
+        far = float(np.median(dist)) / float(sum(lengths)) if len(dist) else 0.0
+        if far <= 100.0 * (1 + POSITION_UNIT_TOLERANCE):
+            return ""
+        return (
+            f"its tip is {far:.4g} times as far from the base as a robot of "
+            f"{sum(lengths):g} m reaches: positions in mm? give x, y, z in m"
+        )
     units = [unit for unit, factor in POSITION_UNITS
              if abs(ratio / factor - 1.0) <= POSITION_UNIT_TOLERANCE]  # fmt: skip
     if not units and not has_bend_columns(names) and ratio > 100.0 * (1 + POSITION_UNIT_TOLERANCE):

@@ -136,7 +136,9 @@ def read_state_table(
     recording that carries its truth beside the measurements (``x_true, y_true, z_true``,
     as the shipped ``rod_planar.csv``) is read as that truth: each ``NAME_true`` column
     is the output ``NAME``. ``gaps``: an empty or NaN value (not ``t``) is read as NaN,
-    a gap of a truth (a marker the motion capture lost), not refused."""
+    a gap of a truth (a marker the motion capture lost), not refused; a column with no
+    value in any row is left out, and a file without a row that has every ``required``
+    column is refused."""
     table, body = _read_rows(path)
     table.header = truth_named(table.header, required)
     p, header = table.name, table.header
@@ -228,9 +230,13 @@ def read_state_table(
         )
     if table.cut.line is not None:  # read as written: its last value may be cut short
         warn_cut_line(p, table.cut.line)
+    std = np.array(sd, dtype=float).reshape(len(t), len(names))
+    if gaps:  # a column without any value (an angle the capture does not give) is absent
+        some = [j for j in range(len(names)) if np.isfinite(values[:, j]).any()]
+        names, values, std = tuple(names[j] for j in some), values[:, some], std[:, some]
     return StateTable(
         np.array(t), names, values,
-        np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
+        np.array(status, dtype=str), std,
         None if o_idx is None else np.array(flags, dtype=bool), any(j >= 0 for j in sd_idx),
         s_idx is not None,
     )  # fmt: skip

@@ -79,7 +79,9 @@ def replay(
                 raise
             except UserError as exc:  # a row's loads without an equilibrium
                 raise InputError(f"{truth}: {exc}") from None
-            missing = "tensions" if tendon is not None else "theta/phi columns for every section"
+            missing = "theta/phi columns for every section"
+            if tendon is not None:  # its equilibrium needs the tensions and the tip force
+                missing = "tensions" if tendon.tensions is None else "fx, fy, fz columns"
             with_truth = ", with truth" + (
                 "" if drawn_truth else f" (tip and section ends only: no {missing})"
             )

@@ -23,7 +23,12 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError
 from continuum_mhe.extras import install_hint, require
 from continuum_mhe.io.output_files import temporary_beside
-from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, OutputSpec, section_bends
+from continuum_mhe.model.descriptions import (
+    TIP_COLUMNS,
+    TIP_FORCE_COLUMNS,
+    OutputSpec,
+    section_bends,
+)
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate, Status
 from continuum_mhe.viewer.geometry import BackboneGeometry, TendonShapes, backbone_geometry
@@ -386,6 +391,13 @@ class BackboneView:
         forces = values[:, [col[c] for c in TIP_FORCE_COLUMNS]]
         return self.tendon.from_forces(t, forces, names, values), tips
 
+    def _draws_shape_from(self, name: str) -> bool:
+        """Whether a truth's column ``name`` is one the backbone is drawn from: a bend
+        angle of the model's outputs, the tip force or a tension gain (a tendon robot's
+        equilibrium)."""
+        angle = any(o.name == name and o.unit == "rad" for o in self.outputs)
+        return angle or name in TIP_FORCE_COLUMNS or name.startswith("tension_gain_")
+
     def log_truth(self, t: FloatArray, values: FloatArray, names: Sequence[str]) -> bool:
         """Send a truth recording: ``values`` (n, len(names)), columns named as in a truth
         CSV. The tip and its trail are its ``x, y, z``; each section end ``x_k, y_k,
@@ -394,16 +406,22 @@ class BackboneView:
         data the PCC curve through the true bends, not the rod itself). Returns whether
         the backbone was drawn. A column without a value (every row NaN) is taken as
         absent, and a row with a gap (NaN) in a column drawn is left out: the view holds
-        the truth drawn before it."""
+        the truth drawn before it (where no row has every column the backbone is drawn
+        from, the tip and section ends alone are drawn)."""
         t = np.asarray(t, dtype=float)
         values = np.asarray(values, dtype=float)
         some = [j for j in range(len(names)) if np.isfinite(values[:, j]).any()]
         names, values = [names[j] for j in some], values[:, some]
+        points = [j for j, c in enumerate(names) if c in TIP_COLUMNS or _is_end_column(c)]
+        whole = np.all(np.isfinite(values[:, points]), axis=1)
+        shape = [j for j, c in enumerate(names) if j not in points and self._draws_shape_from(c)]
+        with_shape = whole & np.all(np.isfinite(values[:, shape]), axis=1)
+        if with_shape.any():
+            whole = with_shape
+        else:  # no row has every column the backbone is drawn from: the points alone
+            kept = [j for j in range(len(names)) if j not in shape]
+            names, values = [names[j] for j in kept], values[:, kept]
         col = {c: i for i, c in enumerate(names)}
-        drawn = [col[c] for c in names if c in ("x", "y", "z") or c.startswith(("x_", "y_", "z_"))]
-        drawn += [col[o.name] for o in self.outputs if o.unit == "rad" and o.name in col]
-        drawn += [col[c] for c in names if c in TIP_FORCE_COLUMNS or c.startswith("tension_gain_")]
-        whole = np.all(np.isfinite(values[:, drawn]), axis=1)
         t, values = t[whole], values[whole]
         tips = values[:, [col[c] for c in "xyz"]]
         geom = None
@@ -506,3 +524,9 @@ class BackboneView:
                 self._tmp.unlink(missing_ok=True)
             self._closed = True
             stop_web_viewer(self._web)
+
+
+def _is_end_column(name: str) -> bool:
+    """A section end's position column, ``x_k``, ``y_k`` or ``z_k``."""
+    axis, _, k = name.partition("_")
+    return axis in ("x", "y", "z") and k.isdigit()
