@@ -70,7 +70,7 @@ from continuum_mhe.estimators.fast import (
 )
 from continuum_mhe.estimators.fast.covariance import casadi_window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
-from continuum_mhe.estimators.fast.sqp import quadratic_rate
+from continuum_mhe.estimators.fast.sqp import newton_steps, quadratic_rate
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
@@ -333,7 +333,7 @@ class MovingHorizonInference(Inference):
             self._window = _core.MovingHorizon(
                 self._workspace.core, self._node.core, np.ascontiguousarray(self._R, float),
                 s.loss != "l2", s.paper_start, opt.max_iter, opt.step_tol, opt.err_tol,
-                opt.max_qp_iter, opt.newton, quadratic_rate(self._fast, opt),
+                opt.max_qp_iter, newton_steps(self._fast, opt), quadratic_rate(self._fast, opt),
             )  # fmt: skip
         else:
             self._workspace, self._node = None, None

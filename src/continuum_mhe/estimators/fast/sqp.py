@@ -64,6 +64,13 @@ class FastOptions:
             raise UserError(f"err_tol must lie in (0, 1e-3), got {self.err_tol!r}")
 
 
+def newton_steps(model: WindowModel, options: FastOptions) -> bool:
+    """Whether the SQP takes exact Newton steps: ``options.newton`` where the model
+    forms the residuals' second-order term (else its steps are Gauss-Newton, certified
+    with the core's safety factor on their linear rate)."""
+    return options.newton and model.second_order_residuals
+
+
 def quadratic_rate(model: WindowModel, options: FastOptions) -> bool:
     """Whether the SQP may certify by Newton's quadratic rate: exact Newton steps
     (``options.newton``), a transition affine in the state (else the Hessian the
@@ -71,8 +78,7 @@ def quadratic_rate(model: WindowModel, options: FastOptions) -> bool:
     loss, whose second derivative jumps at its scale (with the estimate, Huber's worst
     certified window was 4.3e-8 from the converged answer)."""
     huber = model.loss.code == LOSS_CODES["huber"]
-    exact = options.newton and model.second_order_residuals
-    return exact and model.linear_transition and not huber
+    return newton_steps(model, options) and model.linear_transition and not huber
 
 
 @dataclass(frozen=True)
@@ -179,7 +185,7 @@ def solve_window(
     lam = np.zeros((n, nb)) if lam0 is None else np.array(lam0, dtype=float).reshape(n, nb)
     r = ws.core.solve(
         *_weights(problem), lam, opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter,
-        opt.newton, quadratic_rate(model, opt),
+        newton_steps(model, opt), quadratic_rate(model, opt),
     )  # fmt: skip
     return FastResult(
         X=ws.Xb[r.buffer].copy(),
