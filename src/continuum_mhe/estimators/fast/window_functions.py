@@ -33,13 +33,12 @@ def transition_is_linear(formulation: Formulation) -> bool:
     return not ca.depends_on(ca.jacobian(f.transition_sym(x, u, dt), x), x)
 
 
-#: A measurement residual of more instructions than this (a model of four or more
+#: A measurement residual of more instructions than this (a model of five or more
 #: sections with raw IMUs, or three with their own acceleration) is solved with
 #: Gauss-Newton steps: its second derivatives, formed symbolically, take about ten times
-#: the instructions of its Jacobian, and building them took longer than the run they
-#: speed up (six sections with the IMUs' own acceleration: 27 s to build, 76 ms a
-#: window, against 4.5 s and 20 ms with Gauss-Newton steps, the same estimates to 1e-7;
-#: ``docs/fast-solver.md``, the second-order term).
+#: the instructions of its Jacobian, and building and evaluating them costs more than
+#: the Newton steps save (``docs/fast-solver.md``, "The model comes from CasADi, once";
+#: ``tools/second_order_study.py``).
 NEWTON_RESIDUAL_INSTRUCTIONS = 8000
 
 
