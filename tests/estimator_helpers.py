@@ -72,16 +72,20 @@ def fast_and_ipopt_states(
     return states
 
 
-def worst_certified_error(model: Any, windows: list[Any]) -> float:
+def worst_certified_error(
+    model: Any, windows: list[Any], options: FastOptions | None = None
+) -> float:
     """The largest distance, in the certificate's norm (``model.step_scale``), of a
-    window's certified answer from the answer iterated to 1e-13, over ``windows`` (of
-    :func:`fast_windows`), each window's two solves asserted converged."""
+    window's certified answer (with ``options``) from the answer iterated to 1e-13 with
+    the same steps, over ``windows`` (of :func:`fast_windows`), each window's two solves
+    asserted converged."""
     from continuum_mhe.estimators.fast.sqp import solve_window
 
-    tight = FastOptions(step_tol=1e-13, err_tol=1e-13, max_iter=200)
+    options = options or FastOptions()
+    tight = replace(options, step_tol=1e-13, err_tol=1e-13, max_iter=200)
     worst = 0.0
     for problem, X0, lam0, _ in windows:
-        res = solve_window(model, problem, X0, lam0=lam0)
+        res = solve_window(model, problem, X0, options, lam0=lam0)
         ref = solve_window(model, problem, X0, tight, lam0=lam0)
         assert res.converged and ref.converged
         worst = max(worst, float(np.max(np.abs(res.X - ref.X) * model.step_scale)))

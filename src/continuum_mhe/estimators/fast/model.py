@@ -29,7 +29,6 @@ from continuum_mhe.estimators.fast.window_functions import (
     measurement_model,
     output_function,
     output_jacobian_function,
-    second_order_terms,
     transition_is_linear,
     transition_model,
 )
@@ -163,7 +162,7 @@ class WindowModel:
     loss: LossKernel = LossKernel(np.zeros((0, 2), dtype=np.int64), 0, math.inf)
     linear_transition: bool = False
     #: the measurement terms' second-order part is formed (exact Newton steps); see
-    #: :func:`~continuum_mhe.estimators.fast.window_functions.second_order_terms`
+    #: :attr:`~continuum_mhe.model.formulations.Formulation.second_order_residuals`
     second_order_residuals: bool = True
     #: the last node and stage of a window shifted by one sample (a TailFunction)
     tail: _core.ModelFunction | None = None
@@ -383,7 +382,7 @@ def build_window_model(
         sigma_states=node.sigma_states,
         loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
         linear_transition=transition_is_linear(formulation),
-        second_order_residuals=second_order_terms(formulation),
+        second_order_residuals=formulation.second_order_residuals,
         block_columns=block_columns(formulation, blocks),
         step_scale=step_scale(formulation),
     )

@@ -11,8 +11,6 @@ all outputs concatenated.
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
@@ -33,28 +31,6 @@ def transition_is_linear(formulation: Formulation) -> bool:
     return not ca.depends_on(ca.jacobian(f.transition_sym(x, u, dt), x), x)
 
 
-#: A measurement residual of more instructions than this (a model of five or more
-#: sections with raw IMUs, or three with their own acceleration) is solved with
-#: Gauss-Newton steps: its second derivatives, formed symbolically, take about ten times
-#: the instructions of its Jacobian, and building and evaluating them costs more than
-#: the Newton steps save (``docs/fast-solver.md``, "The model comes from CasADi, once";
-#: ``tools/second_order_study.py``).
-NEWTON_RESIDUAL_INSTRUCTIONS = 8000
-
-
-@lru_cache(maxsize=64)
-def second_order_terms(formulation: Formulation) -> bool:
-    """Whether the fast MHE adds ``formulation``'s measurement residuals' second
-    derivatives to its Hessian (exact Newton steps): where the formulation can form them
-    (:attr:`~continuum_mhe.model.formulations.Formulation.second_order_residuals`) and
-    its residual has at most :data:`NEWTON_RESIDUAL_INSTRUCTIONS` instructions; else
-    Gauss-Newton steps (the same minimum)."""
-    if not formulation.second_order_residuals:
-        return False
-    size = residual_function(formulation).n_instructions()
-    return bool(size <= NEWTON_RESIDUAL_INSTRUCTIONS)
-
-
 def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
     """``meas: (x, z, m) -> (r, JR, SR)`` and ``proc: (x, xn, u, dt) -> (W, FJ)``: one
     node's and one stage's part of :func:`window_function` (the layout described
@@ -73,7 +49,7 @@ def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
     # rest being zero (c: the block's column count, block_columns)
     curv = []
     for b, c in zip(f.measurement_blocks, cols):
-        if not second_order_terms(f):  # Gauss-Newton: the term is zero
+        if not f.second_order_residuals:  # Gauss-Newton: the term is zero
             curv.append(ca.SX.zeros(c * c))
             continue
         rb, jb, wb = r[b.slice], jr[b.slice, :], ca.DM(rinv[b.slice, b.slice])
