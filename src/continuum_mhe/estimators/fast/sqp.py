@@ -38,13 +38,17 @@ class FastOptions:
         max_iter: SQP (Gauss-Newton) iterations per window before falling back.
         step_tol: convergence certificate: max-norm of the QP step, each state in
             its own units (rad, m, a gyro bias's rad/s) but a rate, whose error counts
-            as the angle it moves over 0.1 s (:func:`~.model.step_scale`).
+            as the angle it moves over 0.1 s (:func:`~.model.step_scale`); a tenth of
+            it after a Gauss-Newton step, whose rate is linear (the core's
+            ``kContractionSafety``).
         err_tol: convergence certificate: error bound of the answer estimated from
             the contraction of successive steps, in the same norm: the angles to
-            ``err_tol`` rad, their rates to ``10 * err_tol`` rad/s.
+            ``err_tol`` rad, their rates to ``10 * err_tol`` rad/s (after a
+            Gauss-Newton step the bound is taken ten times).
         max_qp_iter: active-set changes allowed per QP subproblem.
         newton: add the measurement residuals' second-order term to the Hessian
-            (exact Newton; Gauss-Newton where that is not positive definite).
+            (exact Newton; Gauss-Newton where that is not positive definite, or where
+            the model does not form the term: :func:`newton_steps`).
     """
 
     max_iter: int = 30
