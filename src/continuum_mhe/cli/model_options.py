@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError
+from continuum_mhe.estimators.process_noise import bend_accel_psd_applies
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
@@ -159,18 +160,6 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
         raise InputError(str(exc)) from None
 
 
-def _bend_accel_psd_applies(formulation: Formulation) -> bool:
-    """Whether ``formulation``'s process noise depends on ``noise.bend_accel_psd``: its
-    covariance over one 0.05 s step at two values of it."""
-    import numpy as np
-
-    doubled = replace(
-        formulation,
-        noise=replace(formulation.noise, bend_accel_psd=2.0 * formulation.noise.bend_accel_psd),
-    )
-    return not np.array_equal(formulation.process_cov(0.05), doubled.process_cov(0.05))
-
-
 def check_noise_options_apply(args: argparse.Namespace, formulation: Formulation) -> None:
     """Refuse ``--reading-bias-deg``, ``--model-error-floor-deg`` or ``--accel-psd``
     given (not at its default) where the model takes no such term, in one line naming
@@ -196,7 +185,7 @@ def check_noise_options_apply(args: argparse.Namespace, formulation: Formulation
          "it is a mechanics model, not a constant-curvature one, and assumes no model "
          "error before the readings show one (docs/tendon.md)"),
         ("--accel-psd", "accel_psd", NoiseSettings.bend_accel_psd,
-         lambda: _bend_accel_psd_applies(formulation),
+         lambda: bend_accel_psd_applies(formulation),
          f"its process noise is {formulation.process_noise_source}"),
     ):  # fmt: skip
         given = getattr(args, attr, None)

@@ -3,6 +3,8 @@ EKF, the MHE's process weights and the consistency check's prediction use it."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
@@ -24,6 +26,17 @@ def process_noise(formulation: Formulation, dt: float) -> tuple[FloatArray, Floa
             f"a time step of {dt:g} s is too short for the process noise (its "
             "covariance is singular): t must be in seconds"
         ) from None
+
+
+def bend_accel_psd_applies(formulation: Formulation) -> bool:
+    """Whether ``formulation``'s process noise depends on ``noise.bend_accel_psd`` (the
+    command line's ``--accel-psd``): its covariance over one 0.05 s step at two values
+    of it."""
+    doubled = replace(
+        formulation,
+        noise=replace(formulation.noise, bend_accel_psd=2.0 * formulation.noise.bend_accel_psd),
+    )
+    return not np.array_equal(formulation.process_cov(0.05), doubled.process_cov(0.05))
 
 
 class ProcessNoiseCache:

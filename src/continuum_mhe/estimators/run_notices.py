@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.base import Inference, tension_rows
 from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
+from continuum_mhe.estimators.process_noise import bend_accel_psd_applies
 from continuum_mhe.model.descriptions import tip_position_indices
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
@@ -423,7 +424,7 @@ def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> 
             "them: --own-acceleration models it)"
         )
     fast = ""
-    if "bend_accel_psd" in formulation.process_noise_source:  # --accel-psd sets it
+    if bend_accel_psd_applies(formulation):  # --accel-psd sets its motion model
         fast = (
             ", or moves faster than the motion model lets the bends change (a larger "
             "--accel-psd, NoiseSettings.bend_accel_psd, follows a faster robot)"

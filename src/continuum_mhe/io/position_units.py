@@ -54,10 +54,7 @@ def position_unit_problem(
     ratio = tip_ratio(names, values, lengths)
     if ratio is None:  # angles that say nothing (some of a section's, of another robot,
         # none in a row with the tip): beyond any shape in cm, a bent robot's tip in mm
-        tip = np.asarray(values, dtype=float)[:, [list(names).index(c) for c in "xyz"]]
-        dist = np.linalg.norm(tip, axis=1)
-        dist = dist[np.isfinite(dist)]
-        far = float(np.median(dist)) / float(sum(lengths)) if len(dist) else 0.0
+        far = median_reach(names, values, lengths) or 0.0
         if far <= 100.0 * (1 + POSITION_UNIT_TOLERANCE):
             return ""
         return (
@@ -118,6 +115,18 @@ def _tips_from_own_angles(
     return np.asarray(pose_at(bends, lengths, len(lengths) - 1)[1], dtype=float)
 
 
+def median_reach(
+    names: Sequence[str], values: FloatArray, lengths: Sequence[float]
+) -> float | None:
+    """The median distance of the tip (``x, y, z`` of ``names``) from the base over the
+    rows that have it, over the robot's length (the sum of ``lengths``, m); None
+    without such a row."""
+    tip = np.asarray(values, dtype=float)[:, [list(names).index(c) for c in "xyz"]]
+    dist = np.linalg.norm(tip, axis=1)
+    dist = dist[np.isfinite(dist)]
+    return float(np.median(dist)) / float(sum(lengths)) if len(dist) else None
+
+
 def tip_ratio(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> float | None:
     """With every section's bend columns: the steady ratio of the tip's distance from
     the base to the one its own angles give on a robot of ``lengths``
@@ -133,8 +142,7 @@ def tip_ratio(names: Sequence[str], values: FloatArray, lengths: Sequence[float]
     if in_file and in_file != set(bend_names):
         return None
     if not in_file:
-        finite = dist[np.isfinite(dist)]
-        return float(np.median(finite)) / float(sum(lengths)) if len(finite) else None
+        return median_reach(names, rows, lengths)
     ok = np.all(np.isfinite(rows), axis=1)
     if not ok.any():
         return None

@@ -412,7 +412,8 @@ class BackboneView:
         values = np.asarray(values, dtype=float)
         some = [j for j in range(len(names)) if np.isfinite(values[:, j]).any()]
         names, values = [names[j] for j in some], values[:, some]
-        points = [j for j, c in enumerate(names) if c in TIP_COLUMNS or _is_end_column(c)]
+        end_columns = {f"{c}_{k}" for k in range(1, self.robot.n_sections + 1) for c in "xyz"}
+        points = [j for j, c in enumerate(names) if c in TIP_COLUMNS or c in end_columns]
         whole = np.all(np.isfinite(values[:, points]), axis=1)
         shape = [j for j, c in enumerate(names) if j not in points and self._draws_shape_from(c)]
         with_shape = whole & np.all(np.isfinite(values[:, shape]), axis=1)
@@ -524,9 +525,3 @@ class BackboneView:
                 self._tmp.unlink(missing_ok=True)
             self._closed = True
             stop_web_viewer(self._web)
-
-
-def _is_end_column(name: str) -> bool:
-    """A section end's position column, ``x_k``, ``y_k`` or ``z_k``."""
-    axis, _, k = name.partition("_")
-    return axis in ("x", "y", "z") and k.isdigit()
