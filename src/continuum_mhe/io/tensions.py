@@ -747,6 +747,11 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
             "--own-acceleration is not available for a tendon robot (a [backbone] robot "
             "file): its model includes each IMU's own acceleration already"
         )
+    if options.imu_twist:
+        raise InputError(
+            "--imu-twist is not available for a tendon robot (a [backbone] robot file): "
+            "its mechanics model twists the backbone already"
+        )
     direct = base.name == "direct"
     if options.estimate_tension_gain and not direct:
         warnings.warn(

@@ -45,6 +45,18 @@ robot held in one pose cannot tell bias from bend. As the IMU turns through seve
 orientations the gyro ties the successive gravity directions together and a bias fixed
 in the sensor frame separates from the bend; a board misalignment about x or y looks
 the same as a bias at a pose and is partly absorbed by it.
+
+IMU twist (``imu_twist=True``): each IMU's frame is the PCC frame at its place turned
+about its z axis (the backbone's tangent) by a twist ``psi_i`` (rad), a state with its
+rate after every other (``psi_1 .. psi_m``, then their rates), constant velocity driven
+by white-noise acceleration (``twist_accel_psd``), starting untwisted. The accelerometer
+reads ``Rz(psi_i)^T f`` (the bias, in the sensor frame, added after) and the gyro
+``Rz(psi_i)^T omega + (0, 0, psi_i')``. It is what a rod that twists does to its IMUs and a
+torsion-free PCC frame cannot: the positions stay the PCC model's. The twist and the
+direction of the bending plane trade off (an accelerometer sees their difference, the
+gyros integrated see each), so a gyro bias about the z axis turns the estimated plane:
+where every IMU has a calibrated gyro bias (``continuum-mhe calibrate``), the biases are
+held at it by default (:func:`gyro_biases_calibrated`), not estimated.
 """
 
 from __future__ import annotations
@@ -64,6 +76,7 @@ from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
 from continuum_mhe.model.imu import STANDARD_GRAVITY, shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
 from continuum_mhe.model.pcc import angular_velocity_at_sym, pose_at_sym
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName
 
 
@@ -120,6 +133,11 @@ class DirectFormulation(BendFormulation):
             rad^2/s^5 (used with ``own_acceleration``).
         initial_bend_accel_std: prior standard deviation of each bend acceleration,
             rad/s^2.
+        imu_twist: a twist of each IMU about the backbone's tangent and its rate as
+            states (see the module docstring).
+        twist_accel_psd: the twists' white-noise acceleration density, rad^2/s^3.
+        initial_twist_std: prior standard deviation of each twist (rad) and of its
+            rate (rad/s) at a start, about zero (the robot starts untwisted).
     """
 
     name: FormulationName = "direct"
@@ -134,6 +152,9 @@ class DirectFormulation(BendFormulation):
     own_acceleration: bool = False
     bend_jerk_psd: float = 4.0
     initial_bend_accel_std: float = 1.0
+    imu_twist: bool = False
+    twist_accel_psd: float = 0.5
+    initial_twist_std: float = 0.02
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -146,6 +167,8 @@ class DirectFormulation(BendFormulation):
             ("initial_accel_bias_std", self.initial_accel_bias_std),
             ("bend_jerk_psd", self.bend_jerk_psd),
             ("initial_bend_accel_std", self.initial_bend_accel_std),
+            ("twist_accel_psd", self.twist_accel_psd),
+            ("initial_twist_std", self.initial_twist_std),
         ):
             if v is not None and not (is_real(v) and math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
@@ -176,6 +199,18 @@ class DirectFormulation(BendFormulation):
         """Number of bias states (gyro and accelerometer)."""
         return self.n_gyro_bias + self.n_accel_bias
 
+    @property
+    def n_twist(self) -> int:
+        """Number of twisted IMUs (``imu_twist``: every IMU, else 0); each has a twist
+        and its rate as states, after the biases."""
+        return self.robot.n_imus if self.imu_twist else 0
+
+    def twists_sym(self, x: Sym) -> tuple[list[Sym], list[Sym]]:
+        """``(psi, psi_dot)``: each IMU's twist (rad) and its rate (rad/s) (call only
+        with ``imu_twist``)."""
+        m, n0 = self.n_twist, self.n_motion + self.n_bias
+        return [x[n0 + i] for i in range(m)], [x[n0 + m + i] for i in range(m)]
+
     def _bias_names(self, prefix: str) -> tuple[str, ...]:
         single = self.robot.n_imus == 1
         return tuple(
@@ -193,6 +228,10 @@ class DirectFormulation(BendFormulation):
             names += self._bias_names("bg")
         if self.estimate_accel_bias:
             names += self._bias_names("ba")
+        if self.imu_twist:
+            single = self.robot.n_imus == 1
+            twist = tuple("psi" if single else f"psi_{i}" for i in range(1, self.robot.n_imus + 1))
+            names += twist + tuple(f"{c}_dot" for c in twist)
         return names
 
     def gyro_biases_sym(self, x: Sym) -> list[Sym]:
@@ -210,14 +249,22 @@ class DirectFormulation(BendFormulation):
         the rate limit (a vibrating rod's can be hundreds of rad/s^2)."""
         n2 = 2 * self.robot.n_sections
         accel = range(2 * n2, 3 * n2) if self.own_acceleration else range(0)
-        return [i for i in super()._rate_rows() if i not in accel]
+        n0 = self.n_motion + self.n_bias
+        twist = range(n0, n0 + self.n_twist)  # angles, not rates
+        return [i for i in super()._rate_rows() if i not in accel and i not in twist]
 
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
         if not self.own_acceleration:
-            return super().transition_sym(x, u, dt)
-        n2 = 2 * self.robot.n_sections
-        q, qd, qdd = x[:n2], x[n2 : 2 * n2], x[2 * n2 : 3 * n2]
-        return ca.vertcat(q + dt * qd + dt**2 / 2 * qdd, qd + dt * qdd, x[2 * n2 :])
+            moved = super().transition_sym(x, u, dt)
+        else:
+            n2 = 2 * self.robot.n_sections
+            q, qd, qdd = x[:n2], x[n2 : 2 * n2], x[2 * n2 : 3 * n2]
+            moved = ca.vertcat(q + dt * qd + dt**2 / 2 * qdd, qd + dt * qdd, x[2 * n2 :])
+        if not self.imu_twist:
+            return moved
+        n0 = self.n_motion + self.n_bias
+        psi, rate = self.twists_sym(x)
+        return ca.vertcat(moved[:n0], *[p + dt * r for p, r in zip(psi, rate)], *rate)
 
     def _motion_cov_sym(self, dt: Sym) -> Sym:
         if not self.own_acceleration:
@@ -246,6 +293,10 @@ class DirectFormulation(BendFormulation):
             q = ca.diagcat(q, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
         if self.estimate_accel_bias:
             q = ca.diagcat(q, self.accel_bias_psd * dt * ca.SX.eye(self.n_accel_bias))
+        if self.imu_twist:
+            w = self.twist_accel_psd
+            blk = w * ca.blockcat([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+            q = ca.diagcat(q, ca.kron(blk, ca.SX.eye(self.n_twist)))
         return q
 
     def initial_cov(self) -> FloatArray:
@@ -258,16 +309,28 @@ class DirectFormulation(BendFormulation):
                 np.full(n2, self.initial_bend_accel_std**2),
                 np.full(self.n_gyro_bias, self.initial_gyro_bias_std**2),
                 np.full(self.n_accel_bias, self.initial_accel_bias_std**2),
+                np.full(2 * self.n_twist, self.initial_twist_std**2),
             ]
         )
         return np.diag(var)
+
+    def range_std(self) -> FloatArray:
+        """``bend``'s, and each IMU's twist (``imu_twist``) held to its prior standard
+        deviation: the gyros, integrated, hold the twist, so a constant error of the
+        accelerometers' directions is taken as a shift of the bends alone (turning the
+        IMU about its z axis would take up part of it and narrow the bends' share)."""
+        std = super().range_std()
+        n0 = self.n_motion + self.n_bias
+        std[n0 : n0 + self.n_twist] = self.initial_twist_std
+        return std
 
     def gravity_directions_sym(self, x: Sym) -> list[Sym]:
         """Unit specific-force direction at rest in each IMU's frame, with the
         accelerometer bias when estimated (see the module docstring)."""
         g = super().gravity_directions_sym(x)
+        psi = self.twists_sym(x)[0] if self.imu_twist else [0.0] * len(g)
         if not (self.estimate_accel_bias or self.own_acceleration):
-            return g
+            return [_turned(p, gi) for p, gi in zip(psi, g)] if self.imu_twist else g
         n = self.robot.n_imus
         c = self.accel_biases_sym(x) if self.estimate_accel_bias else [0.0] * n
         if self.own_acceleration:
@@ -277,8 +340,9 @@ class DirectFormulation(BendFormulation):
         else:
             a = [0.0] * n
         out = []
-        for gi, ci, ai in zip(g, c, a):
-            f = STANDARD_GRAVITY * gi + ai + ci
+        for gi, ci, ai, p in zip(g, c, a, psi):
+            f = STANDARD_GRAVITY * gi + ai
+            f = (_turned(p, f) if self.imu_twist else f) + ci
             out.append(f / ca.sqrt(ca.sumsqr(f)))
         return out
 
@@ -301,11 +365,17 @@ class DirectFormulation(BendFormulation):
     def angular_velocities_sym(self, x: Sym) -> list[Sym]:
         """Angular velocity in each IMU's frame, rad/s."""
         if self.robot.is_single:
-            return [tip_angular_velocity_bend_sym(x[0], x[1], x[2], x[3])]
-        bends, rates = self.bends_sym(x), self.rates_sym(x)
-        return [
-            angular_velocity_at_sym(bends, rates, imu.section, imu.at) for imu in self.robot.imus
-        ]
+            w = [tip_angular_velocity_bend_sym(x[0], x[1], x[2], x[3])]
+        else:
+            bends, rates = self.bends_sym(x), self.rates_sym(x)
+            w = [
+                angular_velocity_at_sym(bends, rates, imu.section, imu.at)
+                for imu in self.robot.imus
+            ]
+        if not self.imu_twist:
+            return w
+        psi, rate = self.twists_sym(x)
+        return [_turned(p, wi) + ca.vertcat(0, 0, r) for p, r, wi in zip(psi, rate, w)]
 
     def measurement_sym(self, x: Sym) -> Sym:
         g, w = self.gravity_directions_sym(x), self.angular_velocities_sym(x)
@@ -363,6 +433,20 @@ class DirectFormulation(BendFormulation):
             rows = [3 * (r // 6) + (r % 6 - 3) for r in gyro_rows]
             x[n2 : 2 * n2] = np.linalg.lstsq(m[rows], z0[gyro_rows], rcond=None)[0]
         return x
+
+
+def gyro_biases_calibrated(robot: Robot) -> bool:
+    """Whether every IMU of ``robot`` has a gyro bias from a calibration (a robot file's
+    ``gyro_bias``, not zero): with ``imu_twist`` their biases are then held at it, not
+    estimated (a bias about an IMU's z axis and its twist trade off)."""
+    return all(any(v != 0.0 for v in imu.gyro_bias) for imu in robot.imus)
+
+
+def _turned(psi: Sym, v: Sym) -> Sym:
+    """``Rz(psi)^T v``: a vector of the frame before a turn by ``psi`` (rad) about its z
+    axis, in the turned frame."""
+    c, s = ca.cos(psi), ca.sin(psi)
+    return ca.vertcat(c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2])
 
 
 def direct_measurements(acc: FloatArray, gyr: FloatArray) -> FloatArray:

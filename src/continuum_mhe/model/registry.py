@@ -14,7 +14,7 @@ import numpy as np
 
 from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.model.bend import BendFormulation
-from continuum_mhe.model.direct import DirectFormulation
+from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.paper import PaperFormulation
 from continuum_mhe.model.robot import Robot, warn_slips
@@ -41,13 +41,16 @@ def make_formulation(
 
     ``options`` go to the formulation (e.g. ``gyro_std`` for ``direct``). ``"direct"``,
     and ``"tendon"`` with ``imu_model="direct"``, estimate each IMU's gyro bias unless
-    ``estimate_gyro_bias=False`` is given, as the command line and
+    ``estimate_gyro_bias=False`` is given (or ``imu_twist=True`` on a robot whose IMUs all
+    have a calibrated ``gyro_bias``: held at it), as the command line and
     :func:`~continuum_mhe.io.inputs.load_input` do.
     """
     cls = REGISTRY.get(name)
     # raw IMUs: their gyro biases are states, as the command line has them
     if name == "direct" or (name == "tendon" and options.get("imu_model") == "direct"):
-        options.setdefault("estimate_gyro_bias", True)
+        # with the IMUs' twist a bias about z turns the bending plane: held at a calibration
+        calibrated = isinstance(robot, Robot) and gyro_biases_calibrated(robot)
+        options.setdefault("estimate_gyro_bias", not (options.get("imu_twist") and calibrated))
     if cls is None:
         raise UserError(f"formulation must be one of {', '.join(REGISTRY)}, got {name!r}")
     robots = (Robot, RobotSettings, type(None))
