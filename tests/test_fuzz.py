@@ -12,12 +12,14 @@ from __future__ import annotations
 import csv
 import math
 import warnings
+from itertools import accumulate
 from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
+from numpy.testing import assert_allclose, assert_array_equal
 
 from continuum_mhe import RobotSettings, make_estimator, make_formulation
 from continuum_mhe.cli import main
@@ -113,33 +115,102 @@ _LINE = st.one_of(
     _ROW.map(lambda r: "\r".join([",".join(r), "0.3,0.1,0.1"])),
 )
 
+#: a valid reading of each column: angles (rad) within 90 degrees of upright (the EKF
+#: refuses a start beyond 135: a robot upside down), a gravity-like specific force
+#: (m/s^2), rates (rad/s), any number in an ignored column
+_COLUMN_RANGES = {
+    **dict.fromkeys(("roll", "pitch"), (-1.5, 1.5)),
+    "x": (-10.0, 10.0),
+    **dict.fromkeys(("ax", "ay"), (-4.0, 4.0)),
+    "az": (6.0, 12.0),
+    **dict.fromkeys(("gx", "gy", "gz"), (-2.0, 2.0)),  # a median |omega| over 5 reads as deg/s
+}
+
+
+def _columns(header: str) -> tuple[str, list[str]]:
+    """The separator and the column names of one of the valid headers below."""
+    names = header.lstrip("\ufeff").removeprefix("# fields: ").split(" (")[0]
+    sep = next(s for s in ";\t," if s in names)
+    return sep, names.split(sep)
+
+
+@st.composite
+def _valid_file(draw, headers: list[str], values: tuple[str, ...]):
+    """``(header, lines, t, values)``: one of ``headers`` and 1 to 12 valid rows (t
+    strictly increasing, in s or ms as the header says; every value in range), their
+    known answers ``t`` (s) and the reader's ``values`` columns, row by row; sometimes
+    with a comment or blank line among the rows (skipped)."""
+    header = draw(st.sampled_from(headers))
+    sep, names = _columns(header)
+    n = draw(st.integers(1, 12))
+    steps = draw(st.lists(st.integers(1, 200), min_size=n, max_size=n))
+    ms = list(accumulate(steps, initial=draw(st.integers(0, 10**6))))[1:]
+    cells = {"t": [f"{m / 1000:.3f}" for m in ms], "t_ms": [str(m) for m in ms]}
+    for name in names:
+        if name not in cells:
+            numbers = st.floats(*_COLUMN_RANGES[name])
+            cells[name] = [f"{v:.6f}" for v in draw(st.lists(numbers, min_size=n, max_size=n))]
+    lines = [sep.join(cells[c][i] for c in names) for i in range(n)]
+    if draw(st.booleans()):
+        lines.insert(draw(st.integers(0, n)), draw(st.sampled_from(["", "# comment", "#"])))
+    known = [[float(cells[c][i]) for c in values if c in names] for i in range(n)]
+    return header, lines, [m / 1000 for m in ms], known
+
+
+_TILT_HEADERS = [
+    "t,roll,pitch",
+    "t_ms,roll,pitch",
+    "t;roll;pitch",
+    "roll,t,pitch,x",
+    "\ufefft,roll,pitch",  # a byte-order mark: read
+    "# fields: t_ms,roll,pitch (ms, rad)",  # the firmware's header comment
+]
+_RAW_HEADERS = ["t,ax,ay,az", "t_ms,ax,ay,az,gx,gy,gz", "t\tax\tay\taz"]
+_RAW_VALUES = ("ax", "ay", "az", "gx", "gy", "gz")
+
+
+def _any_file(headers: list[str]):
+    """``(header, lines, None, None)``: any lines under one of ``headers`` (no known
+    answer)."""
+    return st.tuples(st.sampled_from(headers), st.lists(_LINE, max_size=12), st.none(), st.none())
+
 
 @settings(
     max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
-    header=st.sampled_from(
-        [
-            "t,roll,pitch",
-            "t_ms,roll,pitch",
-            "t;roll;pitch",
-            "roll,t,pitch,x",
-            "t,roll,pitch,roll",  # a column named twice: refused
-            "\ufefft,roll,pitch",  # a byte-order mark: read
-            "# fields: t_ms,roll,pitch (ms, rad)",  # the firmware's header comment
-        ]
+    # two valid files (whose rows are read to their known values) for each of any text
+    file=st.one_of(
+        _valid_file(_TILT_HEADERS, ("roll", "pitch")),
+        _valid_file(_TILT_HEADERS, ("roll", "pitch")),
+        _any_file([*_TILT_HEADERS, "t,roll,pitch,roll"]),  # a column named twice: refused
     ),
-    lines=st.lists(_LINE, max_size=12),
     skip_bad=st.booleans(),
 )
-def test_reader_is_total(tmp_path_factory, header: str, lines: list[str], skip_bad: bool) -> None:
+@example(
+    file=(
+        "t,roll,pitch",
+        ["0.5,0.1,-0.2", "0.75,3.1,1.55"],
+        [0.5, 0.75],
+        [[0.1, -0.2], [3.1, 1.55]],
+    ),
+    skip_bad=False,
+)
+@example(
+    file=("# fields: t_ms,roll,pitch (ms, rad)", ["# c", "20,-0.3,0.4"], [0.02], [[-0.3, 0.4]]),
+    skip_bad=True,
+)
+def test_reader_is_total(tmp_path_factory, file: tuple, skip_bad: bool) -> None:
     """Any text: measurements whose t strictly increases, or one-line InputError of at
-    most a few hundred characters (never the input quoted whole)."""
+    most a few hundred characters (never the input quoted whole); a valid file: its
+    rows' t and angles, every row."""
+    header, lines, t, z = file
     path = tmp_path_factory.mktemp("fz") / "m.csv"
     path.write_text("\n".join([header, *lines]) + "\n", encoding="utf-8")
     try:
         table = read_measurements(path, skip_bad=skip_bad)
     except InputError as exc:
+        assert t is None, exc  # a valid file is read
         assert "\n" not in str(exc) and str(path) in str(exc)
         assert len(str(exc)) < 400 + len(str(path)), str(exc)
         return
@@ -147,6 +218,9 @@ def test_reader_is_total(tmp_path_factory, header: str, lines: list[str], skip_b
     assert len(table.t) >= 1 and np.all(np.diff(table.t) > 0) and np.isfinite(table.t).all()
     ok = np.isfinite(table.z).all(axis=1)
     assert np.all(np.abs(table.z[ok]) <= math.pi + 0.05)
+    if t is not None:
+        assert_allclose(table.t, t, rtol=1e-15, atol=0)
+        assert_array_equal(table.z, z)
     est = make_estimator("ekf", make_formulation("bend", RobotSettings()))
     series = est.run(table.t, table.z)
     assert set(series.status) <= set(STATUS_MEANINGS)
@@ -158,24 +232,43 @@ def test_reader_is_total(tmp_path_factory, header: str, lines: list[str], skip_b
     max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
-    header=st.sampled_from(["t,ax,ay,az", "t_ms,ax,ay,az,gx,gy,gz", "t\tax\tay\taz"]),
-    lines=st.lists(_LINE, max_size=12),
+    file=st.one_of(
+        _valid_file(_RAW_HEADERS, _RAW_VALUES),
+        _valid_file(_RAW_HEADERS, _RAW_VALUES),
+        _any_file(_RAW_HEADERS),
+    ),
     skip_bad=st.booleans(),
 )
-def test_raw_reader_is_total(tmp_path_factory, header: str, lines: list[str], skip_bad: bool):
-    """Any raw text: samples with increasing t, or one-line InputError."""
+@example(
+    file=(
+        "t_ms,ax,ay,az,gx,gy,gz",
+        ["1500,0.1,0.2,9.8,0.01,0.02,0.03", "1520,-0.1,0.3,9.7,0,0,-0.5"],
+        [1.5, 1.52],
+        [[0.1, 0.2, 9.8, 0.01, 0.02, 0.03], [-0.1, 0.3, 9.7, 0.0, 0.0, -0.5]],
+    ),
+    skip_bad=False,
+)
+def test_raw_reader_is_total(tmp_path_factory, file: tuple, skip_bad: bool):
+    """Any raw text: samples with increasing t, or one-line InputError; a valid file:
+    its rows' t, specific forces and rates, every row."""
     from continuum_mhe.io.raw_imu import read_raw_imu
 
+    header, lines, t, values = file
     path = tmp_path_factory.mktemp("fz") / "raw.csv"
     path.write_text("\n".join([header, *lines]) + "\n", encoding="utf-8")
     try:
         table = read_raw_imu(path, skip_bad=skip_bad)
     except InputError as exc:
+        assert t is None, exc  # a valid file is read
         assert "\n" not in str(exc) and str(path) in str(exc)
         return
     assert len(table.t) >= 1 and np.all(np.diff(table.t) > 0) and np.isfinite(table.t).all()
     ok = np.isfinite(table.acc).all(axis=1)
     assert np.all(np.linalg.norm(table.acc[ok], axis=1) > 0)
+    if t is not None:
+        assert_allclose(table.t, t, rtol=1e-15, atol=0)
+        read = table.acc if table.gyr is None else np.hstack([table.acc, table.gyr])
+        assert_array_equal(read, values)
 
 
 # --- robot files ------------------------------------------------------------------------------
@@ -229,23 +322,49 @@ def test_robot_reader_is_total(tmp_path_factory, text: str, bom: bool) -> None:
 
 
 # --- the live protocol --------------------------------------------------------------------------
+@st.composite
+def _protocol_line(draw) -> tuple[str, str, int, int]:
+    """``(line, fmt, n_imus, n_tensions)``: mostly the field count ``parse_line``
+    expects (sometimes one field more or fewer), each field a plausible time, IMU value
+    or tension, sometimes any :data:`_NUMBER` instead (a bad time or tension), or all of
+    one IMU's fields (a dropout, where another IMU is good)."""
+    from continuum_mhe.stream.protocol import VALUES_PER_IMU
+
+    fmt = draw(st.sampled_from(["tilt", "raw"]))
+    n_imus, n_tensions = draw(st.integers(1, 2)), draw(st.integers(0, 2))
+    k = VALUES_PER_IMU[fmt]
+    n_values = k * n_imus
+    n_fields = 1 + n_values + n_tensions + draw(st.sampled_from([0] * 8 + [-1, 1]))
+    plausible = {
+        "time": st.floats(0, 1e7).map(lambda v: f"{v:.3f}"),
+        "imu": st.floats(-1.5, 1.5).map(lambda v: f"{v:.5f}"),  # rad, m/s^2, rad/s
+        "tension": st.floats(0, 50).map(lambda v: f"{v:.4f}"),
+    }
+    spoilt = draw(st.integers(0, 3 * n_imus))  # an IMU whose fields are any (none: past the last)
+    fields = []
+    for i in range(n_fields):
+        kind = "time" if i == 0 else "imu" if i <= n_values else "tension"
+        imu = (i - 1) // k if kind == "imu" else -1
+        any_number = imu == spoilt or draw(st.integers(0, 19)) == 0
+        fields.append(draw(_NUMBER if any_number else plausible[kind]))
+    return ",".join(fields), fmt, n_imus, n_tensions
+
+
 @settings(max_examples=200, deadline=None)
-@given(
-    fields=st.lists(_NUMBER, min_size=0, max_size=11),
-    fmt=st.sampled_from(["tilt", "raw"]),
-    n_imus=st.integers(1, 2),
-    n_tensions=st.integers(0, 2),
-)
-def test_protocol_parser_is_total(
-    fields: list[str], fmt: str, n_imus: int, n_tensions: int
-) -> None:
+@given(case=_protocol_line())
+@example(case=("1500,0.1,0.2,9.8,0.01,0.02,0.03", "raw", 1, 0))
+@example(case=("20,0.1,-0.2,0.3,0.4,1.5", "tilt", 2, 1))
+@example(case=("20,0.1,-0.2,nan,0.4,1.5", "tilt", 2, 1))  # IMU 2 dropped
+def test_protocol_parser_is_total(case: tuple[str, str, int, int]) -> None:
     """Any line: a sample with a finite, non-negative time, its tensions finite and
     non-negative, and each IMU either wholly finite or wholly a dropout (NaN, with its
-    problem said), at least one IMU good; or GarbledLine."""
+    problem said), at least one IMU good; or GarbledLine. The sample's time, tensions
+    and good IMUs' values are the line's numbers."""
     from continuum_mhe.stream.protocol import VALUES_PER_IMU, GarbledLine, parse_line
 
+    line, fmt, n_imus, n_tensions = case
     try:
-        sample = parse_line(",".join(fields), fmt, n_imus, n_tensions)  # type: ignore[arg-type]
+        sample = parse_line(line, fmt, n_imus, n_tensions)  # type: ignore[arg-type]
     except GarbledLine:
         return
     if sample is None:
@@ -253,7 +372,13 @@ def test_protocol_parser_is_total(
     assert math.isfinite(sample.t_ms) and sample.t_ms >= 0
     assert sample.tensions.shape == (n_tensions,)
     assert np.isfinite(sample.tensions).all() and (sample.tensions >= 0).all()
-    blocks = sample.values.reshape(n_imus, VALUES_PER_IMU[fmt])
+    k = VALUES_PER_IMU[fmt]
+    blocks = sample.values.reshape(n_imus, k)
     bad = [i for i, b in enumerate(blocks) if not np.isfinite(b).all()]
     assert all(np.isnan(blocks[i]).all() for i in bad) and len(bad) == len(sample.problems)
     assert len(bad) < n_imus
+    parts = line.strip().split(",")
+    assert sample.t_ms == float(parts[0])
+    assert_array_equal(sample.tensions, [float(f) for f in parts[1 + k * n_imus :]])
+    for i in set(range(n_imus)) - set(bad):
+        assert_array_equal(blocks[i], [float(f) for f in parts[1 + k * i : 1 + k * (i + 1)]])
