@@ -5,13 +5,17 @@ For each rod recording the robot file is calibrated at rest as a user would (``c
 calibrate --from NAME_rest.csv --robot two-section --write-robot``: each IMU's mounting
 and gyro bias), then ``continuum-mhe estimate NAME_raw.csv --robot CAL --method M``
 runs with and without ``--imu-twist`` (``--uncalibrated``: the shipped robot file
-instead, the gyro biases estimated). Prints per estimate the tip error's mean and
+instead, the gyro biases estimated). ``--tendon``: the shipped tendon robot's recordings
+(``data/tendon``, no rest recordings: uncalibrated) without their tensions, with the
+PCC robot of its geometry (0.2 m + 0.2 m, ``theta_max = 3``, an IMU at each section's
+end). Prints per estimate the tip error's mean and
 largest value (mm), the rows ``ok``, those of them more than 20 mm off and those more
 than 4 of their own standard deviations off on a tip axis (and over 5 mm), and the
 ``ok`` rows' 95 % interval coverage of the tip per axis::
 
     python tools/imu_twist_study.py                       # every rod, MHE, EKF and UKF
     python tools/imu_twist_study.py --only spatial --methods ekf --uncalibrated
+    python tools/imu_twist_study.py --tendon --methods mhe ekf
 """
 
 from __future__ import annotations
@@ -26,6 +30,22 @@ import numpy as np
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 RODS = ("planar-s", "spatial-tendon", "spatial-stiff-torsion", "spatial")
+TENDON = DATA.parent / "tendon"
+TENDON_RECORDINGS = ("unloaded", "force-08", "force-29", "twist-08", "twist-29")
+#: the PCC robot of the tendon robot's geometry (its robot file without its backbone and
+#: tendons)
+PCC_TENDON_GEOMETRY = """mounting = "z-up"
+[[section]]
+length = 0.2
+theta_max = 3.0
+[[section]]
+length = 0.2
+theta_max = 3.0
+[[imu]]
+section = 1
+[[imu]]
+section = 2
+"""
 
 
 def cli(*argv: str) -> None:
@@ -64,24 +84,28 @@ def summary(estimate: Path, truth: Path) -> str:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--methods", nargs="+", default=["mhe", "ekf", "ukf"], help="estimators")
-    p.add_argument("--only", nargs="+", default=list(RODS), help="rod recordings")
+    p.add_argument("--only", nargs="+", help="recordings (default: every rod, or tendon one)")
     p.add_argument("--uncalibrated", action="store_true", help="the shipped robot file")
+    p.add_argument("--tendon", action="store_true", help="the tendon robot, no tensions")
     a = p.parse_args()
+    data = TENDON if a.tendon else DATA
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        for name in a.only:
-            robot = "two-section"
-            if not a.uncalibrated:
+        pcc = folder / "pcc.toml"
+        pcc.write_text(PCC_TENDON_GEOMETRY)
+        for name in a.only or (TENDON_RECORDINGS if a.tendon else RODS):
+            robot = str(pcc) if a.tendon else "two-section"
+            if not (a.uncalibrated or a.tendon):
                 robot = str(folder / f"{name}.toml")
                 cli("calibrate", "--from", str(DATA / f"{name}_rest.csv"), "--robot",
                     "two-section", "--write-robot", robot)  # fmt: skip
             for method in a.methods:
                 for twist in ([], ["--imu-twist"]):
                     out = folder / "e.csv"
-                    cli("estimate", str(DATA / f"{name}_raw.csv"), "--robot", robot, "--method",
+                    cli("estimate", str(data / f"{name}_raw.csv"), "--robot", robot, "--method",
                         method, *twist, "-o", str(out), "--overwrite")  # fmt: skip
                     label = "twist" if twist else "PCC"
-                    result = summary(out, DATA / f"{name}_truth.csv")
+                    result = summary(out, data / f"{name}_truth.csv")
                     print(f"{name:22s} {method} {label:5s} {result}", flush=True)
 
 
