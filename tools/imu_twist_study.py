@@ -27,25 +27,12 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from honesty_study import PCC_TENDON_GEOMETRY  # the tendon robot's PCC geometry
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 RODS = ("planar-s", "spatial-tendon", "spatial-stiff-torsion", "spatial")
 TENDON = DATA.parent / "tendon"
 TENDON_RECORDINGS = ("unloaded", "force-08", "force-29", "twist-08", "twist-29")
-#: the PCC robot of the tendon robot's geometry (its robot file without its backbone and
-#: tendons)
-PCC_TENDON_GEOMETRY = """mounting = "z-up"
-[[section]]
-length = 0.2
-theta_max = 3.0
-[[section]]
-length = 0.2
-theta_max = 3.0
-[[imu]]
-section = 1
-[[imu]]
-section = 2
-"""
 
 
 def cli(*argv: str) -> None:
