@@ -263,3 +263,17 @@ def test_the_command_line_rules(tmp_path, capsys) -> None:
             raw, InputOptions(imu_twist=True), make_formulation("bend", read_robot(str(calibrated)))
         )
     assert data.formulation.imu_twist and not data.formulation.estimate_gyro_bias
+
+
+def test_the_mostly_inconsistent_notice_names_the_twist_for_raw_imus() -> None:
+    """A run mostly ``inconsistent`` on raw IMUs names ``--imu-twist`` among what the
+    model cannot follow; not once the twist is on, nor for tilt IMUs."""
+    from continuum_mhe.estimators.run_notices import inconsistent_notice
+
+    robot = read_robot("two-section")
+    raw = inconsistent_notice(300, 600, DirectFormulation(robot=robot))
+    twisted = inconsistent_notice(300, 600, DirectFormulation(robot=robot, imu_twist=True))
+    tilt = inconsistent_notice(300, 600, make_formulation("bend", robot))
+    assert raw is not None and "--imu-twist" in raw
+    assert twisted is not None and "--imu-twist" not in twisted
+    assert tilt is not None and "--imu-twist" not in tilt

@@ -429,13 +429,16 @@ def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> 
             ", or moves faster than the motion model lets the bends change (a larger "
             "--accel-psd, NoiseSettings.bend_accel_psd, follows a faster robot)"
         )
+    twist = "a backbone that twists about itself"
+    if isinstance(formulation, DirectFormulation) and not formulation.imu_twist:
+        twist += " (--imu-twist follows it, the gyros calibrated at rest)"
     return (
         f"{inconsistent} of {n} estimates ({100 * inconsistent / n:.0f} %) are inconsistent: "
         "their readings disagree with the model of the robot beyond the readings' noise "
         "for much of the run; check "
         + "; ".join(checks)
-        + "; or the robot does what the model cannot follow (a backbone that twists "
-        f"about itself, a load that bends a section off constant curvature){fast}"
+        + f"; or the robot does what the model cannot follow ({twist}, a load that bends "
+        f"a section off constant curvature){fast}"
     )
 
 
