@@ -710,3 +710,33 @@ def test_the_bound_warning_of_an_unobservable_robot_says_its_bends_drift(tmp_pat
         "and the robot's IMUs do not determine its shape: the bends they leave free drift "
         "to the bound (one IMU per section determines them; check-robot tells)"
     ), line
+
+
+def test_a_recording_that_only_the_other_mounting_explains_is_said() -> None:
+    """The paper's robot (theta_max 90 degrees) described standing, its tilt readings
+    those of a hanging robot whose recording starts bent 95 degrees (85 from standing
+    straight: the start check passes) and straightens: most readings lie beyond what
+    theta_max lets a standing robot bend, none beyond what it lets a hanging one. The
+    library's ``run`` warns naming ``mounting``; the same motion kept within 60 degrees
+    of standing straight, or readings beyond the bound either way up, are not said."""
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.io.input_options import MountingWarning
+
+    t = np.arange(200) * 0.05
+    f = make_formulation("bend")
+
+    def said(angle_deg: np.ndarray) -> list[str]:
+        z = np.column_stack([np.radians(angle_deg), np.zeros_like(t)])  # roll: the angle
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            make_estimator("ekf", f).run(t, z)
+        return [str(w.message) for w in seen if w.category is MountingWarning]
+
+    hanging = 85.0 + 90.0 * np.clip((t - 2.0) / 4.0, 0.0, 1.0)  # 85, then to 175 degrees
+    (message,) = said(hanging)
+    assert message.startswith("run: mounting: ") and 'mounting="z-down"' in message
+    assert "further from the z-up straight pose than the 90 degrees" in message
+    assert said(60.0 * np.sin(t) ** 2) == []
+    (start,) = said(120.0 + 55.0 * np.clip((t - 2.0) / 4.0, 0.0, 1.0))  # the start's alone
+    assert "at the start gravity puts IMU 1 120 degrees" in start
+    assert said(70.0 + 40.0 * np.sin(t) ** 2) == []  # 70 to 110: beyond either way up

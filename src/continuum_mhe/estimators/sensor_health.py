@@ -61,7 +61,7 @@ from continuum_mhe.io.csv_files import (
     UnitWarning,
     check_time_steps,
 )
-from continuum_mhe.io.input_options import MountingWatch, check_mounting
+from continuum_mhe.io.input_options import MountingTally, MountingWatch, check_mounting
 from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.tensions import tension_scale_problem
 from continuum_mhe.model.descriptions import tip_position_indices
@@ -669,6 +669,9 @@ class Estimator(Generic[InferenceT]):
         # the first readings against the robot's mounting, as a recording's reader checks
         # them: a robot described the wrong way up fits them bent past 90 degrees
         check_mounting("run", z, self.formulation, python=True)
+        tally = MountingTally(self.formulation)  # and the whole recording's readings
+        tally.add(z)
+        tally.warn("run", python=True)
         self.reset()
         self._time_steps.done = True  # the whole recording's times were checked above
         self.mounting_watch.done = True  # and its mounting: a continue_run goes on from it

@@ -301,6 +301,70 @@ class MountingError(InputError):
     mounted the other way (:func:`check_mounting`)."""
 
 
+#: Of a recording's valid readings, the share (and at least the count below) that puts
+#: the IMU nearest the base beyond the sections' reach from the stated mounting's
+#: straight pose, every one within it from the other's, for :class:`MountingTally` to
+#: say the mounting.
+FLIPPED_SHARE, FLIPPED_SAMPLES = 0.05, 5
+
+
+class MountingTally:
+    """The mounting over a whole recording, where :func:`check_mounting` sees its start
+    alone: a recording that starts bent (or is cut from a longer one) and stays within
+    90 degrees of the wrong mounting's straight pose passes that check, and a robot
+    described the wrong way up is then estimated bent the other way, every row far off.
+    Counts, over the readings given to :meth:`add`, those that put the IMU nearest the
+    base further from the stated mounting's straight pose than the sections' ``theta_max``
+    let it bend (by :data:`MOUNTING_MARGIN`), and those that put it so far from the other
+    mounting's; :meth:`warn` says the mounting where the first are many
+    (:data:`FLIPPED_SHARE`, :data:`FLIPPED_SAMPLES`) and the second none, unless the
+    start check said the mounting already (a start past 90 degrees). Not for a tendon
+    robot, whose mechanics model has no bend bound."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        robot = formulation.robot
+        self.formulation = formulation
+        self.k = min(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
+        imu = robot.imus[self.k]
+        reach = sum(s.theta_max for s in robot.sections[: imu.section])
+        self.reach = reach + imu.at * robot.sections[imu.section].theta_max
+        self.valid = self.beyond = self.beyond_other = 0
+        self._start: list[float] = []  # the first readings' angles, as check_mounting's
+
+    def add(self, z: FloatArray) -> None:
+        """Count the readings ``z`` (n, nz)."""
+        angles = _imu_angles(z, self.formulation, self.k)
+        angles = angles[np.isfinite(angles)]
+        self._start += angles[: MOUNTING_START_SAMPLES - len(self._start)].tolist()
+        limit = self.reach + MOUNTING_MARGIN
+        self.valid += len(angles)
+        self.beyond += int(np.sum(angles > limit))
+        self.beyond_other += int(np.sum(math.pi - angles > limit))
+
+    def warn(self, name: str, robot_file: str | None = None, python: bool = False) -> None:
+        """A :class:`MountingWarning` where the readings counted say the other mounting
+        (``robot_file`` and ``python`` choose the fix it names, as :func:`check_mounting`)."""
+        robot = self.formulation.robot
+        many = max(FLIPPED_SAMPLES, FLIPPED_SHARE * self.valid)
+        if robot.has_mechanics or self.beyond < many or self.beyond_other:
+            return
+        if self._start and float(np.median(self._start)) > math.pi / 2 + MOUNTING_MARGIN:
+            return  # check_mounting said it of the start
+        other, pose = flipped_mounting(robot.mounting)
+        fix = robot_fix("mounting", robot_file, other, python)
+        raise_it = robot_fix("theta_max", robot_file, python=python)
+        warnings.warn(
+            f"{name}: mounting: {self.beyond} of its {self.valid} readings put IMU "
+            f"{self.k + 1} further from the {robot.mounting} straight pose than the "
+            f"{math.degrees(self.reach):.0f} degrees the sections' theta_max let it bend, "
+            f"and every one within them as {other}: if the robot {pose}, {fix} (the "
+            "estimates of a robot described the wrong way up are far off, and its rows "
+            f"can say ok); if it does bend so far, {raise_it}",
+            MountingWarning,
+            stacklevel=3,
+        )
+
+
 class MountingWatch:
     """:func:`check_mounting` of samples handed over one at a time or in blocks
     (``Estimator.step`` and ``continue_run``): the first

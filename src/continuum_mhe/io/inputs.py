@@ -55,6 +55,7 @@ from continuum_mhe.io.imu_columns import ROBOT_FIX, TENDON_ROBOT_FIX
 from continuum_mhe.io.imu_topics import read_imu_topics
 from continuum_mhe.io.input_options import (
     InputOptions,
+    MountingTally,
     OptionWarning,
     check_mounting,
     check_options_apply,
@@ -772,6 +773,7 @@ def _chunked(
     the Robot's fields); a refusal
     ends with ``mounting_hint()`` where that gives another reading of it."""
     first = True
+    tally = MountingTally(formulation)
     for block in found:
         if first:
             check_time_units(rows, block.t)
@@ -786,8 +788,10 @@ def _chunked(
                 raise InputError(f"{err}; {hint}") from None
             first = False
         readings.add(z)
+        tally.add(z)
         yield block.t, z
     readings.warn_silent(rows.name)
+    tally.warn(rows.name, robot_name, python)
     if finish is not None:
         finish()
 
@@ -806,6 +810,9 @@ def _log_stream(
     readings = _readings(data.formulation)
     readings.add(data.z)
     readings.warn_silent(str(p))
+    tally = MountingTally(data.formulation)
+    tally.add(data.z)
+    tally.warn(str(p), robot_name, python)
     units = (
         "roll, pitch from the orientation quaternion"
         if options.use_orientation
