@@ -221,6 +221,14 @@ def test_library_guide_python_examples_run(tmp_path, monkeypatch):
     assert tip.shape == (len(truth), 4)
     np.testing.assert_array_equal(tip[:, 0], csv_example["table"].t)
     assert np.mean(np.linalg.norm(tip[:, 1:] - truth[:, :3], axis=1)) < 0.01
+    # the twisting rod: the twist states, the calibrated gyro biases held
+    (twist,) = [ns for ns in spaces if "twisting" in ns]
+    assert twist["twisting"].formulation.imu_twist
+    assert not twist["twisting"].formulation.estimate_gyro_bias
+    truth = np.genfromtxt(ROOT / "src/continuum_mhe/data/rod2/spatial_truth.csv",
+                          delimiter=",", names=True)  # fmt: skip
+    tip = np.column_stack([truth["x"], truth["y"], truth["z"]])
+    assert np.mean(np.linalg.norm(twist["series"].output[:, :3] - tip, axis=1)) < 0.01
     # the raw recording's model: the direct one with the gyro biases, as make_formulation
     (raw,) = [ns for ns in spaces if "data" in ns and "fx" not in ns]
     from continuum_mhe import make_formulation
