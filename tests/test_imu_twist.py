@@ -7,6 +7,7 @@ errors, and the command line's rules."""
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
 from pathlib import Path
@@ -213,6 +214,12 @@ def test_the_shipped_twisting_rod_near_its_floor_with_honest_intervals(tmp_path)
             ok = np.asarray(run.status) == "ok"
             assert ok.sum() > 300
             assert np.all(np.abs(e[ok]) <= 4 * run.output_std[ok, :3])
+            # the tip IMU's twist reaches the rod's own largest twist about the tangent
+            # there (its simulator's measure, in the recording's info) within 15 degrees
+            info = json.loads((ROD / "spatial_info.json").read_text())
+            column = [o.name for o in data.formulation.outputs].index("imu_twist_2")
+            largest = np.degrees(np.nanmax(np.abs(run.output[:, column])))
+            assert abs(largest - info["tangent_twist_max_deg"][1]) < 15.0, largest
     assert errors[True] < 10e-3 < 50e-3 < errors[False], errors
 
 
@@ -254,6 +261,9 @@ def test_the_command_line_rules(tmp_path, capsys) -> None:
             assert main([*argv, "--overwrite"]) == 0
         said.append([str(w.message) for w in seen if w.category is OptionWarning])
         assert "imu-twist = true" in out.read_text()
+        header = next(ln for ln in out.read_text().splitlines() if not ln.startswith("#"))
+        assert ",imu_twist_1,imu_twist_2,std_x," in header
+        assert ",std_imu_twist_1,std_imu_twist_2,status," in header
     assert [len(s) for s in said] == [1, 0]
     assert said[0][0].startswith("--imu-twist without a calibrated gyro_bias")
     assert "continuum-mhe calibrate" in said[0][0]

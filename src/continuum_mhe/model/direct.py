@@ -72,7 +72,7 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.bend import BendFormulation
-from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
+from continuum_mhe.model.descriptions import MeasurementBlock, OutputSpec, direct_blocks
 from continuum_mhe.model.imu import STANDARD_GRAVITY, shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
 from continuum_mhe.model.pcc import angular_velocity_at_sym, pose_at_sym
@@ -313,6 +313,22 @@ class DirectFormulation(BendFormulation):
             ]
         )
         return np.diag(var)
+
+    @cached_property
+    def outputs(self) -> tuple[OutputSpec, ...]:
+        """``bend``'s, then with ``imu_twist`` each IMU's twist ``imu_twist_i`` (rad, about
+        its z axis from the torsion-free frame; ``imu_twist`` for one IMU), unwrapped."""
+        base = super().outputs
+        if not self.imu_twist:
+            return base
+        n = self.robot.n_imus
+        names = ["imu_twist"] if n == 1 else [f"imu_twist_{i}" for i in range(1, n + 1)]
+        return (*base, *(OutputSpec(name, "rad") for name in names))
+
+    def output_sym(self, x: Sym) -> Sym:
+        """``bend``'s outputs, then each IMU's twist (``imu_twist``)."""
+        base = super().output_sym(x)
+        return ca.vertcat(base, *self.twists_sym(x)[0]) if self.imu_twist else base
 
     def range_std(self) -> FloatArray:
         """``bend``'s, and each IMU's twist (``imu_twist``) held to its prior standard
