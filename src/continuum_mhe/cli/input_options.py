@@ -109,9 +109,9 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         "twist state, for a backbone that twists (a rod under couples or a tip load); give "
         "calibrated gyro biases (calibrate --from REST.csv --write-robot), held then, not "
         "estimated. On the shipped twisting rods, calibrated, it takes the EKF's mean tip "
-        "error from 67 and 19 mm to 8.8 and 8.1 mm; it costs the tendon-drive rod (under "
-        "2 degrees of twist) 1.8 mm, and a robot that does not twist about twice its error "
-        "(docs/model.md)",
+        "error from 67 and 19 mm to 8.8 and 8.1 mm; on a rod that hardly twists it costs "
+        "2 to 5 mm and leaves rows ok 20 mm off (docs/model.md): only for a robot that "
+        "twists",
     )
 
 
