@@ -244,9 +244,12 @@ def test_the_command_line_rules(tmp_path, capsys) -> None:
     argv = ["estimate", str(tendon / "unloaded_raw.csv"), "--robot", "tendon-two-section",
             "--inputs", str(tendon / "unloaded_tensions.csv"), "--imu-twist",
             "-o", str(out)]  # fmt: skip
-    assert main(argv) == 2 and not out.exists()
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main(argv) == 2 and not out.exists()
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--imu-twist is not available for a tendon robot" in err
+    assert [w for w in seen if issubclass(w.category, UserWarning)] == []  # the refusal alone
     calibrated = tmp_path / "cal.toml"
     imu = "[[imu]]\nsection = {}\ngyro_bias = [0.001, -0.002, 0.0005]\n"
     calibrated.write_text(
@@ -266,7 +269,14 @@ def test_the_command_line_rules(tmp_path, capsys) -> None:
         assert ",std_imu_twist_1,std_imu_twist_2,status," in header
     assert [len(s) for s in said] == [1, 0]
     assert said[0][0].startswith("--imu-twist without a calibrated gyro_bias")
+    assert "their biases are estimated" in said[0][0]
     assert "continuum-mhe calibrate" in said[0][0]
+    with pytest.warns(OptionWarning, match="their biases are held at zero"):
+        load_input(
+            raw,
+            InputOptions(imu_twist=True, estimate_gyro_bias=False),
+            make_formulation("bend", read_robot("two-section")),
+        )
     with warnings.catch_warnings():
         warnings.simplefilter("error", OptionWarning)
         data = load_input(

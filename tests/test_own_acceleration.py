@@ -197,7 +197,7 @@ def test_gauss_newton_answers_lie_near_the_converged_ones() -> None:
     (the worst 1.04 times: a rate that jumps from 1e-3 to 7e-2 between iterations).
     The steps were Gauss-Newton: the model forms the second-order term (Newton steps
     by default), and Newton steps from the same windows' starts take fewer iterations
-    on most windows (on 101 of the 161, more on none; 424 in all against 539)."""
+    on more than half of the windows."""
     import tempfile
     from pathlib import Path
 

@@ -392,7 +392,7 @@ def test_newton_off_reaches_the_same_robust_optimum(recording) -> None:
     """Gauss-Newton with the clipped rank-one term alone (no exact second-order term).
     Its steps were Gauss-Newton: the model forms the second-order term (Newton steps by
     default), and Newton steps from the same windows' starts take fewer iterations on
-    most windows (on 28 of the 32, more on none; 131 in all against 188)."""
+    more than half of the windows."""
     from continuum_mhe.estimators.fast.sqp import newton_steps
 
     f = BendFormulation()

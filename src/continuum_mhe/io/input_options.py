@@ -164,13 +164,19 @@ def formulation_for(
     from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
 
     held = options.imu_twist and gyro_biases_calibrated(base.robot)
-    if options.imu_twist and not held and options.estimate_gyro_bias is None:
+    # (a tendon robot is refused --imu-twist by its own formulation)
+    if options.imu_twist and not held and not base.robot.has_mechanics:
+        treated = (
+            "held at zero (--no-estimate-gyro-bias)"
+            if options.estimate_gyro_bias is False
+            else "estimated, and a bias about an IMU's z axis turns the estimated bending "
+            "plane (the shipped spatial rod, EKF: 18.7 mm at the tip, 125 ok rows over 20 "
+            "mm off, against 8.8 mm and 32 calibrated; docs/model.md)"
+        )
         warnings.warn(
             "--imu-twist without a calibrated gyro_bias for every IMU in the robot file: "
-            "their biases are estimated, and a bias about an IMU's z axis turns the "
-            "estimated bending plane (the shipped spatial rod, EKF: 18.7 mm at the tip, 125 ok "
-            "rows over 20 mm off, against 8.8 mm and 32 calibrated; docs/model.md); "
-            "calibrate at rest first (continuum-mhe calibrate --from REST.csv --write-robot)",
+            f"their biases are {treated}; calibrate at rest first (continuum-mhe "
+            "calibrate --from REST.csv --write-robot)",
             OptionWarning,
             stacklevel=2,
         )
