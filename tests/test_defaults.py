@@ -712,7 +712,7 @@ def test_the_bound_warning_of_an_unobservable_robot_says_its_bends_drift(tmp_pat
     ), line
 
 
-def test_a_recording_that_only_the_other_mounting_explains_is_said() -> None:
+def test_a_recording_that_only_the_other_mounting_explains_is_said(tmp_path) -> None:
     """The paper's robot (theta_max 90 degrees) described standing, its tilt readings
     those of a hanging robot whose recording starts bent 95 degrees (85 from standing
     straight: the start check passes) and straightens: most readings lie beyond what
@@ -736,6 +736,15 @@ def test_a_recording_that_only_the_other_mounting_explains_is_said() -> None:
     (message,) = said(hanging)
     assert message.startswith("run: mounting: ") and 'mounting="z-down"' in message
     assert "further from the z-up straight pose than the 90 degrees" in message
+    # estimate's reading of a recording says it too, naming the file and the option
+    path = tmp_path / "hang.csv"
+    rows = "".join(f"{ti:.2f},{math.radians(a):.6f},0\n" for ti, a in zip(t, hanging))
+    path.write_text("t,roll,pitch\n" + rows)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main(["estimate", str(path), "--method", "ekf", "-o", str(tmp_path / "e.csv")]) == 0
+    (line,) = [str(w.message) for w in seen if w.category is MountingWarning]
+    assert line.startswith(f"{path}: mounting: ") and "--mounting z-down" in line
     assert said(60.0 * np.sin(t) ** 2) == []
     (start,) = said(120.0 + 55.0 * np.clip((t - 2.0) / 4.0, 0.0, 1.0))  # the start's alone
     assert "at the start gravity puts IMU 1 120 degrees" in start
