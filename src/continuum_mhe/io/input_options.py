@@ -328,12 +328,9 @@ class MountingTally:
     robot, whose mechanics model has no bend bound."""
 
     def __init__(self, formulation: Formulation) -> None:
-        robot = formulation.robot
         self.formulation = formulation
-        self.k = min(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
-        imu = robot.imus[self.k]
-        reach = sum(s.theta_max for s in robot.sections[: imu.section])
-        self.reach = reach + imu.at * robot.sections[imu.section].theta_max
+        self.k = base_imu(formulation.robot)
+        self.reach = bend_reach(formulation.robot, self.k)
         self.valid = self.beyond = self.beyond_other = 0
         self._start: list[float] = []  # the first readings' angles, as check_mounting's
 
@@ -431,10 +428,23 @@ def start_bend_angle(z: FloatArray, formulation: Formulation) -> tuple[int, floa
     stated mounting (``z-up``: the base axis points up; ``z-down``: down); None
     without a valid reading. A robot that starts near straight reads about 0; one
     whose mounting is stated upside down reads about pi."""
-    robot = formulation.robot
-    k = min(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
+    k = base_imu(formulation.robot)
     angle = imu_start_angle(z, formulation, k)
     return None if angle is None else (k, angle)
+
+
+def base_imu(robot: Robot) -> int:
+    """The IMU nearest the base (0-based): the first section's, lowest ``at`` first."""
+    return min(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
+
+
+def bend_reach(robot: Robot, k: int) -> float:
+    """The largest angle, rad, the sections up to IMU ``k`` (0-based) can bend it
+    through from the straight pose: their ``theta_max``, in part where it sits inside a
+    section (a tendon robot's mechanics model has no such bound)."""
+    imu = robot.imus[k]
+    reach = sum(s.theta_max for s in robot.sections[: imu.section])
+    return reach + imu.at * robot.sections[imu.section].theta_max
 
 
 def imu_start_angle(z: FloatArray, formulation: Formulation, k: int) -> float | None:
@@ -596,10 +606,7 @@ def _check_base_mounting(
         if j != k and (a := imu_start_angle(z, formulation, j)) is not None and a < math.pi / 2
     ]
     imu = robot.imus[k]
-    # the largest angle the sections up to the IMU can bend it through (theta_max each;
-    # a tendon robot's mechanics model has no such bound)
-    reach = sum(s.theta_max for s in robot.sections[: imu.section])
-    reach += imu.at * robot.sections[imu.section].theta_max
+    reach = bend_reach(robot, k)
     alone = ""
     if upright:
         reads = "reads" if len(upright) == 1 else "read"
