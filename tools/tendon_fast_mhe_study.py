@@ -1,5 +1,5 @@
 """A study of the fast MHE on the tendon robot, which the library refuses
-(docs/tendon.md, "The fast MHE's window"): this script lifts the refusal for its own
+(docs/tendon-studies.md, "The fast MHE's window"): this script lifts the refusal for its own
 run and replaces the IPOPT fallback of an uncertified window by the fast solver with
 more iterations (``--fallback-iter``, a QP step below 1e-7), keeping its last iterate
 when that does not certify either (status ``not-converged``). The compiled EKF runs

@@ -1,6 +1,6 @@
 """The tendon EKF's inference stepped directly (without the sensor-health policy) on a
 generator recording with raw IMUs, its IMU-error states against the generator's true
-ones (docs/tendon.md, "Under load"): prints the states every ``--every`` samples and
+ones (docs/tendon-studies.md, "Under load"): prints the states every ``--every`` samples and
 one JSON line with the mean tip and mid-robot error (mm) and the tip-force rms error (N)
 over the samples after the first second.
 

@@ -1,4 +1,4 @@
-"""The fast MHE's window solver on the tendon robot's windows (docs/tendon.md, "The fast
+"""The fast MHE's window solver on the tendon robot's windows (docs/tendon-studies.md, "The fast
 MHE's window"): the MHE on IPOPT runs the first samples of a shipped recording (tilt
 IMUs) and keeps every window it solved; the fast solver then solves each from IPOPT's
 own start. Prints one JSON line per window: IPOPT's status and cost, the fast solver's

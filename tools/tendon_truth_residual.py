@@ -1,5 +1,5 @@
 """The tendon EKF's measurement residual at the TRUE state of a generator recording
-(docs/tendon.md, "Under load"): the true tip force and its first and second time
+(docs/tendon-studies.md, "Under load"): the true tip force and its first and second time
 derivatives (central differences of the truth file), the true tensions, the base
 curvature that meets the tip condition, and the IMUs' true misalignment and biases
 (drawn again from the recording's seed, in the order of

@@ -313,7 +313,7 @@ class TendonFormulation(Formulation):
     #: deviations of the tip force and the base curvature, the shooting's curvature
     #: makes the tip condition's residuals (standard deviation :attr:`equilibrium_std`)
     #: average far from zero, an innovation the update meets by moving the state. Much
-    #: closer than this, the weights' rounding takes over (docs/tendon.md)
+    #: closer than this, the weights' rounding takes over (docs/tendon-studies.md, "The UKF")
     unscented_alpha: ClassVar[float] = 0.01
     #: each output evaluation is a shooting: the outputs' standard deviations are
     #: linearised (sigma points would cost a shooting per state the outputs depend on)
