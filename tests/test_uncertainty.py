@@ -473,6 +473,37 @@ def test_evaluate_gives_the_coverage_of_the_ok_rows_alone(tmp_path, capsys) -> N
 estimators = recovery_estimators
 
 
+def test_evaluate_counts_the_ok_rows_far_outside_their_std(tmp_path, capsys) -> None:
+    # ok rows 0.5, 4.5, 0.5 and 6 std off in x (1 mm std), an uncertain one 10 std off,
+    # and an ok row with a zero std and an error: three ok rows far off, the largest at 6
+    n = 6
+    t = np.arange(n) * 0.02
+    dx = np.array([0.5, 4.5, 0.5, 6.0, 10.0, 1.0]) * 0.001
+    status = np.array(["ok", "ok", "ok", "ok", "uncertain", "ok"])
+    std = np.full((n, 5), 0.001)
+    std[5, 0] = 0.0
+    est = EstimateSeries(
+        method="ekf", t=t, output=np.column_stack([dx, 0 * t, 0 * t + 0.2, 0 * t, 0 * t]),
+        status=status, solve_ms=np.zeros(n), output_std=std,
+    )  # fmt: skip
+    write_estimates(tmp_path / "e.csv", est)
+    truth = tmp_path / "t.csv"
+    truth.write_text("t,x,y,z,theta,phi\n" + "".join(f"{tk},0,0,0.2,0,0\n" for tk in t))
+    assert main(["evaluate", str(tmp_path / "e.csv"), str(truth)]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "ok rows far off      3 of 5 more than 4 std off on a tip axis (the largest 6.0 std" in out
+    )
+    assert main(["evaluate", str(tmp_path / "e.csv"), str(truth), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    # every row: the uncertain one too; its 10 std is the largest (the zero-std row is
+    # left out of the largest, as of the NEES)
+    assert report["calibration"]["tip_far"] == 4
+    assert report["calibration"]["tip_far_worst"] == pytest.approx(10.0)
+    assert report["calibration_ok"]["tip_far"] == 3
+    assert report["calibration_ok"]["tip_far_worst"] == pytest.approx(6.0)
+
+
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
 def test_rows_are_not_ok_while_an_imu_is_silent_and_the_others_cannot_see_its_part(
     method: str,

@@ -28,6 +28,7 @@ from continuum_mhe.cli.truth_checks import (
 )
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
+    FAR_STD,
     Calibration,
     Metrics,
     aligned_truth,
@@ -290,6 +291,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         if cal_ok is not None:
             tip = ", ".join(f"{c} {cal_ok.coverage[c]:.3f}" for c in "xyz" if c in cal_ok.coverage)
             print(f"ok rows              {n_ok} of {len(i_e)}: tip 95% interval coverage {tip}")
+            if all(c in cal_ok.coverage for c in "xyz"):
+                print(format_far(cal_ok))
         elif n_ok is None:
             print(f"ok rows              unknown: {args.estimates} has no status column")
         elif not (est.has_std and est.std is not None):
@@ -301,6 +304,14 @@ def _evaluate(args: argparse.Namespace) -> int:
         if unmatched:
             print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
     return 0
+
+
+def format_far(c: Calibration) -> str:
+    """The ok rows far outside their standard deviations, as a line of ``evaluate``."""
+    far = f"{c.tip_far} of {c.n['x']} more than {FAR_STD:g} std off on a tip axis ("
+    if math.isfinite(c.tip_far_worst):
+        far += f"the largest {c.tip_far_worst:.1f} std; "
+    return f"ok rows far off      {far}about 2 in 10,000 rows where the std is right)"
 
 
 def format_calibration(c: Calibration | None, std_columns: bool = False) -> str:

@@ -261,6 +261,10 @@ def section_numbers(columns: Iterable[str], field: str) -> list[int]:
 #: Two-sided 95 % quantile of the standard normal: the half-width of a 95 % interval in
 #: standard deviations.
 Z95 = 1.959963984540054
+#: An error this many of its standard deviations off is far outside its interval: a
+#: Gaussian with the right standard deviation goes there about once in 16,000 samples
+#: per axis.
+FAR_STD = 4.0
 
 
 @dataclass(frozen=True)
@@ -283,6 +287,11 @@ class Calibration:
         tip_zero_std: samples left out of ``tip_nees`` because a tip axis' standard
             deviation is zero (their NEES is infinite where the error is not zero);
             ``coverage`` counts them, as misses unless the error is zero too.
+        tip_far: samples whose error on some tip axis exceeds :data:`FAR_STD` of its
+            standard deviation (a zero standard deviation with an error counts):
+            under a right Gaussian standard deviation about 2 in 10,000 samples.
+        tip_far_worst: the largest ``|error| / std`` over the tip axes of the samples in
+            ``tip_nees`` (NaN without any).
     """
 
     coverage: dict[str, float]
@@ -292,6 +301,8 @@ class Calibration:
     tip_n: int
     tip_n_eff: float
     tip_zero_std: int = 0
+    tip_far: int = 0
+    tip_far_worst: float = math.nan
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -390,13 +401,17 @@ def compute_calibration(
         rows = finite & np.all(sd[:, tip] > 0, axis=1)
         zero = int(np.sum(finite & ~rows))
     n_tip = int(np.sum(rows))
+    far, worst = 0, math.nan
+    if len(tip) == 3:  # (a zero std with an error: an infinite z-score, far)
+        far = int(np.sum(np.any(zscore[:, tip] > FAR_STD, axis=1) & np.all(ok[:, tip], axis=1)))
     if n_tip:
         each = np.sum((err[rows][:, tip] / sd[rows][:, tip]) ** 2, axis=1)
         nees, n_eff = float(np.mean(each)), effective_samples(each)
         band = nees_band(3, n_eff)
+        worst = float(np.max(zscore[rows][:, tip]))
     else:
         nees, band, n_eff = math.nan, (math.nan, math.nan), 0.0
-    return Calibration(coverage, counts, nees, band, n_tip, n_eff, zero)
+    return Calibration(coverage, counts, nees, band, n_tip, n_eff, zero, far, worst)
 
 
 def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> str:
