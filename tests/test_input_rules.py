@@ -862,5 +862,5 @@ def test_an_impossible_reading_of_one_of_several_imus_is_refused_or_said(tmp_pat
     ), err
     assert main([*argv, "--skip-bad"]) == 0
     err = capsys.readouterr().err
-    assert "(missing: IMU 1 on 1)" in err
+    assert "(missing: IMU 1 in 1 sample)" in err
     assert "first: line 6: IMU 1: a reading beyond any IMU's range" in err

@@ -229,7 +229,8 @@ def test_partial_dropouts_are_counted_and_the_status_says_dropout_only_without_a
     assert set(status[rest & near]) <= {"uncertain", "inconsistent"}
     assert status[5] == status[6] == "ok"
     assert (
-        "; 3 sample(s) estimated without every IMU (missing: IMU 1 on 2, IMU 2 on 3); "
+        "; 3 sample(s) estimated without every IMU (missing: IMU 1 in 2 samples, "
+        "IMU 2 in 3 samples); "
         "bad rows: 1 sample(s) with a bad value, read as a dropout of its IMU; first: "
         "line 12: column roll_1 is nan (a dropout; --skip-bad keeps it, skip_bad=True in Python)"
     ) in err
@@ -254,7 +255,7 @@ def test_an_imu_that_never_reports_warns_once(
     with pytest.warns(DropoutWarning) as seen:
         assert main(argv) == 0
     assert [str(w.message) for w in seen if w.category is DropoutWarning] == [said]
-    assert "41 sample(s) estimated without every IMU (missing: IMU 2 on 41)" in (
+    assert "41 sample(s) estimated without every IMU (missing: IMU 2 in 41 samples)" in (
         capsys.readouterr().err
     )
     with pytest.warns(DropoutWarning, match="IMU 2 never reported"):

@@ -592,12 +592,24 @@ def test_a_utf16_file_is_told_to_be_saved_as_utf8(
     assert f"iconv -f {iconv} -t UTF-8" in str(info.value)
 
 
-def test_a_header_without_rows_names_the_line_after_it(tmp_path: Path) -> None:
+def test_a_torn_row_out_of_order_says_both(tmp_path: Path) -> None:
+    # a row cut short by a torn write, its t a piece of another: the time is refused,
+    # and the message says the row is short too
+    text = _csv(5) + "0.01,abc\n"
+    path = _write(tmp_path / "m.csv", text)
+    with pytest.raises(InputError) as info:
+        read_measurements(path)
+    said = str(info.value)
+    assert said.startswith(f"{path}: line 7: decreasing timestamp t=0.01 after t=")
+    assert said.endswith("; the row has 2 of the header's 3 fields (truncated?)")
+
+
+def test_a_header_without_rows_names_the_header_line(tmp_path: Path) -> None:
     path = _write(tmp_path / "m.csv", "# a\n# b\nt,roll,pitch\n")
-    with pytest.raises(InputError, match=r"m.csv: line 4: no data rows after the header"):
+    with pytest.raises(InputError, match=r"m.csv: line 3: the header has no data rows after it"):
         read_measurements(path)
     truth = _write(tmp_path / "truth.csv", "# a\n# b\nt,x,y,z\n")
-    with pytest.raises(InputError, match=r"truth.csv: line 4: no data rows after the header"):
+    with pytest.raises(InputError, match=r"truth.csv: line 3: the header has no data rows after"):
         read_state_table(truth)
 
 

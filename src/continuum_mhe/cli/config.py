@@ -14,6 +14,7 @@ options it was made with.
 from __future__ import annotations
 
 import argparse
+import difflib
 import os
 import re
 import sys
@@ -274,7 +275,9 @@ def apply_config(
                 "file ([estimate] and [live] are, besides the options at the top)"
             )
         if action is None:
-            raise InputError(f"{path}: {where}{key} is not an option of {command}")
+            near = difflib.get_close_matches(dest, sorted(by_key), n=1, cutoff=0.75)
+            hint = f"; did you mean {option_key(by_key[near[0]])}?" if near else ""
+            raise InputError(f"{path}: {where}{key} is not an option of {command}{hint}")
         dest = action.dest
         if dest in FILE_OPTIONS and isinstance(value, str):
             value = beside(path, value)

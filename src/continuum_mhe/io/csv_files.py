@@ -217,7 +217,11 @@ class ReadingCounts:
         or none)."""
         if not self.partial:
             return ""
-        per = ", ".join(f"IMU {i} on {m}" for i, m in enumerate(self.missing, start=1) if m)
+        per = ", ".join(
+            f"IMU {i} in {m} sample{'s' * (m != 1)}"
+            for i, m in enumerate(self.missing, start=1)
+            if m
+        )
         return f"{self.partial} sample(s) estimated without every IMU (missing: {per})"
 
     def warn_silent(self, name: str) -> None:

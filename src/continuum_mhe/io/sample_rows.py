@@ -370,6 +370,8 @@ class _SampleChecks:
                         f"(t={time_text(self.before_last_t)} before it): is it the wrong "
                         "one? every later row before its t is refused too"
                     )
+                if len(row) < width:  # a torn row: its t may be a piece of another
+                    msg += f"; the row has {len(row)} of the header's {width} fields (truncated?)"
                 bad(line, msg, dropped=True)
                 continue
             vals: list[float] = []
@@ -509,8 +511,10 @@ class _SampleChecks:
     def finish(self) -> None:
         """The errors of a table without samples, once it is read."""
         if self.n_rows == 0:
-            line = self.table.first_data_line
-            raise InputError(f"{self.table.name}: line {line}: no data rows after the header")
+            line = self.table.first_data_line - 1  # the header's
+            raise InputError(
+                f"{self.table.name}: line {line}: the header has no data rows after it"
+            )
         if self.n_out == 0:
             raise InputError(f"{self.table.name}: no usable rows ({self.problems.count} skipped)")
 

@@ -156,7 +156,9 @@ def read_state_table(
     sd: list[list[float]] = []
     t_idx = header.index("t")
     if not body:
-        raise InputError(f"{p}: line {table.first_data_line}: no data rows after the header")
+        raise InputError(
+            f"{p}: line {table.first_data_line - 1}: the header has no data rows after it"
+        )
     s_idx = header.index("status") if "status" in header else None
     o_idx = header.index("outlier") if "outlier" in header else None
     flags: list[bool] = []

@@ -226,8 +226,8 @@ class TextRows:
 
     @property
     def first_data_line(self) -> int:
-        """The number of the line after the header (where the data rows start), for
-        messages of a table without them."""
+        """The number of the line after the header (where the data rows start); the
+        header's is the one before it."""
         return self._next_line
 
     def as_written(self, column: str) -> str:
