@@ -491,9 +491,8 @@ def test_evaluate_counts_the_ok_rows_far_outside_their_std(tmp_path, capsys) -> 
     truth.write_text("t,x,y,z,theta,phi\n" + "".join(f"{tk},0,0,0.2,0,0\n" for tk in t))
     assert main(["evaluate", str(tmp_path / "e.csv"), str(truth)]) == 0
     out = capsys.readouterr().out
-    assert (
-        "ok rows far off      3 of 5 more than 4 std off on a tip axis (the largest 6.0 std" in out
-    )
+    far = "ok rows far off      3 of 5 more than 4 std off on a tip axis (the largest 6.0 std"
+    assert far + " at t = 0.06 s;" in out
     assert main(["evaluate", str(tmp_path / "e.csv"), str(truth), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     # every row: the uncertain one too; its 10 std is the largest (the zero-std row is
@@ -502,6 +501,8 @@ def test_evaluate_counts_the_ok_rows_far_outside_their_std(tmp_path, capsys) -> 
     assert report["calibration"]["tip_far_worst"] == pytest.approx(10.0)
     assert report["calibration_ok"]["tip_far"] == 3
     assert report["calibration_ok"]["tip_far_worst"] == pytest.approx(6.0)
+    assert report["calibration"]["tip_far_worst_row"] == 4  # of every row
+    assert report["calibration_ok"]["tip_far_worst_row"] == 3  # of the ok rows
 
 
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])

@@ -292,7 +292,8 @@ def _evaluate(args: argparse.Namespace) -> int:
             tip = ", ".join(f"{c} {cal_ok.coverage[c]:.3f}" for c in "xyz" if c in cal_ok.coverage)
             print(f"ok rows              {n_ok} of {len(i_e)}: tip 95% interval coverage {tip}")
             if all(c in cal_ok.coverage for c in "xyz"):
-                print(format_far(cal_ok))
+                row = cal_ok.tip_far_worst_row  # of the ok rows
+                print(format_far(cal_ok, float(est.t[i_e][ok][row]) if row >= 0 else None))
         elif n_ok is None:
             print(f"ok rows              unknown: {args.estimates} has no status column")
         elif not (est.has_std and est.std is not None):
@@ -306,11 +307,13 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def format_far(c: Calibration) -> str:
-    """The ok rows far outside their standard deviations, as a line of ``evaluate``."""
+def format_far(c: Calibration, t_worst: float | None = None) -> str:
+    """The ok rows far outside their standard deviations, as a line of ``evaluate``
+    (``t_worst``: the time of the row with the largest ratio, s)."""
     far = f"{c.tip_far} of {c.n['x']} more than {FAR_STD:g} std off on a tip axis ("
     if math.isfinite(c.tip_far_worst):
-        far += f"the largest {c.tip_far_worst:.1f} std; "
+        at = f" at t = {t_worst:g} s" if t_worst is not None else ""
+        far += f"the largest {c.tip_far_worst:.1f} std{at}; "
     return f"ok rows far off      {far}about 2 in 10,000 rows where the std is right)"
 
 

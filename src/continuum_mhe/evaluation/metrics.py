@@ -292,6 +292,7 @@ class Calibration:
             under a right Gaussian standard deviation about 2 in 10,000 samples.
         tip_far_worst: the largest ``|error| / std`` over the tip axes of the samples in
             ``tip_nees`` (NaN without any).
+        tip_far_worst_row: the row (of those given) where it lies (-1 without any).
     """
 
     coverage: dict[str, float]
@@ -303,6 +304,7 @@ class Calibration:
     tip_zero_std: int = 0
     tip_far: int = 0
     tip_far_worst: float = math.nan
+    tip_far_worst_row: int = -1
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -401,17 +403,19 @@ def compute_calibration(
         rows = finite & np.all(sd[:, tip] > 0, axis=1)
         zero = int(np.sum(finite & ~rows))
     n_tip = int(np.sum(rows))
-    far, worst = 0, math.nan
+    far, worst, worst_row = 0, math.nan, -1
     if len(tip) == 3:  # (a zero std with an error: an infinite z-score, far)
         far = int(np.sum(np.any(zscore[:, tip] > FAR_STD, axis=1) & np.all(ok[:, tip], axis=1)))
     if n_tip:
         each = np.sum((err[rows][:, tip] / sd[rows][:, tip]) ** 2, axis=1)
         nees, n_eff = float(np.mean(each)), effective_samples(each)
         band = nees_band(3, n_eff)
-        worst = float(np.max(zscore[rows][:, tip]))
+        per_row = np.max(zscore[rows][:, tip], axis=1)
+        worst = float(np.max(per_row))
+        worst_row = int(np.flatnonzero(rows)[int(np.argmax(per_row))])
     else:
         nees, band, n_eff = math.nan, (math.nan, math.nan), 0.0
-    return Calibration(coverage, counts, nees, band, n_tip, n_eff, zero, far, worst)
+    return Calibration(coverage, counts, nees, band, n_tip, n_eff, zero, far, worst, worst_row)
 
 
 def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> str:
