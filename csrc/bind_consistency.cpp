@@ -61,6 +61,23 @@ void cmhe::bind_consistency(nb::module_& m) {
           "variance (rad^2) assumed until the one learned exceeds it; ``range_info`` (nx, "
           "or empty: none): each state's range as information 1 / std^2 (0: unbounded), "
           "added to ``H^T R^-1 H`` in the constant errors' sensitivity.")
+      .def("set_own_acceleration", &ConsistencyCheck::set_own_acceleration,
+           nb::arg("velocity"), nb::arg("error"), nb::arg("span"), nb::keep_alive<1, 2>(),
+           nb::keep_alive<1, 3>(),
+           "The IMUs' own acceleration as a model error of the gravity-direction readings "
+           "(continuum_mhe.model.imu_motion): ``velocity(x)`` 3 values per IMU, "
+           "``error(x, a)`` nz values; the velocities differenced over ``span`` s.")
+      .def(
+          "note_motion",
+          [](ConsistencyCheck& c, double t, In x) {
+            check_size(x, c.settings().nx, "x");
+            c.note_motion(t, x.data());
+          },
+          nb::arg("t"), nb::arg("x"),
+          "This sample's estimate: the IMUs' acceleration and its reading errors, which "
+          "constant_error_cov then carries.")
+      .def("forget_motion", &ConsistencyCheck::forget_motion,
+           "The IMUs' motion starts again at the next note_motion.")
       .def("reset", &ConsistencyCheck::reset,
            "Forget the previous estimate, the average and the model error.")
       .def("forget", &ConsistencyCheck::forget,

@@ -94,6 +94,7 @@ ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
 
 void ConsistencyCheck::reset() {
   has_prev_ = false;
+  clear_motion();
   noise_scale_ = quiet_scale_ = 1.0;
   model_error_ = 0.0;
   avg_dof_ = 0;
@@ -110,6 +111,52 @@ void ConsistencyCheck::set_model_error(double value) {
     throw std::invalid_argument("model_error must be finite and >= 0, got " +
                                 std::to_string(value));
   model_error_ = value;
+}
+
+void ConsistencyCheck::set_own_acceleration(const ModelFunction& velocity,
+                                            const ModelFunction& error, double span) {
+  if (error.output_size() != s_.nz)
+    throw std::invalid_argument("the acceleration's reading error must have nz values");
+  if (velocity.output_size() <= 0 || velocity.output_size() % 3 != 0)
+    throw std::invalid_argument("the IMUs' velocities must have 3 values per IMU");
+  if (!(span > 0.0) || !std::isfinite(span))
+    throw std::invalid_argument("span must be finite and > 0");
+  velocity_ = &velocity;
+  accel_error_ = &error;
+  span_ = span;
+  vel_.assign(velocity.output_size(), 0.0);
+  acc_.assign(velocity.output_size(), 0.0);
+  err_.assign(s_.nz, 0.0);
+  clear_motion();
+}
+
+void ConsistencyCheck::clear_motion() {
+  motion_.clear();
+  accel_err2_.assign(s_.nz, 0.0);
+}
+
+void ConsistencyCheck::note_motion(double t, const double* x) {
+  if (velocity_ == nullptr) return;
+  const double* in[1] = {x};
+  if (velocity_->evaluate(in, vel_.data()) != 0)
+    throw std::runtime_error("the model's evaluation failed");
+  if (!motion_.empty() && !(t > motion_.back()[0])) clear_motion();  // not after the last
+  std::vector<double> entry(1 + vel_.size());
+  entry[0] = t;
+  std::copy(vel_.begin(), vel_.end(), entry.begin() + 1);
+  motion_.push_back(std::move(entry));
+  // the oldest kept at least span before t (the one after it is not that far back)
+  while (motion_.size() > 2 && t - motion_[1][0] >= span_ - 1e-9) motion_.erase(motion_.begin());
+  const std::vector<double>& old = motion_.front();
+  const double dt = t - old[0];
+  std::fill(accel_err2_.begin(), accel_err2_.end(), 0.0);
+  if (!(dt >= span_ - 1e-9)) return;  // not yet a span of confirmed estimates
+  for (size_t i = 0; i < vel_.size(); ++i) acc_[i] = (vel_[i] - old[1 + i]) / dt;
+  const double* ein[2] = {x, acc_.data()};
+  if (accel_error_->evaluate(ein, err_.data()) != 0)
+    throw std::runtime_error("the model's evaluation failed");
+  for (int i = 0; i < s_.nz; ++i)
+    accel_err2_[i] = std::isfinite(err_[i]) ? err_[i] * err_[i] : 0.0;
 }
 
 void ConsistencyCheck::set_readings(const double* z, const double* mask) {
@@ -357,9 +404,11 @@ void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, c
   // the model error learned, or the floor assumed before the readings show one
   std::vector<double>& bias = cov_.bias;
   bias.assign(s_.bias.begin(), s_.bias.end());
+  const bool moving = velocity_ != nullptr;
   for (int i = 0; i < nz; ++i)
     if (s_.gravity_r[i] > 0.0)
-      bias[i] += std::max(model_error_ * s_.gravity_r[i], s_.model_error_floor);
+      bias[i] += std::max({model_error_ * s_.gravity_r[i], s_.model_error_floor,
+                           moving ? accel_err2_[i] : 0.0});
   rows_.clear();
   for (int i = 0; i < nz; ++i)
     if (mask[i] > 0.0 && bias[i] > 0.0) rows_.push_back(i);

@@ -73,8 +73,25 @@ class ConsistencyCheck {
   // forget the previous estimate, the average and the model error (a new recording)
   void reset();
   // a sample without an estimate, or a restart: the next one has no previous estimate
-  // to predict (the average and the model error stay)
-  void forget() { has_prev_ = false; }
+  // to predict (the average and the model error stay); the IMUs' motion starts again
+  void forget() {
+    has_prev_ = false;
+    clear_motion();
+  }
+  // The IMUs' own acceleration as a model error of the gravity-direction readings
+  // (continuum_mhe.model.imu_motion): ``velocity(x)`` each IMU's velocity (3 per IMU)
+  // and ``error(x, a)`` the residual's change (nz) when the IMUs accelerate at ``a``;
+  // the velocities are differenced over ``span`` s. Kept by reference
+  void set_own_acceleration(const ModelFunction& velocity, const ModelFunction& error,
+                            double span);
+  // This sample's estimate ``x`` at ``t``: the IMUs' acceleration from their velocity
+  // ``span`` s before (the oldest kept that far back; none before the estimates noted
+  // span a span), and the error it puts into each reading, for constant_error_cov
+  // (nothing without set_own_acceleration)
+  void note_motion(double t, const double* x);
+  // the motion starts again at the next note_motion, and no reading carries an error
+  // from it until then
+  void forget_motion() { clear_motion(); }
   // Whether this sample's estimate ``x`` (nx), ``P`` (nx x nx) disagrees with its
   // readings ``z``, ``mask`` (nz); remembers the estimate for the next sample. ``u``
   // (nu) and ``Q`` (nx x nx): the inputs and process noise from the previous sample to
@@ -106,8 +123,9 @@ class ConsistencyCheck {
                            std::vector<double>* whitened = nullptr,
                            const double* z_jac = nullptr);
   // ``A B A^T`` (nx x nx, into ``out``) at ``x``: the covariance from the readings'
-  // constant errors and the model error (the one learned so far, at least the floor),
-  // ``A = (H^T R^-1 H + diag(range_info))^+ H^T R^-1``
+  // constant errors and the model error (the one learned so far, at least the floor, at
+  // least the square of the error the IMUs' own acceleration puts into the reading at
+  // the last note_motion), ``A = (H^T R^-1 H + diag(range_info))^+ H^T R^-1``
   void constant_error_cov(const double* z, const double* mask, const double* x, double* out);
 
   const ConsistencySettings& settings() const { return s_; }
@@ -142,6 +160,15 @@ class ConsistencyCheck {
   void evaluate(const ModelFunction& fn, const double* x, const double* u, double dt,
                 double* out);
   void set_readings(const double* z, const double* mask);
+  void clear_motion();
+  // the own-acceleration model (set_own_acceleration; null: none), its velocities kept
+  // (time, then 3 per IMU, oldest first) and the squared reading errors of the last
+  // note_motion (nz)
+  const ModelFunction* velocity_ = nullptr;
+  const ModelFunction* accel_error_ = nullptr;
+  double span_ = 0.0;
+  std::vector<std::vector<double>> motion_;
+  std::vector<double> accel_err2_, vel_, acc_, err_;
   // the states the readings rows_ depend on (into cols_), and H (in Hr_) and R^-1 H
   // over those readings and states
   void weighted_jacobian(RowMatrix& Hs, RowMatrix& wh);

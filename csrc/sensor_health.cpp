@@ -737,6 +737,13 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
         }
         held_mask_[i] = t - held_t_[i] <= unobserved_window() ? 1.0 : 0.0;
       }
+      // the IMUs' own acceleration, read as gravity, from the estimates the check
+      // confirmed: a start's or an unconfirmed estimate's rates are its prior's and its
+      // first updates', whose differences are no motion of the robot
+      if (status == ST_OK)
+        consistency_.note_motion(t, x);
+      else
+        consistency_.forget_motion();
       consistency_.constant_error_cov(held_z_.data(), held_mask_.data(), x, bias_.data());
       inference_.output_std(x, bias_.data(), std_b_.data());
       for (int i = 0; i < ny; ++i) ystd[i] = std::hypot(ystd[i], std_b_[i]);

@@ -350,6 +350,19 @@ class ConsistencyCheck:
         Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, ``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; ``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the number of judged readings; ``shift_limit`` (nx + 1): the chi-square limits of the shift to the readings' shape by its degrees of freedom; ``bias`` (nz): the readings' constant-error variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; ``memory``: samples the average remembers; ``quiet_memory``: samples the average while no model error shows remembers; ``rcond``: the pseudo-inverse's cut-off; ``model_error_floor``: each gravity-direction reading's model-error variance (rad^2) assumed until the one learned exceeds it; ``range_info`` (nx, or empty: none): each state's range as information 1 / std^2 (0: unbounded), added to ``H^T R^-1 H`` in the constant errors' sensitivity.
         """
 
+    def set_own_acceleration(self, velocity: ModelFunction, error: ModelFunction, span: float) -> None:
+        """
+        The IMUs' own acceleration as a model error of the gravity-direction readings (continuum_mhe.model.imu_motion): ``velocity(x)`` 3 values per IMU, ``error(x, a)`` nz values; the velocities differenced over ``span`` s.
+        """
+
+    def note_motion(self, t: float, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None:
+        """
+        This sample's estimate: the IMUs' acceleration and its reading errors, which constant_error_cov then carries.
+        """
+
+    def forget_motion(self) -> None:
+        """The IMUs' motion starts again at the next note_motion."""
+
     def reset(self) -> None:
         """Forget the previous estimate, the average and the model error."""
 
