@@ -737,10 +737,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
         }
         held_mask_[i] = t - held_t_[i] <= unobserved_window() ? 1.0 : 0.0;
       }
-      // the IMUs' own acceleration, read as gravity, from the estimates the check
-      // confirmed: a start's or an unconfirmed estimate's rates are its prior's and its
-      // first updates', whose differences are no motion of the robot
-      if (status == ST_OK)
+      // the IMUs' own acceleration, read as gravity, from the estimates of a run the
+      // check confirmed: a start's or an unconfirmed estimate's rates are its prior's and
+      // its first updates', whose differences are no motion of the robot (an estimate
+      // judged inconsistent, on a bound or drifted goes on from the one before)
+      if (status == ST_OK || status == ST_INCONSISTENT || status == ST_AT_BOUND ||
+          status == ST_DRIFTED)
         consistency_.note_motion(t, x);
       else
         consistency_.forget_motion();

@@ -474,35 +474,42 @@ estimators = recovery_estimators
 
 
 def test_evaluate_counts_the_ok_rows_far_outside_their_std(tmp_path, capsys) -> None:
-    # ok rows 0.5, 4.5, 0.5 and 6 std off in x (1 mm std), an uncertain one 10 std off,
-    # and an ok row with a zero std and an error: three ok rows far off, the largest at 6
+    # ok rows 0.5, 4.5, 0.5 and 6 std off in x (1 mm std) and an uncertain one 10 std
+    # off: two ok rows far off, the largest at 6 std (t = 0.06 s); then an ok row with a
+    # zero std and an error: infinitely far off, the largest
     n = 6
     t = np.arange(n) * 0.02
     dx = np.array([0.5, 4.5, 0.5, 6.0, 10.0, 1.0]) * 0.001
-    status = np.array(["ok", "ok", "ok", "ok", "uncertain", "ok"])
+    status = np.array(["ok", "ok", "ok", "ok", "uncertain", "uncertain"])
     std = np.full((n, 5), 0.001)
     std[5, 0] = 0.0
-    est = EstimateSeries(
-        method="ekf", t=t, output=np.column_stack([dx, 0 * t, 0 * t + 0.2, 0 * t, 0 * t]),
-        status=status, solve_ms=np.zeros(n), output_std=std,
-    )  # fmt: skip
-    write_estimates(tmp_path / "e.csv", est)
     truth = tmp_path / "t.csv"
     truth.write_text("t,x,y,z,theta,phi\n" + "".join(f"{tk},0,0,0.2,0,0\n" for tk in t))
-    assert main(["evaluate", str(tmp_path / "e.csv"), str(truth)]) == 0
-    out = capsys.readouterr().out
-    far = "ok rows far off      3 of 5 more than 4 std off on a tip axis (the largest 6.0 std"
+
+    def evaluate(status: np.ndarray) -> tuple[str, dict]:
+        est = EstimateSeries(
+            method="ekf", t=t, output=np.column_stack([dx, 0 * t, 0 * t + 0.2, 0 * t, 0 * t]),
+            status=status, solve_ms=np.zeros(n), output_std=std,
+        )  # fmt: skip
+        write_estimates(tmp_path / "e.csv", est)
+        assert main(["evaluate", str(tmp_path / "e.csv"), str(truth)]) == 0
+        out = capsys.readouterr().out
+        assert main(["evaluate", str(tmp_path / "e.csv"), str(truth), "--json"]) == 0
+        return out, json.loads(capsys.readouterr().out)
+
+    out, report = evaluate(status)
+    far = "ok rows far off      2 of 4 more than 4 std off on a tip axis (the largest 6.0 std"
     assert far + " at t = 0.06 s;" in out
-    assert main(["evaluate", str(tmp_path / "e.csv"), str(truth), "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
-    # every row: the uncertain one too; its 10 std is the largest (the zero-std row is
-    # left out of the largest, as of the NEES)
-    assert report["calibration"]["tip_far"] == 4
-    assert report["calibration"]["tip_far_worst"] == pytest.approx(10.0)
-    assert report["calibration_ok"]["tip_far"] == 3
-    assert report["calibration_ok"]["tip_far_worst"] == pytest.approx(6.0)
-    assert report["calibration"]["tip_far_worst_row"] == 4  # of every row
-    assert report["calibration_ok"]["tip_far_worst_row"] == 3  # of the ok rows
+    ok = report["calibration_ok"]
+    assert (ok["tip_far"], ok["tip_far_of"], ok["tip_far_worst_row"]) == (2, 4, 3)
+    assert ok["tip_far_worst"] == pytest.approx(6.0)
+    every = report["calibration"]  # the uncertain rows too; the zero std is the largest
+    assert (every["tip_far"], every["tip_far_of"], every["tip_far_worst_row"]) == (4, 6, 5)
+    assert every["tip_far_worst"] is None  # infinite: null in JSON
+    status[5] = "ok"
+    out, report = evaluate(status)
+    assert "3 of 5 more than 4 std off on a tip axis (the largest a zero std at t = 0.1 s;" in out
+    assert report["calibration_ok"]["tip_far_worst_row"] == 4
 
 
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])

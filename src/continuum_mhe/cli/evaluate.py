@@ -310,10 +310,11 @@ def _evaluate(args: argparse.Namespace) -> int:
 def format_far(c: Calibration, t_worst: float | None = None) -> str:
     """The ok rows far outside their standard deviations, as a line of ``evaluate``
     (``t_worst``: the time of the row with the largest ratio, s)."""
-    far = f"{c.tip_far} of {c.n['x']} more than {FAR_STD:g} std off on a tip axis ("
-    if math.isfinite(c.tip_far_worst):
+    far = f"{c.tip_far} of {c.tip_far_of} more than {FAR_STD:g} std off on a tip axis ("
+    if c.tip_far_of:
         at = f" at t = {t_worst:g} s" if t_worst is not None else ""
-        far += f"the largest {c.tip_far_worst:.1f} std{at}; "
+        largest = "a zero std" if math.isinf(c.tip_far_worst) else f"{c.tip_far_worst:.1f} std"
+        far += f"the largest {largest}{at}; "
     return f"ok rows far off      {far}about 2 in 10,000 rows where the std is right)"
 
 

@@ -288,11 +288,15 @@ class Calibration:
             deviation is zero (their NEES is infinite where the error is not zero);
             ``coverage`` counts them, as misses unless the error is zero too.
         tip_far: samples whose error on some tip axis exceeds :data:`FAR_STD` of its
-            standard deviation (a zero standard deviation with an error counts):
-            under a right Gaussian standard deviation about 2 in 10,000 samples.
-        tip_far_worst: the largest ``|error| / std`` over the tip axes of the samples in
-            ``tip_nees`` (NaN without any).
-        tip_far_worst_row: the row (of those given) where it lies (-1 without any).
+            standard deviation (a zero standard deviation with an error counts, as
+            infinitely far): under a right Gaussian standard deviation about 2 in 10,000
+            samples.
+        tip_far_of: the samples with an estimate, a standard deviation and a truth on
+            all three tip axes, of which ``tip_far`` are counted.
+        tip_far_worst: the largest ``|error| / std`` over their tip axes (infinite where
+            a zero standard deviation has an error; NaN without any sample).
+        tip_far_worst_row: the sample where it lies, as an index of the rows given
+            (-1 without any).
     """
 
     coverage: dict[str, float]
@@ -303,6 +307,7 @@ class Calibration:
     tip_n_eff: float
     tip_zero_std: int = 0
     tip_far: int = 0
+    tip_far_of: int = 0
     tip_far_worst: float = math.nan
     tip_far_worst_row: int = -1
 
@@ -403,19 +408,25 @@ def compute_calibration(
         rows = finite & np.all(sd[:, tip] > 0, axis=1)
         zero = int(np.sum(finite & ~rows))
     n_tip = int(np.sum(rows))
-    far, worst, worst_row = 0, math.nan, -1
+    far, far_of, worst, worst_row = 0, 0, math.nan, -1
     if len(tip) == 3:  # (a zero std with an error: an infinite z-score, far)
-        far = int(np.sum(np.any(zscore[:, tip] > FAR_STD, axis=1) & np.all(ok[:, tip], axis=1)))
+        compared = np.all(ok[:, tip], axis=1)
+        per_row = np.nanmax(
+            np.where(compared[:, None], zscore[:, tip], np.nan), axis=1, initial=0.0
+        )
+        far, far_of = int(np.sum(compared & (per_row > FAR_STD))), int(np.sum(compared))
+        if far_of:
+            worst_row = int(np.flatnonzero(compared)[int(np.argmax(per_row[compared]))])
+            worst = float(per_row[worst_row])
     if n_tip:
         each = np.sum((err[rows][:, tip] / sd[rows][:, tip]) ** 2, axis=1)
         nees, n_eff = float(np.mean(each)), effective_samples(each)
         band = nees_band(3, n_eff)
-        per_row = np.max(zscore[rows][:, tip], axis=1)
-        worst = float(np.max(per_row))
-        worst_row = int(np.flatnonzero(rows)[int(np.argmax(per_row))])
     else:
         nees, band, n_eff = math.nan, (math.nan, math.nan), 0.0
-    return Calibration(coverage, counts, nees, band, n_tip, n_eff, zero, far, worst, worst_row)
+    return Calibration(
+        coverage, counts, nees, band, n_tip, n_eff, zero, far, far_of, worst, worst_row
+    )
 
 
 def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> str:

@@ -4,7 +4,7 @@ model takes as gravity alone.
 An accelerometer reads the specific force, gravity's reaction plus the IMU's own
 acceleration ``a``; the ``bend`` (tilt) and ``direct`` formulations without
 ``own_acceleration`` take its direction for gravity's. Only ``a``'s part across gravity
-turns the direction, by ``atan(|a_perp| / g)``. That error lasts as long as the motion
+turns the direction, by ``atan(|a_perp| / (g + a_up))``. That error lasts as long as the motion
 that makes it (a robot leaving a pose accelerates its tip IMU at a tenth of g for a
 third of a second: 6 degrees, against readings' noise of about 2), and where the IMUs'
 readings fit the bends exactly (a tilt IMU per section) no residual shows it. The
@@ -45,9 +45,10 @@ def takes_acceleration_as_gravity(formulation: Formulation) -> bool:
 def own_acceleration_functions(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
     """``(velocity, error)`` of a formulation that :func:`takes_acceleration_as_gravity`:
     ``velocity(x)``, each IMU's velocity in the base frame (m/s, 3 per IMU in the robot
-    file's order), and ``error(x, a)``, the change of the residual (``nz``, the
-    formulation's units; zero on rows that are not gravity directions) when IMU ``i``
-    accelerates at ``a[3 i : 3 i + 3]`` (m/s^2, base frame) at the state ``x``."""
+    file's order), and ``error(x, a)``, the residual (``nz``, the formulation's units;
+    zero on rows that are not gravity directions) of the readings the IMUs give at the
+    state ``x`` when IMU ``i`` accelerates at ``a[3 i : 3 i + 3]`` (m/s^2, base frame):
+    the formulation's own residual of those readings at ``x``."""
     if not takes_acceleration_as_gravity(formulation):
         raise ValueError(f"the {formulation.name} formulation has no such readings")
     robot = formulation.robot
@@ -64,14 +65,11 @@ def own_acceleration_functions(formulation: Formulation) -> tuple[ca.Function, c
     for i, imu in enumerate(robot.imus):
         R, p = pose_at_sym(bends, robot.lengths, imu.section, imu.at)
         velocity.append(ca.mtimes(ca.jacobian(p, q), qd))
-        a = acc[3 * i : 3 * i + 3]
-        across = a - ca.dot(a, up) * up  # along gravity it does not turn the direction
-        seen = up + across / STANDARD_GRAVITY
-        g0 = ca.mtimes(R.T, up)
-        g1 = ca.mtimes(R.T, seen / ca.norm_2(seen))
-        if formulation.name == "bend":  # roll, pitch: on the residual's tangent plane
-            z0 = tilt_from_gravity_sym(g0)
-            error.append(tilt_tangent_residual_sym(z0, g1) - tilt_tangent_residual_sym(z0, g0))
+        seen = up + acc[3 * i : 3 * i + 3] / STANDARD_GRAVITY  # the specific force, in g
+        g0 = ca.mtimes(R.T, up)  # what the model predicts
+        g1 = ca.mtimes(R.T, seen / ca.norm_2(seen))  # what the IMU reads
+        if formulation.name == "bend":  # the residual of the reading tilt(g1) at g0
+            error.append(tilt_tangent_residual_sym(tilt_from_gravity_sym(g1), g0))
         else:  # the unit specific force's three rows, then the gyro's three
             error += [g1 - g0, ca.DM.zeros(3)]
     return (
