@@ -134,6 +134,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from functools import lru_cache
 
 import numpy as np
 
@@ -223,8 +224,7 @@ class ConsistencyCheck:
             range_info=(1.0 / np.asarray(f.range_std(), dtype=float) ** 2).tolist(),
         )
         if f.model_error_floor() > 0.0 and f.name == "bend" and takes_acceleration_as_gravity(f):
-            velocity, error = own_acceleration_functions(f)
-            self._motion = (tape_function(velocity), tape_function(error))
+            self._motion = motion_tapes(f)  # kept alive with the check
             self._core.set_own_acceleration(*self._motion, ACCELERATION_SPAN_S)
         self._q = ProcessNoiseCache(formulation)
         self._prev: tuple[float, FloatArray] | None = None  # the previous (t, z)
@@ -320,6 +320,15 @@ def model_tapes(
     node_functions`): the check's prediction takes the EKF update's evaluation."""
     node = node_functions(formulation)
     return node.transition, node.measurement, node.residual
+
+
+@lru_cache(maxsize=32)
+def motion_tapes(formulation: Formulation) -> tuple[_core.TapeFunction, _core.TapeFunction]:
+    """The IMUs' velocities and the reading errors of their acceleration
+    (:func:`~continuum_mhe.model.imu_motion.own_acceleration_functions`) as the core
+    evaluates them, built once per formulation (estimators side by side share them)."""
+    velocity, error = own_acceleration_functions(formulation)
+    return tape_function(velocity), tape_function(error)
 
 
 def _limits(limit: Callable[[int], float], n: int) -> list[float]:
