@@ -240,3 +240,29 @@ def test_the_section_rod_generator_makes_its_folder_and_refuses_a_mistyped_path(
     (tmp_path / "file").write_text("x\n")
     assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(tmp_path / "file")]) == 2
     assert capsys.readouterr().err.strip().endswith("exists and is not a folder")
+
+
+def test_the_section_rod_generator_picks_a_stable_step_and_says_a_divergence(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A stiffer torsion needs a shorter explicit step: without ``--sim-dt`` the
+    generator takes ``default_sim_dt`` (the default rod's 2e-5 s, shorter as the
+    torsional waves speed up: under the 1e-5 and 5e-6 s that ran at G = 2E and 5E);
+    with a step that diverges it says so in one line naming ``--sim-dt``, exit 2 (it
+    raised a traceback); a shear ratio that is not a ratio is refused in one line."""
+    pytest.importorskip("elastica")
+    from continuum_mhe.simulation.cosserat_sections import BASE_SIM_DT, default_sim_dt
+    from continuum_mhe.simulation.cosserat_sections import main as generate
+
+    assert default_sim_dt(1.0 / 3.0) == BASE_SIM_DT == default_sim_dt(0.1)
+    assert default_sim_dt(2.0) < 1e-5 and default_sim_dt(5.0) < 5e-6
+    assert default_sim_dt(5.0) == pytest.approx(0.9 * BASE_SIM_DT / math.sqrt(15.0))
+    argv = ["--scenario", "spatial", "--shear-ratio", "5", "--duration", "0.2"]
+    assert generate([*argv, "--sim-dt", "2e-5", "-o", str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "diverged" in err[0] and "--sim-dt 2e-05" in err[0], err
+    assert not list((tmp_path / "d").glob("*.csv"))
+    for bad in ("-1", "0", "nan"):
+        assert generate(["--shear-ratio", bad, "-o", str(tmp_path / "e")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--shear-ratio must be G / E > 0" in err[0], err
