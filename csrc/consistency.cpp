@@ -131,7 +131,8 @@ void ConsistencyCheck::set_own_acceleration(const ModelFunction& velocity,
 }
 
 void ConsistencyCheck::clear_motion() {
-  motion_.clear();
+  motion_t_.clear();
+  motion_v_.clear();
   accel_err2_.assign(s_.nz, 0.0);
 }
 
@@ -140,18 +141,19 @@ void ConsistencyCheck::note_motion(double t, const double* x) {
   const double* in[1] = {x};
   if (velocity_->evaluate(in, vel_.data()) != 0)
     throw std::runtime_error("the model's evaluation failed");
-  if (!motion_.empty() && !(t > motion_.back()[0])) clear_motion();  // not after the last
-  std::vector<double> entry(1 + vel_.size());
-  entry[0] = t;
-  std::copy(vel_.begin(), vel_.end(), entry.begin() + 1);
-  motion_.push_back(std::move(entry));
+  if (!motion_t_.empty() && !(t > motion_t_.back())) clear_motion();  // not after the last
+  const size_t n = vel_.size();
+  motion_t_.push_back(t);
+  motion_v_.insert(motion_v_.end(), vel_.begin(), vel_.end());
   // the oldest kept at least span before t (the one after it is not that far back)
-  while (motion_.size() > 2 && t - motion_[1][0] >= span_ - 1e-9) motion_.erase(motion_.begin());
-  const std::vector<double>& old = motion_.front();
-  const double dt = t - old[0];
+  while (motion_t_.size() > 2 && t - motion_t_[1] >= span_ - 1e-9) {
+    motion_t_.pop_front();
+    motion_v_.erase(motion_v_.begin(), motion_v_.begin() + static_cast<std::ptrdiff_t>(n));
+  }
+  const double dt = t - motion_t_.front();
   std::fill(accel_err2_.begin(), accel_err2_.end(), 0.0);
   if (!(dt >= span_ - 1e-9)) return;  // not yet a span of confirmed estimates
-  for (size_t i = 0; i < vel_.size(); ++i) acc_[i] = (vel_[i] - old[1 + i]) / dt;
+  for (size_t i = 0; i < n; ++i) acc_[i] = (vel_[i] - motion_v_[i]) / dt;
   const double* ein[2] = {x, acc_.data()};
   if (accel_error_->evaluate(ein, err_.data()) != 0)
     throw std::runtime_error("the model's evaluation failed");
@@ -404,11 +406,9 @@ void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, c
   // the model error learned, or the floor assumed before the readings show one
   std::vector<double>& bias = cov_.bias;
   bias.assign(s_.bias.begin(), s_.bias.end());
-  const bool moving = velocity_ != nullptr;
-  for (int i = 0; i < nz; ++i)
+  for (int i = 0; i < nz; ++i)  // (accel_err2_ is zero without the own-acceleration model)
     if (s_.gravity_r[i] > 0.0)
-      bias[i] += std::max({model_error_ * s_.gravity_r[i], s_.model_error_floor,
-                           moving ? accel_err2_[i] : 0.0});
+      bias[i] += std::max({model_error_ * s_.gravity_r[i], s_.model_error_floor, accel_err2_[i]});
   rows_.clear();
   for (int i = 0; i < nz; ++i)
     if (mask[i] > 0.0 && bias[i] > 0.0) rows_.push_back(i);

@@ -16,6 +16,7 @@
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <deque>
 #include <vector>
 
 #include "model_function.hpp"
@@ -162,12 +163,12 @@ class ConsistencyCheck {
   void set_readings(const double* z, const double* mask);
   void clear_motion();
   // the own-acceleration model (set_own_acceleration; null: none), its velocities kept
-  // (time, then 3 per IMU, oldest first) and the squared reading errors of the last
-  // note_motion (nz)
+  // (their times, and 3 per IMU each, oldest first; deques: no allocation a sample once
+  // they have grown) and the squared reading errors of the last note_motion (nz)
   const ModelFunction* velocity_ = nullptr;
   const ModelFunction* accel_error_ = nullptr;
   double span_ = 0.0;
-  std::vector<std::vector<double>> motion_;
+  std::deque<double> motion_t_, motion_v_;
   std::vector<double> accel_err2_, vel_, acc_, err_;
   // the states the readings rows_ depend on (into cols_), and H (in Hr_) and R^-1 H
   // over those readings and states

@@ -107,6 +107,10 @@ DEFAULT_IMU = ImuSettings(sample_dt=0.02)
 CALIBRATED_IMU = ImuSettings(sample_dt=0.02, accel_bias=0.0, misalignment_deg=0.0)
 
 
+#: The integration step of the default rod (torsion at G = E/3), s.
+BASE_SIM_DT = 2.0e-5
+
+
 @dataclass(frozen=True)
 class SectionRodSettings:
     """The two-section rod and its actuation.
@@ -133,7 +137,7 @@ class SectionRodSettings:
     imu_mass: float = 0.004
     n_elements: int = 30
     damping: float = 4.0
-    sim_dt: float = 2.0e-5
+    sim_dt: float = BASE_SIM_DT
     max_moment: float = 0.12
     period: float = 6.0
     drive: Literal["base", "tendon"] = "base"
@@ -524,10 +528,6 @@ def write_trajectory_recording(
     return info
 
 
-#: The integration step of the default rod (torsion at G = E/3), s.
-BASE_SIM_DT = 2.0e-5
-
-
 def default_sim_dt(shear_ratio: float) -> float:
     """A stable integration step (s) for a rod of ``shear_ratio`` G / E: the default
     rod's :data:`BASE_SIM_DT`, shortened as the torsional waves speed up (with the
@@ -579,6 +579,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation')}",
               file=sys.stderr)  # fmt: skip
         return 2
+    if not (args.shear_ratio > 0.0 and math.isfinite(args.shear_ratio)):
+        print(f"{p.prog}: error: --shear-ratio must be G / E > 0, got {args.shear_ratio:g}",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    if args.sim_dt is not None and not (args.sim_dt > 0.0 and math.isfinite(args.sim_dt)):
+        print(f"{p.prog}: error: --sim-dt must be a step > 0 s, got {args.sim_dt:g}",
+              file=sys.stderr)  # fmt: skip
+        return 2
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         print(f"{p.prog}: error: {out}: exists and is not a folder", file=sys.stderr)
@@ -588,14 +596,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     out.mkdir(exist_ok=True)  # (as the tendon generator makes its folder)
     name = args.name or args.scenario
-    if not (args.shear_ratio > 0.0 and math.isfinite(args.shear_ratio)):
-        print(f"{p.prog}: error: --shear-ratio must be G / E > 0, got {args.shear_ratio:g}",
-              file=sys.stderr)  # fmt: skip
-        return 2
-    if args.sim_dt is not None and not (args.sim_dt > 0.0 and math.isfinite(args.sim_dt)):
-        print(f"{p.prog}: error: --sim-dt must be a step > 0 s, got {args.sim_dt:g}",
-              file=sys.stderr)  # fmt: skip
-        return 2
     sim_dt = default_sim_dt(args.shear_ratio) if args.sim_dt is None else args.sim_dt
     settings = SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=sim_dt, drive=args.drive)
     imu = CALIBRATED_IMU if args.calibrated else DEFAULT_IMU
