@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tendon_helpers import DATA, shipped_recording
 
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
@@ -25,26 +26,9 @@ from continuum_mhe.estimators.load_hypotheses import (
     mixture,
 )
 from continuum_mhe.estimators.sensor_health import UNOBSERVED_AFTER
-from continuum_mhe.io.input_options import InputOptions
-from continuum_mhe.io.inputs import open_input
-from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.simulation.scenarios import simulate
-
-DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
-
-
-def _shipped(scenario: str, imu: str) -> tuple[TendonFormulation, np.ndarray, np.ndarray]:
-    """The shipped recording ``scenario`` (``raw`` or ``tilt`` IMUs) as the command
-    line reads it: ``(formulation, t, z)``."""
-    options = InputOptions(tensions=str(DATA / f"{scenario}_tensions.csv"))
-    base = make_formulation("bend", read_robot("tendon-two-section"))
-    with open_input(DATA / f"{scenario}_{imu}.csv", options, base) as stream:
-        f = stream.formulation
-        blocks = list(stream.blocks)
-    assert isinstance(f, TendonFormulation)
-    return f, np.concatenate([b[0] for b in blocks]), np.vstack([b[1] for b in blocks])
 
 
 def _truth(scenario: str) -> tuple[list[str], np.ndarray]:
@@ -91,7 +75,7 @@ def default_ekf() -> Callable[[str, str], EkfRun]:
 
     def run(scenario: str, imu: str) -> EkfRun:
         if (scenario, imu) not in runs:
-            f, t, z = _shipped(scenario, imu)
+            f, t, z = shipped_recording(scenario, imu)
             memo = node_functions(f).measurement
             est = make_estimator("ekf", f)
             assert isinstance(est, LoadHypothesesKalmanFilter)
@@ -121,7 +105,7 @@ class Stepped:
 def force29_stepped() -> Stepped:
     """``force-29`` (raw IMUs) stepped through the two hypotheses once a module (two
     tests read it: which one is chosen, and the free-of-load filter's load states)."""
-    f, t, z = _shipped("force-29", "raw")
+    f, t, z = shipped_recording("force-29", "raw")
     inference = LoadHypothesesInference(f)
     load = list(f.load_states)
     chosen, unloaded_load = [], []
@@ -173,7 +157,7 @@ def test_the_free_of_load_start_holds_the_tip_force_at_zero() -> None:
     """The tendon model's load states are the tip force and its derivatives; its start
     free of load has them zero, with zero rows and columns in the covariance, and the
     other states' prior as the loaded start has it."""
-    f, t, z = _shipped("unloaded", "raw")
+    f, t, z = shipped_recording("unloaded", "raw")
     names = f.state_names
     load = f.load_states
     assert [names[i] for i in load] == [n for n in names if n[:2] in ("fx", "fy", "fz")] and {
@@ -277,7 +261,7 @@ def test_the_answer_covariance_is_the_mixture_with_the_prior_odds() -> None:
     answer; after a second without a load, the free-of-load filter's."""
     from continuum_mhe.estimators.load_hypotheses import EVIDENCE_MARGIN, EVIDENCE_MEMORY
 
-    f, t, z = _shipped("unloaded", "tilt")
+    f, t, z = shipped_recording("unloaded", "tilt")
     inference = LoadHypothesesInference(f)
     inference.infer(Measurement(float(t[0]), z[0]))
     x, P, _ = inference.infer(Measurement(float(t[1]), z[1]))
@@ -333,7 +317,7 @@ def test_a_restart_gives_both_hypotheses_the_kept_estimates_sensor_states() -> N
     confirmed one, the hypothesis chosen then) gives them to both hypotheses: where the
     loaded one was chosen, the free-of-load filter's own IMU errors may have taken part
     of the load (``force-08``, raw: the force is on from its first second)."""
-    f, t, z = _shipped("force-08", "raw")
+    f, t, z = shipped_recording("force-08", "raw")
     inference = LoadHypothesesInference(f)
     for ti, zi in zip(t[:150], z[:150]):
         x, P, _ = inference.infer(Measurement(float(ti), zi))
@@ -354,7 +338,7 @@ def test_a_row_taken_as_free_of_load_does_not_exclude_a_small_load() -> None:
     as free of load (0 N) while it is still small. Their tip force's standard deviation
     is the loaded hypothesis' (no less), so the true force lies within three of them on
     every axis; the free-of-load filter alone would say 0 N to a fraction of a mN."""
-    f, t, z = _shipped("force-08", "tilt")
+    f, t, z = shipped_recording("force-08", "tilt")
     est = make_estimator("ekf", f)
     free = []
     rows = []
@@ -383,7 +367,7 @@ def test_a_failure_of_the_loaded_hypothesis_keeps_the_force_floor_and_the_next_d
     the loaded hypothesis' last standard deviation (not zero); row 201, where the loaded
     filter has nothing to start from, is the free-of-load filter's prediction
     (``dropout``), not ``no-estimate``."""
-    f, t, z = _shipped("unloaded", "raw")
+    f, t, z = shipped_recording("unloaded", "raw")
     z = z.copy()
     z[201] = np.nan  # nothing read at that sample
     est = make_estimator("ekf", f)
@@ -410,7 +394,7 @@ def test_a_new_stretch_at_the_last_counted_time_keeps_the_free_of_load_count() -
     recording: its first sample, even at the time of the last row counted as free of
     load, is another sample, and the count keeps that row (a policy's second step of
     one sample takes it back; here nothing is stepped twice)."""
-    f, t, z = _shipped("unloaded", "tilt")
+    f, t, z = shipped_recording("unloaded", "tilt")
     est = make_estimator("ekf", f)
     assert isinstance(est, LoadHypothesesKalmanFilter)
     for ti, zi in zip(t[:120], z[:120]):
@@ -486,7 +470,7 @@ def test_a_first_reading_without_imus_shows_no_load(imu: str) -> None:
     where the loaded hypothesis' tip standard deviation, which a row free of load
     reports, spreads over a tenth of the robot's length (tilt IMUs, which tell a small
     load from none only loosely): ``uncertain`` for the unobserved window after it."""
-    f, t, z = _shipped("unloaded", imu)
+    f, t, z = shipped_recording("unloaded", imu)
     z = z.copy()
     z[0, : f.n_imu_measurements] = np.nan
     est = make_estimator("ekf", f)

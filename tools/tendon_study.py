@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from continuum_mhe.estimators import MovingHorizonEstimator, make_estimator
+from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.kalman import SigmaPointSettings, UnscentedKalmanFilter
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
@@ -154,7 +154,9 @@ def main() -> None:
     elif a.method == "ekf":
         est = make_estimator("ekf", f)  # the command line's (compiled) EKF
     else:
-        est = MovingHorizonEstimator(f, MHESettings(horizon=a.horizon, solver="ipopt"))
+        # the command line's MHE on IPOPT: both load hypotheses (the loaded one alone
+        # with --set free_of_load_hypothesis=False)
+        est = make_estimator("mhe", f, MHESettings(horizon=a.horizon, solver="ipopt"))
     start = time.perf_counter()
     series = est.run(t, z)
     ms = (time.perf_counter() - start) / len(t) * 1e3
@@ -189,6 +191,7 @@ def main() -> None:
         "force_std_mean_n": round(float(np.mean(np.linalg.norm(std[keep][:, force], axis=1))), 4),
         "floor_tip_mm": round(floor[0], 3), "floor_mid_mm": round(floor[1], 3),
         "ms_per_sample": round(ms, 1), "statuses": statuses, "ok_over_5mm": ok_over_5mm,
+        "free_of_load_rows": getattr(est.inference, "free_of_load_samples", None),
     }))  # fmt: skip
 
 

@@ -112,8 +112,9 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
     if method == "mhe" and obstacle is not None:  # asked for the MHE on IPOPT
         print(
             f"{PROG}: warning: the MHE on IPOPT with this robot's model takes seconds to "
-            "minutes a window, more with a longer --horizon or a softer backbone (docs: "
-            "tendon robots); the EKF is this robot's default",
+            "minutes a sample (two windows: the robot loaded, and free of load), more with "
+            "a longer --horizon or a softer backbone (docs: tendon robots); the EKF is this "
+            "robot's default",
             file=sys.stderr,
         )
     if method != "mhe":

@@ -22,7 +22,10 @@ from continuum_mhe.estimators.kalman import (
     ExtendedKalmanFilter,
     UnscentedKalmanFilter,
 )
-from continuum_mhe.estimators.load_hypotheses import LoadHypothesesKalmanFilter
+from continuum_mhe.estimators.load_hypotheses import (
+    LoadHypothesesHorizonEstimator,
+    LoadHypothesesKalmanFilter,
+)
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.sensor_health import Diagnostics, Estimator
 from continuum_mhe.model.formulations import Formulation
@@ -60,7 +63,9 @@ def make_estimator(
 
     ``"ekf"`` is :class:`ExtendedKalmanFilter`, or for a formulation with load states (a
     tendon robot's tip force) :class:`LoadHypothesesKalmanFilter`, which weighs the
-    robot free of load against loaded.
+    robot free of load against loaded; ``"mhe"`` on such a formulation with
+    ``MHESettings(solver="ipopt")`` (the fast MHE cannot take it) is
+    :class:`LoadHypothesesHorizonEstimator`, the same two hypotheses as two windows.
     """
     if method not in METHODS:
         raise UserError(f"method must be one of {METHODS}, got {method!r}")
@@ -82,6 +87,8 @@ def _make(
     mhe: MHESettings | None,
     recovery: RecoverySettings | None,
 ) -> Estimator:
+    if method == "mhe" and formulation.load_states and mhe is not None and mhe.solver == "ipopt":
+        return LoadHypothesesHorizonEstimator(formulation, mhe, recovery)
     if method == "mhe":
         return MovingHorizonEstimator(formulation, mhe, recovery=recovery)
     if method == "ekf" and formulation.load_states:
@@ -102,6 +109,7 @@ __all__ = [
     "ExtendedKalmanFilter",
     "CasadiExtendedKalmanFilter",
     "Inference",
+    "LoadHypothesesHorizonEstimator",
     "LoadHypothesesKalmanFilter",
     "Measurement",
     "Method",

@@ -1,27 +1,32 @@
-"""The EKF of a robot that may carry an external load, as two hypotheses.
+"""An estimator of a robot that may carry an external load, as two hypotheses.
 
 A tendon robot's model estimates the tip force (:attr:`Formulation.load_states
 <continuum_mhe.model.formulations.Formulation.load_states>`). Where the readings are
 tilt, or the IMUs' constant errors are not yet known, a small force and the IMUs'
-misalignments and biases tilt the readings alike, and a filter that carries the force
-takes part of those errors for a load the robot does not have: the shape follows that
-force, millimetres off. Two compiled EKFs run side by side on every sample:
+misalignments and biases tilt the readings alike, and an estimator that carries the
+force takes part of those errors for a load the robot does not have: the shape follows
+that force, millimetres off. Two estimators of one kind run side by side on every
+sample (the EKF: two compiled EKFs; the MHE on IPOPT: two windows):
 
 - **loaded**: the model as it is, the force a state;
 - **free of load**: the same model with the force and its derivatives held at zero
-  (zero and certain at every start, no process noise: :class:`UnloadedKalmanInference`).
+  (zero and certain at every start, no process noise: :class:`UnloadedKalmanInference`;
+  the MHE's window pins them at zero at every node and conditions its arrival prior
+  and covariance on them: :class:`UnloadedHorizonInference`).
 
-Each step's innovation log-density (``log N(r; 0, S)``, the compiled step's
-``log_likelihood``) of the two is compared; their difference, summed with a memory of
+Each step's innovation log-density (``log N(r; 0, S)``: the compiled EKF step's
+``log_likelihood``; for the MHE, the EKF step from each hypothesis' previous answer to
+the new reading, so that the windows are weighed as the filters are) of the two is
+compared; their difference, summed with a memory of
 :data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free of load (held
-where neither filter has a valid reading, and only decaying where one has no density).
+where neither hypothesis has a valid reading, and only decaying where one has no density).
 Against prior odds of ``exp(EVIDENCE_MARGIN)`` to 1 for a load, the estimate is the free-of-load
 hypothesis' where the evidence exceeds :data:`EVIDENCE_MARGIN`, else the loaded one's;
 its covariance is the two hypotheses' mixture about it, weighted by those posterior
 odds, so that the standard deviations carry what the other hypothesis would make of
-the readings. A load that appears makes the free-of-load filter's predictions miss the
+the readings. A load that appears makes the free-of-load hypothesis' predictions miss the
 readings, and the evidence turns within a few readings. Each hypothesis keeps its own
-state between restarts: the free-of-load filter's IMU errors are not the loaded one's,
+state between restarts: the free-of-load one's IMU errors are not the loaded one's,
 which may have taken part of a load for them. A restart gives both the sensor states of
 the estimate it keeps (the hypothesis chosen then). Where one hypothesis' step fails,
 the sample's estimate is the other's, and the failed one starts again at the next
@@ -41,16 +46,21 @@ estimator of such a robot (``Diagnostics.untrusted_start_samples`` counts them).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Inference, Measurement, Status, judged_untrusted
+from continuum_mhe.estimators.fast.model import Feasible
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
+from continuum_mhe.estimators.mhe import MovingHorizonInference, ReferenceWindow
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.sensor_health import NUMERICAL_FAILURES, Estimator
+from continuum_mhe.estimators.window_nlp import Nlp
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.settings import RecoverySettings
+from continuum_mhe.settings import MHESettings, RecoverySettings
 
 #: The weight of the evidence of the reading before, per reading: the evidence is
 #: ``EVIDENCE_MEMORY * evidence + (log N_free - log N_loaded)`` (a memory of about ten
@@ -63,10 +73,11 @@ EVIDENCE_MARGIN = 3.0
 
 
 _Answer = tuple[FloatArray, FloatArray]
+_Loaded = CompiledExtendedKalmanInference | MovingHorizonInference
 
 
 def _step(
-    hypothesis: CompiledExtendedKalmanInference, m: Measurement
+    hypothesis: _Loaded, m: Measurement
 ) -> tuple[tuple[FloatArray | None, FloatArray | None, Status] | None, float]:
     """``((x, P, status), log-likelihood)`` of one hypothesis' step, or ``(None, nan)``
     where it failed: a numerical failure, or a state or covariance that is not finite."""
@@ -100,13 +111,88 @@ class UnloadedKalmanInference(CompiledExtendedKalmanInference):
         return x, P
 
 
-class LoadHypothesesInference(Inference):
-    """The EKF of a formulation with load states, as the robot loaded and free of load
-    (see the module docstring); ``name`` ``ekf``.
+class UnloadedHorizonInference(MovingHorizonInference):
+    """The MHE on IPOPT with the formulation's load states held at zero: its starts are
+    :meth:`~continuum_mhe.model.formulations.Formulation.unloaded_start`'s, the load
+    states are pinned at zero at every node of the window (IPOPT's bounds), and its
+    arrival prior and covariances are conditioned on them (the covariance's feasible set
+    pins them: they carry no variance, nor does the shape through them). Its
+    :attr:`log_likelihood` is always tracked.
 
     Attributes:
-        loaded: the EKF with the load as states.
-        unloaded: the EKF with the load held at zero.
+        start_shows_load: whether the reading of its last start showed a load that the
+            start could not tell from the sensors' errors (``unloaded_start``).
+    """
+
+    def __init__(self, formulation: Formulation, settings: MHESettings) -> None:
+        if settings.solver != "ipopt":
+            raise UserError(
+                "the MHE free of load runs on IPOPT (solver='ipopt'): the fast MHE "
+                "cannot take a model with load states"
+            )
+        super().__init__(formulation, settings)
+        held = np.asarray(formulation.load_states, dtype=np.intp)
+        self._held = held
+        self._free = np.setdiff1d(np.arange(formulation.nx), held)
+        #: the pinned states' prior variances (any positive value: they do not move)
+        self._held_var = np.diag(formulation.initial_cov())[held].copy()
+        self._process_weight = ProcessNoiseCache(formulation, held=formulation.load_states)
+        window = self._window
+        assert isinstance(window, ReferenceWindow)
+        lo, hi = (np.array(v, dtype=float) for v in formulation.state_bounds())
+        lo[held] = hi[held] = 0.0
+        fs = window.feasible
+        balls = (np.zeros((0, 1), dtype=np.int64), np.zeros(0)) if fs is None else (
+            fs.ball_idx, fs.ball_r2)  # fmt: skip
+        window.feasible = Feasible(lo, hi, *balls)
+        window.condition = self.conditioned
+        self.start_shows_load = False
+        self.tracks_likelihood = True
+
+    def conditioned(self, x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(x, P)`` (nx,), (nx, nx) conditioned on the load states at zero: the other
+        states' Gaussian conditional, the load states zero with their prior variances and
+        no correlation (where ``P`` holds them certain, the others as given)."""
+        h, k = self._held, self._free
+        x, P = np.array(x, dtype=float), np.array(P, dtype=float)
+        P_kh = P[np.ix_(k, h)]
+        gain = P_kh @ np.linalg.pinv(P[np.ix_(h, h)], rcond=1e-12, hermitian=True)
+        xc = np.zeros_like(x)
+        xc[k] = x[k] - gain @ x[h]
+        Pc = np.zeros_like(P)
+        Pc[np.ix_(k, k)] = P[np.ix_(k, k)] - gain @ P_kh.T
+        Pc[h, h] = self._held_var
+        return xc, 0.5 * (Pc + Pc.T)
+
+    def _set_prior(self, xbar: FloatArray, P: FloatArray) -> None:
+        super()._set_prior(*self.conditioned(xbar, P))
+
+    def _window_nlp(self, scale_exp: int) -> Nlp:
+        nlp = super()._window_nlp(scale_exp)
+        nx = self.formulation.nx
+        idx = (np.arange(self.settings.horizon)[:, None] * nx + self._held[None, :]).ravel()
+        if np.any(nlp.lbx[idx] != 0.0) or np.any(nlp.ubx[idx] != 0.0):
+            lbx, ubx = np.array(nlp.lbx, dtype=float), np.array(nlp.ubx, dtype=float)
+            lbx[idx] = ubx[idx] = 0.0
+            nlp = replace(nlp, lbx=lbx, ubx=ubx)
+            self._nlps[scale_exp] = nlp
+        return nlp
+
+    def start_prior(self, z: FloatArray, t: float | None = None) -> tuple[FloatArray, FloatArray]:
+        self.kept_sensors = self.kept_at(t)
+        self.fresh_start = self.kept_sensors is None
+        x, P, self.start_shows_load = self.formulation.unloaded_start(z, self.kept_sensors)
+        return x, P
+
+
+class LoadHypothesesInference(Inference):
+    """The EKF of a formulation with load states, as the robot loaded and free of load
+    (see the module docstring), ``name`` ``ekf``; with ``horizon`` (the MHE's settings,
+    its solver IPOPT) the MHE, ``name`` ``mhe``.
+
+    Attributes:
+        loaded: the EKF (or MHE) with the load as states.
+        unloaded: the EKF (or MHE) with the load held at zero.
         evidence: the log-likelihood ratio, free of load over loaded, with its memory.
         unloaded_chosen: whether the last estimate is the free-of-load hypothesis'.
         free_of_load_samples: the estimates the free-of-load hypothesis gave since the
@@ -117,13 +203,26 @@ class LoadHypothesesInference(Inference):
 
     name = "ekf"
 
-    def __init__(self, formulation: Formulation) -> None:
+    def __init__(self, formulation: Formulation, horizon: MHESettings | None = None) -> None:
         super().__init__(formulation)
-        self.loaded = CompiledExtendedKalmanInference(formulation)
-        self.unloaded = UnloadedKalmanInference(formulation)
+        self.loaded: _Loaded
+        self.unloaded: UnloadedKalmanInference | UnloadedHorizonInference
+        if horizon is None:
+            self.loaded = CompiledExtendedKalmanInference(formulation)
+            self.unloaded = UnloadedKalmanInference(formulation)
+        else:
+            self.unloaded = UnloadedHorizonInference(formulation, horizon)
+            loaded = MovingHorizonInference(formulation, horizon)
+            loaded.tracks_likelihood = True
+            self.loaded = loaded
+            self.name = "mhe"
+            #: the MHE's settings (its horizon, for the policy's messages)
+            self.settings = horizon
+            self.holds_bounds = True
+            self.flags_outliers = loaded.flags_outliers
         self.evidence = 0.0
         self.unloaded_chosen = False
-        self._chosen: CompiledExtendedKalmanInference = self.loaded
+        self._chosen: _Loaded = self.loaded
         self.free_of_load_samples = 0
         self.load_at_start = False
         #: the time of the current start's first sample, s
@@ -138,6 +237,18 @@ class LoadHypothesesInference(Inference):
     def clear_counts(self) -> None:
         self.free_of_load_samples = 0
         self._counted_t = None
+        self.loaded.clear_counts()
+        self.unloaded.clear_counts()
+
+    def sync_counts(self) -> None:
+        self.loaded.sync_counts()
+        self.unloaded.sync_counts()
+
+    def outlier(self) -> bool:
+        return self._chosen.outlier()
+
+    def rejected_every_reading(self) -> bool | None:
+        return self._chosen.rejected_every_reading()
 
     def close_recording(self) -> None:
         self._counted_t = None  # a sample at the same time is then another one
@@ -200,7 +311,7 @@ class LoadHypothesesInference(Inference):
 
     def _answer(
         self,
-        hypothesis: CompiledExtendedKalmanInference,
+        hypothesis: _Loaded,
         m: Measurement,
         x: FloatArray | None,
         P: FloatArray | None,
@@ -269,3 +380,18 @@ class LoadHypothesesKalmanFilter(Estimator[LoadHypothesesInference]):
 
     def __init__(self, formulation: Formulation, recovery: RecoverySettings | None = None):
         super().__init__(LoadHypothesesInference(formulation), recovery)
+
+
+class LoadHypothesesHorizonEstimator(Estimator[LoadHypothesesInference]):
+    """The MHE on IPOPT of a robot that may carry a load (``make_estimator("mhe", ...)``
+    gives it for a formulation with load states and ``MHESettings(solver="ipopt")``): the
+    two windows of :class:`LoadHypothesesInference` with the sensor-health policy. It
+    costs two window solves a sample."""
+
+    def __init__(
+        self,
+        formulation: Formulation,
+        settings: MHESettings,
+        recovery: RecoverySettings | None = None,
+    ) -> None:
+        super().__init__(LoadHypothesesInference(formulation, settings), recovery)

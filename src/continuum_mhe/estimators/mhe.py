@@ -45,8 +45,10 @@ to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -65,6 +67,7 @@ from continuum_mhe.estimators.fast import (
     WindowModel,
     Workspace,
     build_window_model,
+    node_functions,
     solve_window,
     window_cost,
 )
@@ -136,6 +139,10 @@ class ReferenceWindow:
         self.robust = settings.loss != "l2"
         self._loss = LossKernel(self._blocks, LOSS_CODES[settings.loss], float(settings.scale))
         self.xbar, self.P, self.Pinv = np.zeros(nx), np.zeros((nx, nx)), np.zeros((nx, nx))
+        #: what the arrival prior is conditioned on after each slide (None: nothing): a
+        #: map ``(x, P) -> (x, P)``, such as states held at zero
+        self.condition: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None
+        self.condition = None
         self.iterations = 0
         #: the compiled step's certified window cost; this window certifies none (NaN)
         self.cost = float("nan")
@@ -218,6 +225,8 @@ class ReferenceWindow:
         if self.zmask[0].any():
             x, P = ekf_update(f, x, P, self.zw[0], R, self.zmask[0])
         xn, P = ekf_predict(f.functions, x, P, self.uw[0], float(self.dt[0]))
+        if self.condition is not None:
+            xn, P = self.condition(xn, P)
         self.P[:] = 0.5 * (P + P.T)
         self.Pinv[:] = np.linalg.inv(self.P)
         self.xbar[:] = f.project(xn)
@@ -369,6 +378,15 @@ class MovingHorizonInference(Inference):
             # answers that leave the second start nothing to try are kept by the step
             self._window.keep_unrejected = self.branch is None
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
+        #: whether :meth:`infer` computes :attr:`log_likelihood` (the load hypotheses'
+        #: evidence, :mod:`.load_hypotheses`; it costs an EKF step a sample)
+        self.tracks_likelihood = False
+        #: with :attr:`tracks_likelihood`, the last sample's reading's log-density under
+        #: the previous answer predicted to it (its state and covariance, one EKF step:
+        #: ``-(r^T S^-1 r + log|S|) / 2``, as the compiled EKF's); NaN for a start, a
+        #: sample without a valid reading and an answer without a covariance
+        self.log_likelihood = math.nan
+        self._likelihood_node: NodeEvaluator | None = None
         self.restart()
 
     def _second_start(self) -> SecondStart:
@@ -433,6 +451,12 @@ class MovingHorizonInference(Inference):
             self.second_start.clear()
 
     # --- the window's state (the compiled step's or the reference's buffers) -------
+    @property
+    def has_state(self) -> bool:
+        """Whether the window has started: it holds an arrival prior since its last
+        restart."""
+        return bool(self._window.has_prior)
+
     @property
     def sqp_iterations(self) -> int:
         """SQP iterations of the last fast solve (0 before one, and on IPOPT)."""
@@ -557,7 +581,8 @@ class MovingHorizonInference(Inference):
         f, window = self.formulation, self._window
         mask = f.measurement_mask(m.z)
         valid = bool(mask.any())
-        self._answer = None
+        previous, self._answer = self._answer, None
+        self.log_likelihood = math.nan
         if not window.has_prior:
             if not valid:
                 return None, None, Status.NO_ESTIMATE
@@ -569,6 +594,8 @@ class MovingHorizonInference(Inference):
             Q, Qinv = self._process_weight(dt)
             if f.nu:
                 u = f.inputs(self._z_prev_valid, m.z, dt)
+            if self.tracks_likelihood and valid and previous is not None:
+                self.log_likelihood = self._predictive_log_likelihood(previous, m, mask, u, dt, Q)
         self._t_last = m.t
         if valid:
             self._z_prev_valid = m.z
@@ -579,6 +606,27 @@ class MovingHorizonInference(Inference):
             return self._keep(Answer(*answer), Status.OK, valid)
         answer, status = self._after_step(outcome)
         return self._keep(answer, status, valid)
+
+    def _predictive_log_likelihood(
+        self, previous: Answer, m: Measurement, mask: FloatArray, u: FloatArray, dt: float,
+        Q: FloatArray,
+    ) -> float:  # fmt: skip
+        """The reading of ``m`` (its valid components ``mask``)'s log-density under the
+        ``previous`` answer predicted over ``dt`` s with the inputs ``u`` and the process
+        noise ``Q``: the compiled EKF's step from that answer (NaN where it has no
+        covariance)."""
+        if previous.covariance is None:
+            return math.nan
+        node = self._likelihood_node
+        if node is None:
+            node = self._node or NodeEvaluator(node_functions(self.formulation))
+            self._likelihood_node = node
+        f64 = np.ascontiguousarray
+        node.ekf_step_outputs(
+            f64(previous.state, dtype=float), f64(previous.covariance, dtype=float), u, dt,
+            m.z, mask, f64(self._R, dtype=float), f64(Q, dtype=float),
+        )  # fmt: skip
+        return float(node.core.log_likelihood)
 
     @property
     def solve_seconds(self) -> float:

@@ -465,7 +465,7 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
 
 
 def free_of_load_clause(inference: Inference, n: int) -> str | None:
-    """The summary's clause of the estimates, of ``n``, that a tendon robot's EKF took as
+    """The summary's clause of the estimates, of ``n``, that a tendon robot's EKF or MHE took as
     free of load (:mod:`.load_hypotheses`); None for any other inference."""
     if not isinstance(inference, LoadHypothesesInference):
         return None
