@@ -366,6 +366,39 @@ def test_a_hanging_robot_that_starts_bent_is_said_naming_the_mounting(tmp_path) 
     )
 
 
+def test_a_recording_read_whole_in_python_is_said_once_about_its_mounting(tmp_path) -> None:
+    """``load_input`` checks a recording's readings against the robot's mounting, and an
+    estimator's ``run`` on the array it read does not say the same again (one
+    MountingWarning for the hanging robot that starts bent, described as z-up); ``run``
+    on another array (a copy) checks it."""
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.io.input_options import InputOptions, MountingWarning
+    from continuum_mhe.io.inputs import load_input
+
+    hang = tmp_path / "hang.toml"
+    text = (DATA / "robots/two_section.toml").read_text()
+    hang.write_text(text.replace('mounting = "z-up"', 'mounting = "z-down"'))
+    meas = tmp_path / "m.csv"
+    assert (
+        main(["simulate", "spatial", "--robot", str(hang), "--duration", "2", "-o", str(meas)]) == 0
+    )
+    f = make_formulation("bend", read_robot("two-section"))
+
+    def said(action) -> list[str]:  # type: ignore[no-untyped-def]
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            action()
+        return [str(w.message) for w in seen if w.category is MountingWarning]
+
+    got = []
+    assert len(said(lambda: got.append(load_input(meas, InputOptions(), f)))) == 1
+    data = got[0]
+    est = make_estimator("ekf", data.formulation)
+    assert said(lambda: est.run(data.t, data.z)) == []
+    (again,) = said(lambda: est.run(data.t, data.z.copy()))
+    assert again.startswith("run: mounting: the robot is described as z-up")
+
+
 def test_raw_readings_of_a_hanging_rod_are_checked_against_the_robot_files_mounting(tmp_path):
     """The two-section rod's raw recording turned upside down (the specific force
     reversed: the rod hangs): refused with a z-up robot file, run with z-down."""

@@ -61,7 +61,12 @@ from continuum_mhe.io.csv_files import (
     UnitWarning,
     check_time_steps,
 )
-from continuum_mhe.io.input_options import MountingTally, MountingWatch, check_mounting
+from continuum_mhe.io.input_options import (
+    MountingTally,
+    MountingWatch,
+    check_mounting,
+    mounting_checked,
+)
 from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.tensions import tension_scale_problem
 from continuum_mhe.model.descriptions import tip_position_indices
@@ -650,12 +655,15 @@ class Estimator(Generic[InferenceT]):
         reader checks them (:func:`~continuum_mhe.io.input_options.check_mounting`): a
         :class:`UserError` where gravity says the robot is mounted the other way, a
         :class:`~continuum_mhe.io.input_options.MountingWarning` where it starts bent past
-        90 degrees or an IMU reads as if mounted upside down."""
+        90 degrees or an IMU reads as if mounted upside down; not again for the array
+        that :func:`~continuum_mhe.io.inputs.load_input` read, which it checked for the
+        same robot."""
         if progress is not None and not callable(progress):
             raise UserError(
                 "progress must be a callable that wraps an iterable and yields its items "
                 f"(such as tqdm.tqdm), got {progress!r}"
             )
+        checked = mounting_checked(z, self.formulation.robot)  # read whole and checked
         t, z = self._samples(t, z)
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
@@ -667,11 +675,13 @@ class Estimator(Generic[InferenceT]):
             )
         self._check_units(t, z)
         # the first readings against the robot's mounting, as a recording's reader checks
-        # them: a robot described the wrong way up fits them bent past 90 degrees
-        check_mounting("run", z, self.formulation, python=True)
-        tally = MountingTally(self.formulation)  # and the whole recording's readings
-        tally.add(z)
-        tally.warn("run", python=True)
+        # them (where it has not: load_input's): a robot described the wrong way up fits
+        # them bent past 90 degrees
+        if not checked:
+            check_mounting("run", z, self.formulation, python=True)
+            tally = MountingTally(self.formulation)  # and the whole recording's readings
+            tally.add(z)
+            tally.warn("run", python=True)
         self.reset()
         self._time_steps.done = True  # the whole recording's times were checked above
         self.mounting_watch.done = True  # and its mounting: a continue_run goes on from it

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import os
 import warnings
+import weakref
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -512,6 +513,30 @@ ORDER_HINT = (
     "or the IMUs in another order? IMU 1 is the one nearest the base: the columns' order, "
     "or the --topic order of a bag"
 )
+
+
+#: readings whose reader checked them against a robot's mounting (a recording read
+#: whole by ``load_input``): ``id(z) -> (a weak reference to z, the robot)``, so that an
+#: estimator's ``run`` on the same array does not say the same again
+_MOUNTING_CHECKED: dict[int, tuple[weakref.ref[FloatArray], Robot]] = {}
+
+
+def note_mounting_checked(z: FloatArray, robot: Robot) -> None:
+    """Note that the readings ``z`` were checked against ``robot``'s mounting (their
+    first readings, :func:`check_mounting`, and the whole recording,
+    :class:`MountingTally`), for as long as the array lives."""
+    key = id(z)
+    _MOUNTING_CHECKED[key] = (
+        weakref.ref(z, lambda _gone: _MOUNTING_CHECKED.pop(key, None)),
+        robot,
+    )
+
+
+def mounting_checked(z: object, robot: Robot) -> bool:
+    """Whether the array ``z`` itself was checked against ``robot``'s mounting
+    (:func:`note_mounting_checked`)."""
+    got = _MOUNTING_CHECKED.get(id(z))
+    return got is not None and got[0]() is z and got[1] == robot
 
 
 def check_mounting(

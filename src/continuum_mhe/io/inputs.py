@@ -61,6 +61,7 @@ from continuum_mhe.io.input_options import (
     check_options_apply,
     formulation_for,
     imu_settings_for,
+    note_mounting_checked,
     with_imu_model,
 )
 from continuum_mhe.io.raw_imu import (
@@ -412,6 +413,10 @@ def load_input(
     if is_robot_log(p) and options.tensions is None and not formulation.robot.n_tendons:
         data = _load_log(p, options, formulation)
         check_mounting(str(p), data.z, data.formulation, python=True)
+        tally = MountingTally(data.formulation)
+        tally.add(data.z)
+        tally.warn(str(p), python=True)
+        note_mounting_checked(data.z, data.formulation.robot)
         return data
     with open_input(path, options, formulation, python=True) as stream:
         problems = stream.description.problems
@@ -420,6 +425,7 @@ def load_input(
     nz = stream.formulation.nz
     t = np.concatenate([b[0] for b in blocks]) if blocks else np.empty(0)
     z = np.vstack([b[1] for b in blocks]) if blocks else np.empty((0, nz))
+    note_mounting_checked(z, stream.formulation.robot)  # the stream checked them
     return EstimateInput(stream.kind, t, z, stream.formulation, 0, problems.first)
 
 
