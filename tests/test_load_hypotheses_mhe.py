@@ -13,15 +13,21 @@ import pytest
 from tendon_helpers import DATA, shipped_recording
 
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.base import Measurement
-from continuum_mhe.estimators.kalman import ekf_predict
+from continuum_mhe.estimators.base import Measurement, Status
+from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.load_hypotheses import (
     LoadHypothesesHorizonEstimator,
+    LoadHypothesesInference,
     UnloadedHorizonInference,
 )
-from continuum_mhe.estimators.mhe import MovingHorizonEstimator, MovingHorizonInference
+from continuum_mhe.estimators.mhe import (
+    MovingHorizonEstimator,
+    MovingHorizonInference,
+    ReferenceWindow,
+)
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.results import EstimateSeries
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import simulate
 
@@ -37,14 +43,14 @@ def _shipped(scenario: str, imu: str) -> tuple[TendonFormulation, np.ndarray, np
     return f, t[:SAMPLES], z[:SAMPLES]
 
 
-def _tip_errors(f: TendonFormulation, series: object, scenario: str) -> np.ndarray:
+def _tip_errors(f: TendonFormulation, series: EstimateSeries, scenario: str) -> np.ndarray:
     """Tip error (m) of every row of ``series`` against the recording's truth."""
     lines = [ln for ln in (DATA / f"{scenario}_truth.csv").read_text().splitlines()]
     lines = [ln for ln in lines if not ln.startswith("#")]
     names = lines[0].split(",")
     truth = np.loadtxt(lines[1 : 1 + SAMPLES], delimiter=",", ndmin=2)
     cols = [o.name for o in f.outputs]
-    out = np.asarray(series.output, dtype=float)  # type: ignore[attr-defined]
+    out = np.asarray(series.output, dtype=float)
     tip = ("x", "y", "z")
     e = out[:, [cols.index(n) for n in tip]] - truth[:, [names.index(n) for n in tip]]
     return np.asarray(np.linalg.norm(e, axis=1), dtype=float)
@@ -77,6 +83,86 @@ def test_the_free_of_load_prior_is_the_gaussian_conditional_on_a_zero_load() -> 
     P_start[:, h] = 0.0
     xs, Ps = inference.conditioned(x, P_start)
     assert np.array_equal(xs[k], x[k]) and np.allclose(Ps[np.ix_(k, k)], P[np.ix_(k, k)])
+
+
+def test_the_free_of_load_prior_slides_as_the_exact_conditional() -> None:
+    """Each slide of the free-of-load window's arrival prior is the exact Gaussian
+    recipe with the load held at zero: the EKF update with the leaving sample, the
+    conditional on a zero load, the prediction with the process noise of a held load,
+    the conditional again (written here from the CasADi model); the load states zero
+    and uncorrelated with the others after it."""
+    f, t, z = _shipped("unloaded", "tilt")
+    inference = UnloadedHorizonInference(f, MHESettings(horizon=HORIZON, solver="ipopt"))
+    window = inference._window
+    assert isinstance(window, ReferenceWindow)
+    h = np.asarray(f.load_states)
+    R = f.meas_cov()
+    checked = 0
+    for i in range(HORIZON + 3):
+        full = window.k == HORIZON
+        if full:  # this sample's step slides the prior over the leaving sample
+            x, P = window.xbar.copy(), window.P.copy()
+            zl, ml, ul, dtl = (
+                window.zw[0].copy(),
+                window.zmask[0].copy(),
+                window.uw[0].copy(),
+                float(window.dt[0]),
+            )
+        inference.infer(Measurement(float(t[i]), z[i]))
+        if not full:
+            continue
+        x, P = ekf_update(f, x, P, zl, R, ml)
+        x, P = inference.conditioned(x, P)
+        Qh = f.process_cov(dtl)
+        Qh[h, :] = 0.0
+        Qh[:, h] = 0.0
+        xn, F, _ = (np.asarray(v, dtype=float) for v in f.functions.predict(x, ul, dtl))
+        F = F.reshape(f.nx, f.nx)
+        want_x, want_P = inference.conditioned(xn.ravel(), F @ P @ F.T + Qh)
+        assert np.allclose(window.xbar, f.project(want_x), rtol=1e-9, atol=1e-12)
+        scale = np.sqrt(np.outer(np.diag(want_P), np.diag(want_P)))  # as correlations
+        assert np.all(np.abs(window.P - want_P) <= 1e-9 * scale)
+        assert np.all(window.xbar[h] == 0.0) and np.all(
+            window.P[np.ix_(np.setdiff1d(np.arange(f.nx), h), h)] == 0.0
+        )
+        checked += 1
+    assert checked == 3
+
+
+def test_a_free_of_load_answer_has_its_own_status_and_unsolved_windows_weigh_nothing() -> None:
+    """The answer taken from the free-of-load window carries that window's status (the
+    loaded one's here ``not-converged``), and the loaded window's answer its own; a
+    window's prediction from an answer that did not converge gives no density (NaN),
+    nor does a reading either window rejects as an outlier move the evidence."""
+    f, t, z = _shipped("unloaded", "tilt")
+    inference = LoadHypothesesInference(f, MHESettings(horizon=HORIZON, solver="ipopt"))
+    x, P = np.zeros(f.nx), np.eye(f.nx)
+
+    def answers(status: Status):  # type: ignore[no-untyped-def]
+        return lambda m: (x, P, status)
+
+    inference.unloaded.infer = answers(Status.OK)  # type: ignore[method-assign]
+    inference.loaded.infer = answers(Status.NOT_CONVERGED)  # type: ignore[method-assign]
+    inference.unloaded.log_likelihood, inference.loaded.log_likelihood = 10.0, 0.0
+    inference.evidence = 50.0
+    assert inference.infer(Measurement(1.0, z[0]))[2] == Status.OK and inference.unloaded_chosen
+    inference.evidence = -50.0
+    assert inference.infer(Measurement(1.02, z[1]))[2] == Status.NOT_CONVERGED
+    assert not inference.unloaded_chosen
+    inference.loaded.outlier = lambda: True  # type: ignore[method-assign]
+    before = inference.evidence
+    inference.infer(Measurement(1.04, z[2]))
+    assert inference.evidence == before
+    # a real window: no density from a previous answer that did not converge
+    mhe = MovingHorizonInference(f, MHESettings(horizon=HORIZON, solver="ipopt"))
+    mhe.tracks_likelihood = True
+    mhe.infer(Measurement(float(t[0]), z[0]))
+    mhe._answer_status = Status.NOT_CONVERGED
+    mhe.infer(Measurement(float(t[1]), z[1]))
+    assert math.isnan(mhe.log_likelihood)
+    mhe._answer_status = Status.OK
+    mhe.infer(Measurement(float(t[2]), z[2]))
+    assert math.isfinite(mhe.log_likelihood)
 
 
 def test_the_mhe_weighs_its_reading_by_the_previous_answers_prediction() -> None:

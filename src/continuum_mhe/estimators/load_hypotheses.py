@@ -73,11 +73,11 @@ EVIDENCE_MARGIN = 3.0
 
 
 _Answer = tuple[FloatArray, FloatArray]
-_Loaded = CompiledExtendedKalmanInference | MovingHorizonInference
+_Hypothesis = CompiledExtendedKalmanInference | MovingHorizonInference
 
 
 def _step(
-    hypothesis: _Loaded, m: Measurement
+    hypothesis: _Hypothesis, m: Measurement
 ) -> tuple[tuple[FloatArray | None, FloatArray | None, Status] | None, float]:
     """``((x, P, status), log-likelihood)`` of one hypothesis' step, or ``(None, nan)``
     where it failed: a numerical failure, or a state or covariance that is not finite."""
@@ -142,9 +142,11 @@ class UnloadedHorizonInference(MovingHorizonInference):
         lo, hi = (np.array(v, dtype=float) for v in formulation.state_bounds())
         lo[held] = hi[held] = 0.0
         fs = window.feasible
-        balls = (np.zeros((0, 1), dtype=np.int64), np.zeros(0)) if fs is None else (
-            fs.ball_idx, fs.ball_r2)  # fmt: skip
-        window.feasible = Feasible(lo, hi, *balls)
+        window.feasible = (
+            Feasible(lo, hi, np.zeros((0, 1), dtype=np.int64), np.zeros(0))
+            if fs is None
+            else replace(fs, lo=lo, hi=hi)
+        )
         window.condition = self.conditioned
         self.start_shows_load = False
         self.tracks_likelihood = True
@@ -187,8 +189,8 @@ class UnloadedHorizonInference(MovingHorizonInference):
 
 class LoadHypothesesInference(Inference):
     """The EKF of a formulation with load states, as the robot loaded and free of load
-    (see the module docstring), ``name`` ``ekf``; with ``horizon`` (the MHE's settings,
-    its solver IPOPT) the MHE, ``name`` ``mhe``.
+    (see the module docstring), ``name`` ``ekf``; with ``mhe`` (the MHE's settings, its
+    solver IPOPT) the MHE, ``name`` ``mhe``.
 
     Attributes:
         loaded: the EKF (or MHE) with the load as states.
@@ -203,26 +205,26 @@ class LoadHypothesesInference(Inference):
 
     name = "ekf"
 
-    def __init__(self, formulation: Formulation, horizon: MHESettings | None = None) -> None:
+    def __init__(self, formulation: Formulation, mhe: MHESettings | None = None) -> None:
         super().__init__(formulation)
-        self.loaded: _Loaded
+        self.loaded: _Hypothesis
         self.unloaded: UnloadedKalmanInference | UnloadedHorizonInference
-        if horizon is None:
+        if mhe is None:
             self.loaded = CompiledExtendedKalmanInference(formulation)
             self.unloaded = UnloadedKalmanInference(formulation)
         else:
-            self.unloaded = UnloadedHorizonInference(formulation, horizon)
-            loaded = MovingHorizonInference(formulation, horizon)
+            self.unloaded = UnloadedHorizonInference(formulation, mhe)
+            loaded = MovingHorizonInference(formulation, mhe)
             loaded.tracks_likelihood = True
             self.loaded = loaded
             self.name = "mhe"
             #: the MHE's settings (its horizon, for the policy's messages)
-            self.settings = horizon
+            self.settings = mhe
             self.holds_bounds = True
             self.flags_outliers = loaded.flags_outliers
         self.evidence = 0.0
         self.unloaded_chosen = False
-        self._chosen: _Loaded = self.loaded
+        self._chosen: _Hypothesis = self.loaded
         self.free_of_load_samples = 0
         self.load_at_start = False
         #: the time of the current start's first sample, s
@@ -279,7 +281,7 @@ class LoadHypothesesInference(Inference):
             self._start_t = m.t  # a start of the estimator
             self.load_at_start = self.unloaded.start_shows_load
         if got_l is None and got_u is None:
-            raise FloatingPointError("both hypotheses' EKF steps failed (non-finite)")
+            raise FloatingPointError(f"both hypotheses' {self.name} steps failed (non-finite)")
         # a hypothesis whose step failed starts again at the next sample, keeping the
         # other's sensor states; this sample's answer is the other's alone
         if got_l is None and got_u is not None:
@@ -297,8 +299,11 @@ class LoadHypothesesInference(Inference):
                 return self._answer(self.unloaded, m, xu, Pu, status_u)
             if xl is not None and Pl is not None:
                 return self._answer(self.loaded, m, xl, Pl, status)
+            self._chosen, self.unloaded_chosen = self.loaded, False
             return xl, Pl, status  # no estimate yet
-        if math.isfinite(ll_loaded) and math.isfinite(ll_free):
+        if self.loaded.outlier() or self.unloaded.outlier():
+            pass  # a reading a robust window rejects weighs neither hypothesis: held
+        elif math.isfinite(ll_loaded) and math.isfinite(ll_free):
             self.evidence = EVIDENCE_MEMORY * self.evidence + (ll_free - ll_loaded)
         elif math.isfinite(ll_loaded) or math.isfinite(ll_free):
             self.evidence *= EVIDENCE_MEMORY  # one side without a density: no new evidence
@@ -306,12 +311,12 @@ class LoadHypothesesInference(Inference):
         log_odds = self.evidence - EVIDENCE_MARGIN
         self._loaded_answer = (xl, Pl)
         if log_odds > 0.0:
-            return self._answer(self.unloaded, m, xu, mixture(xu, Pu, xl, Pl, log_odds), status)
+            return self._answer(self.unloaded, m, xu, mixture(xu, Pu, xl, Pl, log_odds), status_u)
         return self._answer(self.loaded, m, xl, mixture(xl, Pl, xu, Pu, -log_odds), status)
 
     def _answer(
         self,
-        hypothesis: _Loaded,
+        hypothesis: _Hypothesis,
         m: Measurement,
         x: FloatArray | None,
         P: FloatArray | None,

@@ -74,7 +74,7 @@ from continuum_mhe.estimators.fast import (
 from continuum_mhe.estimators.fast.covariance import casadi_window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
 from continuum_mhe.estimators.fast.sqp import newton_steps, quadratic_rate
-from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
+from continuum_mhe.estimators.kalman import ekf_update
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
     OUTLIER_WEIGHT,
@@ -99,6 +99,13 @@ from continuum_mhe.estimators.window_nlp import (
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
 from continuum_mhe.signals import raise_if_solve_interrupted, signals_deferred
+
+#: The statuses of a window's answer from which its prediction of the next reading is
+#: weighed (:attr:`MovingHorizonInference.log_likelihood`): a solved window's, not one
+#: that stopped short of its solution (``not-converged``) or failed.
+EVIDENCE_STATUSES = frozenset(
+    {Status.OK, Status.DROPOUT, Status.FALLBACK_IPOPT, Status.BRANCH_RESTART}
+)
 
 
 class Answer(NamedTuple):
@@ -216,7 +223,9 @@ class ReferenceWindow:
 
     def _slide(self) -> None:
         """One EKF step of the prior: update with the leaving sample (with a robust loss
-        at its weight in the last solve, ``R_b / w_b`` per block), predict."""
+        at its weight in the last solve, ``R_b / w_b`` per block), predict with the
+        window's own process noise of that stage (as the compiled step slides), then
+        :attr:`condition`."""
         f, x, P = self.formulation, self.xbar, self.P
         R = self._R
         if self.robust:
@@ -224,7 +233,10 @@ class ReferenceWindow:
             R = R * np.sqrt(np.outer(scale, scale))
         if self.zmask[0].any():
             x, P = ekf_update(f, x, P, self.zw[0], R, self.zmask[0])
-        xn, P = ekf_predict(f.functions, x, P, self.uw[0], float(self.dt[0]))
+        xn, F, _ = (np.asarray(v, dtype=float) for v in f.functions.predict(
+            x, self.uw[0], float(self.dt[0])))  # fmt: skip
+        F = F.reshape(self.nx, self.nx)
+        xn, P = xn.ravel(), F @ P @ F.T + self.qw[0]
         if self.condition is not None:
             xn, P = self.condition(xn, P)
         self.P[:] = 0.5 * (P + P.T)
@@ -384,7 +396,8 @@ class MovingHorizonInference(Inference):
         #: with :attr:`tracks_likelihood`, the last sample's reading's log-density under
         #: the previous answer predicted to it (its state and covariance, one EKF step:
         #: ``-(r^T S^-1 r + log|S|) / 2``, as the compiled EKF's); NaN for a start, a
-        #: sample without a valid reading and an answer without a covariance
+        #: sample without a valid reading, and a previous answer without a covariance or
+        #: with a status outside :data:`EVIDENCE_STATUSES`
         self.log_likelihood = math.nan
         self._likelihood_node: NodeEvaluator | None = None
         self.restart()
@@ -443,6 +456,8 @@ class MovingHorizonInference(Inference):
         self._z_prev_valid: FloatArray | None = None
         #: the outputs of the last answer, for :meth:`output` and :meth:`output_std`
         self._answer: Answer | None = None
+        #: the status of the last answer (:meth:`_keep`)
+        self._answer_status: Status = Status.NO_ESTIMATE
         #: the window cost of the last certified fast solve (None otherwise): the
         #: branch check's measure of the window's fit
         self._last_cost: float | None = None
@@ -594,7 +609,12 @@ class MovingHorizonInference(Inference):
             Q, Qinv = self._process_weight(dt)
             if f.nu:
                 u = f.inputs(self._z_prev_valid, m.z, dt)
-            if self.tracks_likelihood and valid and previous is not None:
+            if (
+                self.tracks_likelihood
+                and valid
+                and previous is not None
+                and (self._answer_status in EVIDENCE_STATUSES)
+            ):
                 self.log_likelihood = self._predictive_log_likelihood(previous, m, mask, u, dt, Q)
         self._t_last = m.t
         if valid:
@@ -703,6 +723,7 @@ class MovingHorizonInference(Inference):
         kept for :meth:`output`); ``dropout`` for an ``ok`` one without a sensor."""
         self._answer = answer
         status = Status.DROPOUT if status == Status.OK and not valid else status
+        self._answer_status = status
         return answer.state, answer.covariance, status
 
     def _node_weights(self, i: int, x: FloatArray) -> FloatArray:
