@@ -37,12 +37,19 @@ from continuum_mhe.settings import RecoverySettings
 
 
 def ekf_predict(
-    fns: ModelFunctions, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
+    fns: ModelFunctions,
+    x: FloatArray,
+    P: FloatArray,
+    u: FloatArray,
+    dt: float,
+    Q: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """Prediction ``x+ = f(x, u, dt)``, ``P+ = F P F^T + Q(dt)``."""
-    xn, F, Q = (np.asarray(v, dtype=float) for v in fns.predict(x, u, dt))
+    """Prediction ``x+ = f(x, u, dt)``, ``P+ = F P F^T + Q``: ``Q`` (nx, nx) the
+    process noise given, or None for the model's ``Q(dt)``."""
+    xn, F, Q_model = (np.asarray(v, dtype=float) for v in fns.predict(x, u, dt))
     F = F.reshape(len(x), len(x))
-    return xn.ravel(), F @ P @ F.T + Q.reshape(len(x), len(x))
+    Q = Q_model.reshape(len(x), len(x)) if Q is None else Q
+    return xn.ravel(), F @ P @ F.T + Q
 
 
 def valid_rows(mask: FloatArray | None, nz: int) -> NDArray[np.intp]:

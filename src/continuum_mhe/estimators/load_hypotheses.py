@@ -134,6 +134,10 @@ class UnloadedHorizonInference(MovingHorizonInference):
         held = np.asarray(formulation.load_states, dtype=np.intp)
         self._held = held
         self._free = np.setdiff1d(np.arange(formulation.nx), held)
+        #: the load states' entries in the window's decision vector (node by node)
+        self._held_in_window = (
+            np.arange(settings.horizon)[:, None] * formulation.nx + held[None, :]
+        ).ravel()
         #: the pinned states' prior variances (any positive value: they do not move)
         self._held_var = np.diag(formulation.initial_cov())[held].copy()
         self._process_weight = ProcessNoiseCache(formulation, held=formulation.load_states)
@@ -171,8 +175,7 @@ class UnloadedHorizonInference(MovingHorizonInference):
 
     def _window_nlp(self, scale_exp: int) -> Nlp:
         nlp = super()._window_nlp(scale_exp)
-        nx = self.formulation.nx
-        idx = (np.arange(self.settings.horizon)[:, None] * nx + self._held[None, :]).ravel()
+        idx = self._held_in_window
         if np.any(nlp.lbx[idx] != 0.0) or np.any(nlp.ubx[idx] != 0.0):
             lbx, ubx = np.array(nlp.lbx, dtype=float), np.array(nlp.ubx, dtype=float)
             lbx[idx] = ubx[idx] = 0.0

@@ -74,7 +74,7 @@ from continuum_mhe.estimators.fast import (
 from continuum_mhe.estimators.fast.covariance import casadi_window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
 from continuum_mhe.estimators.fast.sqp import newton_steps, quadratic_rate
-from continuum_mhe.estimators.kalman import ekf_update
+from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
     OUTLIER_WEIGHT,
@@ -233,10 +233,7 @@ class ReferenceWindow:
             R = R * np.sqrt(np.outer(scale, scale))
         if self.zmask[0].any():
             x, P = ekf_update(f, x, P, self.zw[0], R, self.zmask[0])
-        xn, F, _ = (np.asarray(v, dtype=float) for v in f.functions.predict(
-            x, self.uw[0], float(self.dt[0])))  # fmt: skip
-        F = F.reshape(self.nx, self.nx)
-        xn, P = xn.ravel(), F @ P @ F.T + self.qw[0]
+        xn, P = ekf_predict(f.functions, x, P, self.uw[0], float(self.dt[0]), self.qw[0])
         if self.condition is not None:
             xn, P = self.condition(xn, P)
         self.P[:] = 0.5 * (P + P.T)
