@@ -121,22 +121,27 @@ void cmhe::bind_solver(nb::module_& m) {
              const ModelFunction* window, const ModelFunction* tail, In lo, In hi,
              IndexIn ball_idx,
              In ball_r2, In rinv, IndexIn blocks, int loss_code, double loss_scale,
-             bool linear_transition, std::optional<IndexIn> block_cols) {
+             bool linear_transition, std::optional<IndexIn> block_cols,
+             std::optional<IndexIn> block_robust) {
             if (ball_idx.ndim() != 2) throw std::invalid_argument("ball_idx must be 2-D");
             new (self) WindowSolver(horizon, nx, nz, nu, window, tail, copy_of(lo), copy_of(hi),
                                     copy_of(ball_idx), Index(ball_idx.shape(1)),
                                     copy_of(ball_r2), copy_of(rinv), copy_of(blocks), loss_code,
                                     loss_scale, linear_transition,
-                                    block_cols ? copy_of(*block_cols) : std::vector<int64_t>{});
+                                    block_cols ? copy_of(*block_cols) : std::vector<int64_t>{},
+                                    block_robust ? copy_of(*block_robust) : std::vector<int64_t>{});
           },
           nb::arg("horizon"), nb::arg("nx"), nb::arg("nz"), nb::arg("nu"),
           nb::arg("window").none(), nb::arg("tail").none(), nb::arg("lo"), nb::arg("hi"), nb::arg("ball_idx"), nb::arg("ball_r2"),
           nb::arg("rinv"), nb::arg("blocks"), nb::arg("loss_code"), nb::arg("loss_scale"),
           nb::arg("linear_transition"), nb::arg("block_cols") = nb::none(),
+          nb::arg("block_robust") = nb::none(),
           "``block_cols`` (nblocks,): the number of leading state coordinates each "
           "measurement block's residual depends on at most (its Jacobian rows are zero "
           "beyond them, and its second-order term outside that leading square, which is "
-          "all the window's outputs hold of it); nx each where None. ``window`` and "
+          "all the window's outputs hold of it); nx each where None. ``block_robust`` "
+          "(nblocks,): 1 where the loss acts on the block, 0 where the block's cost is "
+          "quadratic whatever the loss; 1 each where None. ``window`` and "
           "``tail`` (a WindowFunction and a TailFunction; None: the caller writes the "
           "outputs ``out`` itself) are kept alive with the solver.",
           nb::keep_alive<1, 6>(), nb::keep_alive<1, 7>())

@@ -328,7 +328,7 @@ void MovingHorizon::node_weights(Index i, const double* x, double* w) {
     for (Index a = 0; a < size; ++a)
       for (Index c = 0; c < size; ++c) s += r[b0 + a] * rinv[(b0 + a) * nz + b0 + c] * r[b0 + c];
     double rho, rho1, rho2;
-    rho_derivatives(solver.loss_code, solver.loss_scale, s, rho, rho1, rho2);
+    rho_derivatives(solver.block_loss[b], solver.loss_scale, s, rho, rho1, rho2);
     w[b] = rho1;
   }
 }

@@ -201,7 +201,7 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
           }
         }
         double rho, rho1, rho2;
-        rho_derivatives(w.loss_code, w.loss_scale, ssq, rho, rho1, rho2);
+        rho_derivatives(w.block_loss[bk_], w.loss_scale, ssq, rho, rho1, rho2);
         cost += 0.5 * mk * rho;
         double a2 = 2.0 * rho2;
         if (ssq > 0.0 && a2 < -rho1 / ssq) a2 = -rho1 / ssq;
@@ -499,7 +499,8 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
                            std::vector<int64_t> ball_, Index ball_size,
                            std::vector<double> ball_r2_, std::vector<double> rinv_,
                            std::vector<int64_t> blocks_, int loss_code_, double loss_scale_,
-                           bool linear_transition, std::vector<int64_t> block_cols_)
+                           bool linear_transition, std::vector<int64_t> block_cols_,
+                           std::vector<int64_t> block_robust)
     : n(horizon), nx(nx_), nz(nz_), nu(nu_), nblk(Index(blocks_.size() / 2)),
       nb(Index(ball_r2_.size())), bk(ball_size), window(window_), tail(tail_),
       lo(std::move(lo_)), hi(std::move(hi_)), ball_r2(std::move(ball_r2_)),
@@ -516,6 +517,11 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   for (Index b = 0; b < nblk; ++b)
     if (blocks[2 * b] < 0 || blocks[2 * b + 1] < 0 || blocks[2 * b] + blocks[2 * b + 1] > nz)
       throw std::invalid_argument("a measurement block is out of range");
+  if (!block_robust.empty() && Index(block_robust.size()) != nblk)
+    throw std::invalid_argument("block_robust needs one value per measurement block");
+  block_loss.assign(nblk, loss_code);
+  for (Index b = 0; b < Index(block_robust.size()); ++b)
+    if (block_robust[b] == 0) block_loss[b] = 0;
   if (block_cols.empty()) block_cols.assign(nblk, nx);
   if (Index(block_cols.size()) != nblk)
     throw std::invalid_argument("block_cols needs one value per measurement block");

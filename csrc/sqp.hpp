@@ -57,7 +57,8 @@ class WindowSolver {
                const ModelFunction* tail, std::vector<double> lo, std::vector<double> hi,
                std::vector<int64_t> ball, Index ball_size, std::vector<double> ball_r2,
                std::vector<double> rinv, std::vector<int64_t> blocks, int loss_code,
-               double loss_scale, bool linear_transition, std::vector<int64_t> block_cols = {});
+               double loss_scale, bool linear_transition, std::vector<int64_t> block_cols = {},
+               std::vector<int64_t> block_robust = {});
 
   // The SQP from Xb[0] on the two buffers (current, trial); lam (n, nb) in: the
   // multipliers of the ball curvature, out: at the answer. Dgn[b] keeps the Gauss-Newton
@@ -110,6 +111,10 @@ class WindowSolver {
   std::vector<int64_t> block_cols, sr_start;
   Index sr_size;
   int loss_code;
+  // per measurement block (nblk): the loss code its cost takes, loss_code where the
+  // block is robust (a sensor's reading), the quadratic loss (0) where it is not (a
+  // model's pseudo-measurement, an input given with the sample)
+  std::vector<int> block_loss;
   // Gauss-Newton steps on stiff rows (a model without the second-order term, whose
   // weighted rows are far more nonlinear than the rest): a full step that the line
   // search rejects gets one more Gauss-Newton step from its trial point, and their sum

@@ -30,7 +30,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import fast as fm
 from continuum_mhe.estimators.base import Measurement
-from continuum_mhe.estimators.loss import LOSS_CODES, rho_sym
+from continuum_mhe.estimators.loss import LOSS_CODES, block_weights, rho_sym
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.io.estimate_csv import write_estimates, write_measurements
 from continuum_mhe.io.state_tables import read_state_table
@@ -90,6 +90,34 @@ def test_loss_kernel_matches_casadi_and_finite_differences(loss: str) -> None:
             assert (hi[0] - lo[0]) / (2 * h) == pytest.approx(d1, rel=1e-7, abs=1e-9)
             assert (hi[1] - lo[1]) / (2 * h) == pytest.approx(d2, rel=1e-5, abs=1e-9)
     assert kernel(LOSS_CODES[loss], scale, 0.0)[1] == 1.0  # l2 near zero
+
+
+def test_a_block_kept_quadratic_costs_its_quadratic_cost_in_the_core() -> None:
+    """The core's window assembly with ``block_robust``: a block marked 0 costs its
+    quadratic cost, gradient and curvature whatever the loss; one marked 1 the loss's
+    (known answers for Huber at 10 standard deviations: cost 2 c 10 - c^2, gradient
+    rho' r = c, curvature rho' + a r^2 = 0 with Triggs' a = -rho'/s)."""
+    c, n, nx, nz = 1.345, 2, 1, 2
+    blocks = np.array([[0, 1], [1, 1]], dtype=np.int64)
+    free = np.full(nx, np.inf)
+    answers = {}
+    for marks in (None, np.array([1, 0], dtype=np.int64)):
+        w = _core.WindowSolver(
+            n, nx, nz, 0, None, None, -free, free, np.zeros((0, 1), dtype=np.int64),
+            np.zeros(0), np.eye(nz), blocks, LOSS_CODES["huber"], c, False, None, marks,
+        )  # fmt: skip
+        w.m[:] = 1.0
+        out = w.out[0]
+        out[:] = 0.0
+        out[:nz] = 10.0  # node 0's residuals, 10 standard deviations each
+        out[n * nz : n * nz + nz * nx] = 1.0  # node 0's Jacobian rows
+        cost = w.assemble(0, np.zeros((n - 1, nx, nx)), np.zeros(nx), np.zeros((n, nx, nx)))
+        answers[marks is None] = (cost, float(w.g[0][0, 0]), float(w.D[0][0, 0, 0]))
+    huber = 2 * c * 10 - c**2
+    assert answers[True] == pytest.approx((huber, 2 * c, 0.0), abs=1e-12)
+    assert answers[False] == pytest.approx((0.5 * (huber + 100.0), c + 10.0, 1.0), abs=1e-12)
+    weights = block_weights("huber", c, np.full(nz, 10.0), np.eye(nz), blocks, np.array([1, 0]))
+    assert weights.tolist() == pytest.approx([c / 10.0, 1.0])
 
 
 def test_settings_validate_the_loss() -> None:

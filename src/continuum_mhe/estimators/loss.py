@@ -16,6 +16,11 @@ block's weight in iteratively reweighted least squares (1 for an inlier, about
 ``c / sqrt(s)`` for Huber, ``c^2 / s`` for Cauchy and ``exp(-s / c^2)`` for Welsch far
 out).
 
+A loss acts on the blocks of sensors' readings (IMUs) alone: a model's
+pseudo-measurement (a tendon robot's tip condition, a constraint the shape must keep)
+and the tendon tensions given with each sample keep the quadratic cost whatever the
+loss (:func:`robust_blocks`).
+
 :func:`rho_sym` is the CasADi expression (IPOPT's cost), the compiled core's
 ``rho_derivatives(code, scale, s)`` its value and derivatives at one point (the window
 solve's), :func:`block_weights` the weights of one node's blocks for a residual vector.
@@ -60,15 +65,28 @@ def block_array(blocks: tuple[MeasurementBlock, ...]) -> NDArray[np.int64]:
     return np.array([(b.start, b.size) for b in blocks], dtype=np.int64).reshape(-1, 2)
 
 
+def robust_blocks(blocks: tuple[MeasurementBlock, ...]) -> NDArray[np.int64]:
+    """``(nblocks,)``: 1 where a robust loss acts on the block (an IMU's readings), 0
+    where the block keeps the quadratic cost (a model's pseudo-measurement, the given
+    tensions): a robust loss that down-weights a tip condition lets the shape leave
+    its equilibrium."""
+    return np.array([1 if b.is_imu else 0 for b in blocks], dtype=np.int64)
+
+
 def block_weights(
     loss: str,
     scale: float,
     r: FloatArray,
     rinv: FloatArray,
     blocks: NDArray[np.int64],
+    robust: NDArray[np.int64] | None = None,
 ) -> FloatArray:
-    """``rho'(s_b)`` per block (nblocks,) for one node's residual ``r`` (nz,)."""
-    return _block_weights(LOSS_CODES[loss], scale, np.asarray(r, dtype=np.float64), rinv, blocks)
+    """``rho'(s_b)`` per block (nblocks,) for one node's residual ``r`` (nz,); 1 for a
+    block whose ``robust`` entry is 0 (None: every block robust)."""
+    out = _block_weights(LOSS_CODES[loss], scale, np.asarray(r, dtype=np.float64), rinv, blocks)
+    if robust is not None:
+        out[np.asarray(robust) == 0] = 1.0
+    return out
 
 
 def _block_weights(

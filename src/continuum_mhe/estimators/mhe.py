@@ -80,6 +80,7 @@ from continuum_mhe.estimators.loss import (
     OUTLIER_WEIGHT,
     block_array,
     block_weights,
+    robust_blocks,
 )
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.second_start import SecondStart
@@ -144,7 +145,10 @@ class ReferenceWindow:
         for b, (start, size) in enumerate(self._blocks):
             self._block_of[start : start + size] = b
         self.robust = settings.loss != "l2"
-        self._loss = LossKernel(self._blocks, LOSS_CODES[settings.loss], float(settings.scale))
+        self._robust = robust_blocks(f.measurement_blocks)
+        self._loss = LossKernel(
+            self._blocks, LOSS_CODES[settings.loss], float(settings.scale), self._robust
+        )
         self.xbar, self.P, self.Pinv = np.zeros(nx), np.zeros((nx, nx)), np.zeros((nx, nx))
         #: what the arrival prior is conditioned on after each slide (None: nothing): a
         #: map ``(x, P) -> (x, P)``, such as states held at zero
@@ -261,7 +265,7 @@ class ReferenceWindow:
             * np.asarray(self.formulation.functions.innovate(self.zw[i], x)[0], float).ravel()
         )
         s = self.settings
-        return block_weights(s.loss, s.scale, r, self._Rinv, self._blocks)
+        return block_weights(s.loss, s.scale, r, self._Rinv, self._blocks, self._robust)
 
     def finish(self, X: FloatArray, solved: bool, w_new: FloatArray | None, failed: bool) -> Answer:
         """Keep ``X`` (N, nx) as the answer; its last node, covariance and outputs."""
@@ -738,7 +742,8 @@ class MovingHorizonInference(Inference):
         several is not a lost estimate); None when the sample had no valid block."""
         if not self.flags_outliers:
             return False
-        valid = self._window.zmask[-1][self._blocks[:, 0]] > 0.0
+        imu = np.array([b.is_imu for b in self.formulation.measurement_blocks])
+        valid = (self._window.zmask[-1][self._blocks[:, 0]] > 0.0) & imu
         if not valid.any():
             return None
         return bool(np.all(np.asarray(self._window.w_last)[valid] < OUTLIER_WEIGHT))

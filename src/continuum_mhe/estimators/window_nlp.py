@@ -145,10 +145,11 @@ def build_nlp(
         r = zmask[:, i] * residual(Z[:, i], X[:, i])
         if loss == "l2":
             cost += 0.5 * ca.bilin(rinv, r, r)
-        else:  # one loss per measurement block (R is block-diagonal)
+        else:  # one loss per IMU's block (R is block-diagonal); the rest quadratic
             for b in f.measurement_blocks:
                 rb = r[b.slice]
-                cost += 0.5 * rho_sym(loss, scale, ca.bilin(rinv[b.slice, b.slice], rb, rb))
+                sb = ca.bilin(rinv[b.slice, b.slice], rb, rb)
+                cost += 0.5 * (rho_sym(loss, scale, sb) if b.is_imu else sb)
         e = X[:, i] - xbar
         cost += 0.5 * ca.bilin(ca.reshape(AR[:, i], nx, nx), e, e)
         if i < n - 1:
@@ -170,8 +171,8 @@ def build_nlp(
     }
     if scale_exp:
         opts["ipopt.obj_scaling_factor"] = 10.0**-scale_exp
-    if per_node and loss == "l2" and ng == 0:
-        opts["hess_lag"] = _gauss_newton_hessian(f, X, par, rinv, w, params)
+    if per_node and ng == 0:
+        opts["hess_lag"] = _gauss_newton_hessian(f, X, par, rinv, w, params, loss, scale)
     elif per_node:
         opts["ipopt.hessian_approximation"] = "limited-memory"
     solver = ca.nlpsol("mhe", "ipopt", nlp, opts)
@@ -188,21 +189,51 @@ def build_nlp(
 
 
 def _gauss_newton_hessian(
-    f: Formulation, X: Any, par: WindowParameters, rinv: Any, w: Any, params: Any
+    f: Formulation,
+    X: Any,
+    par: WindowParameters,
+    rinv: Any,
+    w: Any,
+    params: Any,
+    loss: str = "l2",
+    scale: float = float("inf"),
 ) -> ca.Function:
-    """IPOPT's ``hess_lag`` for an l2 window without constraints: the Gauss-Newton
+    """IPOPT's ``hess_lag`` for a window without constraints: the Gauss-Newton
     Hessian of its cost (each node's residual Jacobian ``J`` and transition Jacobian
-    ``F``, first derivatives only): ``J^T m R^-1 m J`` and the arrival weight on the
+    ``F``, first derivatives only): ``J^T m W m J`` and the arrival weight on the
     diagonal blocks, ``[F^T Q F, -F^T Q; -Q F, Q]`` per stage, times the objective's
-    factor (upper triangle, as IPOPT takes it)."""
+    factor (upper triangle, as IPOPT takes it). ``W`` is ``R^-1`` for the quadratic
+    loss; with a robust one, an IMU block's ``rho' R_b^-1 + a (R_b^-1 r_b)(R_b^-1
+    r_b)^T``, ``a = 2 rho''`` clipped at ``-rho' / s`` so that it stays positive
+    semidefinite (as the fast backend's assembly), the other blocks' ``R_b^-1``."""
     n, nx = X.shape[1], f.nx
     innovate, predict = f.functions.innovate, f.functions.predict
     zero = ca.MX(nx, nx)
     blocks: list[list[Any]] = [[zero] * n for _ in range(n)]
+    robust = loss != "l2"
+    if robust:
+        ss = ca.SX.sym("s")
+        rho1 = ca.gradient(rho_sym(loss, scale, ss), ss)
+        rho_d = ca.Function("rho_d", [ss], [rho1, 2.0 * ca.gradient(rho1, ss)])
     for i in range(n):
-        _, J = innovate(par.Z[:, i], X[:, i])
+        r, J = innovate(par.Z[:, i], X[:, i])
         mJ = ca.diag(par.zmask[:, i]) @ J
-        blocks[i][i] = mJ.T @ rinv @ mJ + ca.reshape(par.AR[:, i], nx, nx)
+        if robust:
+            mr = par.zmask[:, i] * r
+            weight: Any = ca.MX(rinv.shape[0], rinv.shape[1])
+            for b in f.measurement_blocks:
+                rb_inv = ca.DM(rinv[b.slice, b.slice])
+                if not b.is_imu:
+                    weight[b.slice, b.slice] = rb_inv
+                    continue
+                wr = rb_inv @ mr[b.slice]
+                sb = ca.dot(mr[b.slice], wr)
+                r1, r2 = rho_d(sb)
+                a = ca.if_else(sb > 0, ca.fmax(r2, -r1 / ca.fmax(sb, 1e-300)), r2)
+                weight[b.slice, b.slice] = r1 * rb_inv + a * (wr @ wr.T)
+            blocks[i][i] = mJ.T @ weight @ mJ + ca.reshape(par.AR[:, i], nx, nx)
+        else:
+            blocks[i][i] = mJ.T @ rinv @ mJ + ca.reshape(par.AR[:, i], nx, nx)
     for i in range(n - 1):
         _, F, _ = predict(X[:, i], par.U[:, i], par.DT[i])
         Q = ca.reshape(par.QI[:, i], nx, nx)

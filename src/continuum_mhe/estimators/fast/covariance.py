@@ -127,6 +127,7 @@ def casadi_window_covariance(
     solver = _core.WindowSolver(
         n, nx, nz, f.nu, None, None, -free, free, np.zeros((0, 1), dtype=np.int64), np.zeros(0),
         rinv, np.ascontiguousarray(loss.blocks, dtype=np.int64), loss.code, loss.scale, False,
+        None, None if loss.robust is None else np.ascontiguousarray(loss.robust, dtype=np.int64),
     )  # fmt: skip
     solver.m[:] = zmask
     solver.Xb[0] = Xc

@@ -32,7 +32,7 @@ from continuum_mhe.estimators.fast.window_functions import (
     transition_is_linear,
     transition_model,
 )
-from continuum_mhe.estimators.loss import LOSS_CODES, block_array
+from continuum_mhe.estimators.loss import LOSS_CODES, block_array, robust_blocks
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.tape import residual_function, residual_node_tapes, tape_function
 
@@ -108,11 +108,15 @@ class LossKernel(NamedTuple):
         blocks: (nblocks, 2) start and size of each measurement block.
         code: :data:`~continuum_mhe.estimators.loss.LOSS_CODES` of the loss.
         scale: loss scale, standard deviations (inf for l2).
+        robust: (nblocks,) 1 where the loss acts on the block, 0 where its cost stays
+            quadratic (:func:`~continuum_mhe.estimators.loss.robust_blocks`); None:
+            every block.
     """
 
     blocks: IntArray
     code: int
     scale: float
+    robust: IntArray | None = None
 
 
 @dataclass(frozen=True)
@@ -380,7 +384,9 @@ def build_window_model(
         ny=node.ny,
         wrapped=node.wrapped,
         sigma_states=node.sigma_states,
-        loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
+        loss=LossKernel(
+            blocks, LOSS_CODES[loss], float(scale), robust_blocks(formulation.measurement_blocks)
+        ),
         linear_transition=transition_is_linear(formulation),
         second_order_residuals=formulation.second_order_residuals,
         block_columns=block_columns(formulation, blocks),

@@ -131,6 +131,7 @@ class Workspace:
             np.ascontiguousarray(lossk.blocks, dtype=np.int64), lossk.code, lossk.scale,
             model.linear_transition if linear is None else linear,
             None if cols is None else np.ascontiguousarray(cols, dtype=np.int64),
+            None if lossk.robust is None else np.ascontiguousarray(lossk.robust, dtype=np.int64),
         )  # fmt: skip
         # Gauss-Newton steps (no second-order term): a rejected full step is corrected
         # by one more step from its trial point before it is shortened (csrc/sqp.hpp)
