@@ -1461,6 +1461,8 @@ def test_compute_metrics_skips_rows_without_a_finite_truth_and_counts_them() -> 
         ("RawImuSettings(gyro_bias=0.1)", "gyro_bias must be three finite rates"),
         ("write_measurements(OUT, [0.0, 0.0], [[0.1, 0.1], [0.1, 0.1]])", "strictly increasing"),
         ("write_measurements(OUT, [0.0], [[0.1]])", "z has 1 columns, expected 2"),
+        ("write_measurements(OUT, [0.0], [[0.1] * 4])", r"expected 2 \(roll, pitch\).*names="),
+        ("write_truth(OUT, [0.0], [[0.0] * 18])", r"truth has 18 columns.*outputs=rec.outputs"),
         ("write_truth(OUT, [0.0], [[np.nan] * 5])", "refusing to write a non-finite value"),
         ("write_truth(OUT, [0.0], [[0.0] * 5] * 2)", "t has 1 samples and truth 2 rows"),
         ("write_measurements(OUT, [0.0, 1.0], [[0.1, 0.1]])", "t has 2 samples and z 1 rows"),

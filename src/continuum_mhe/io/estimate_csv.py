@@ -260,7 +260,11 @@ def write_truth(
             f"{outputs!r:.60}"
         )
     if truth.shape[1] != len(outputs):
-        raise UserError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
+        raise UserError(
+            f"truth has {truth.shape[1]} columns, expected {len(outputs)} (the outputs "
+            f"{', '.join(output_names(outputs))[:60]}): pass the recording's or the "
+            "formulation's outputs (outputs=rec.outputs) for another robot"
+        )
     turned = angle_beyond_a_turn(output_names(outputs), truth)
     if turned is not None:
         raise UserError(f"{path}: row {turned[0] + 1}: {turned[1]}")
@@ -284,7 +288,11 @@ def write_measurements(
         raise UserError(f"names must be a sequence of column names, got the string {names!r}")
     t, z = _samples_table(t, z, "z")
     if z.shape[1] != len(names):
-        raise UserError(f"z has {z.shape[1]} columns, expected {len(names)}")
+        raise UserError(
+            f"z has {z.shape[1]} columns, expected {len(names)} ({', '.join(names)[:60]}): "
+            "pass the column names (names=rec.measurement_names) for another robot or IMU "
+            "model"
+        )
     if len(t) == 0:
         raise UserError(f"{path}: no samples to write (read_measurements refuses a file without)")
     if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
