@@ -166,6 +166,9 @@ class TendonStatics:
 
     robot: Robot
     steps_per_section: int = STEPS_PER_SECTION
+    #: the width of the tensions' clip at zero, N (0: ``max(tension, 0)``;
+    #: :attr:`~continuum_mhe.model.tendon.TendonFormulation.slack_smoothing`)
+    slack_smoothing: float = 0.0
 
     def __post_init__(self) -> None:
         if self.robot.backbone is None:
@@ -238,6 +241,14 @@ class TendonStatics:
         half = _move(y, list(zip((3 / 12, 2 / 12, 2 / 12, -1 / 12), fs)), h, n0)
         return _move(half, list(zip((-1 / 12, 2 / 12, 2 / 12, 3 / 12), fs)), h, n0)
 
+    def acting(self, tension: Sym) -> Sym:
+        """The tension a tendon pulls with, N, for a tension state ``tension``: clipped
+        at zero, exactly or smoothly over :attr:`slack_smoothing`."""
+        e = self.slack_smoothing
+        if e > 0:
+            return 0.5 * (tension + ca.sqrt(tension * tension + e * e))
+        return ca.fmax(tension, 0.0)
+
     def shoot(
         self, k0: Sym, force: Sym, tension: Sym, stations: tuple[Station, ...] | None = None
     ) -> tuple[dict[Station, tuple[Sym, Sym]], Sym]:
@@ -246,7 +257,7 @@ class TendonStatics:
         a step) and the tip residual ``R(L)^T M(L) / EI`` (rad/m)."""
         robot = self.robot
         ei, _ = self.stiffness
-        taus = [ca.fmax(tension[i], 0.0) for i in range(robot.n_tendons)]
+        taus = [self.acting(tension[i]) for i in range(robot.n_tendons)]
         # R(0) = I: body and base frames agree
         y: _RodState = (ca.SX.zeros(3), ca.SX.eye(3), ei * k0)
         s0 = 0.0
