@@ -242,7 +242,10 @@ class HorizonInference final : public PolicyInference {
     const Index last = (h_.n - 1) * h_.nz;
     bool any = false, every = true;
     for (Index b = 0; b < h_.nblk; ++b) {
-      if (h_.zmask[last + h_.solver.blocks[2 * b]] <= 0.0) continue;
+      // a block the loss does not act on (not an IMU's: a tendon robot's tip condition,
+      // its tensions) is never rejected, and says nothing of the readings
+      if (h_.solver.block_loss[b] == 0 || h_.zmask[last + h_.solver.blocks[2 * b]] <= 0.0)
+        continue;
       any = true;
       every = every && h_.w_last[b] < outlier_weight;
     }

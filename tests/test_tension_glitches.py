@@ -22,7 +22,7 @@ from continuum_mhe.io.inputs import open_input
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tension_derivatives import tension_noise_std
 from continuum_mhe.io.tension_glitches import tension_glitches
-from continuum_mhe.io.tensions import Tensions, TensionStream, TensionsWarning
+from continuum_mhe.io.tensions import Tensions, TensionStream, TensionsWarning, read_tensions
 from continuum_mhe.model.registry import make_formulation
 
 T = np.arange(0.0, 10.0, 0.02)  # 50 Hz
@@ -120,25 +120,35 @@ def test_a_tensions_file_says_its_glitch_and_takes_the_curve() -> None:
     assert table.rows[100, 2] == v[100, 2]  # the file as given
 
 
-def test_a_tension_stream_replaces_its_glitch_once_judged() -> None:
-    """A :class:`TensionStream` gives a glitch's sample with its tensions replaced (two
-    samples later, as it gives every sample), counts it and says it once."""
+def test_live_and_a_recordings_own_tension_columns_take_a_glitch_as_it_comes(
+    tmp_path: Path,
+) -> None:
+    """``live``'s stream differences each sample as it comes (its derivatives are given
+    before the samples that would judge it are in), and a recording's own tension
+    columns are read as ``live`` took them, so that a replay gives ``live``'s
+    estimates: neither replaces a glitch."""
     clean = _smooth(3, fastest=1.0)
     v = clean.copy()
     v[150, 0] += 0.05
-    v[300, 2] -= 0.05
+    v = np.round(v, 6)  # as the recording below writes them
     stream = TensionStream("serial", 3)
     out = []
-    with warnings.catch_warnings(record=True) as said:
-        warnings.simplefilter("always")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TensionsWarning)
         for tk, vk in zip(T, v):
             out.extend(stream.push(float(tk), vk))
         out.extend(stream.end())
-    glitch_notes = [w for w in said if "glitch" in str(w.message)]
-    assert len(glitch_notes) == 1 and "t = 3 s" in str(glitch_notes[0].message)
-    assert stream.glitches == 2
-    given = np.array([s.values for s in out])
-    assert np.max(np.abs(given - clean)) < 1e-4
+    assert np.array_equal(np.array([s.values for s in out]), v)
+    header = "t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,tension_1,tension_2,tension_3"
+    rows = [f"{tk:.2f},0,0,9.81,0,0,0," + ",".join(f"{x:.6f}" for x in vk) for tk, vk in zip(T, v)]
+    recording = tmp_path / "rec.csv"
+    recording.write_text("\n".join([header, *rows]) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TensionsWarning)
+        own = read_tensions(recording, 3, other_columns=True)
+    assert own.values[150, 0] == pytest.approx(v[150, 0], abs=1e-6)
+    replayed = np.array([s.rates for s in out])
+    assert np.max(np.abs(own.rates - replayed)) < 1e-9
 
 
 def test_a_tension_glitch_does_not_send_the_estimate_off(tmp_path: Path) -> None:

@@ -120,8 +120,8 @@ def build_nlp(
     A model whose second derivatives are too large to form symbolically (a shooting
     model: ``second_order_residuals`` False) keeps each node's residual and transition
     as one function called per node (CasADi MX), and IPOPT takes the Gauss-Newton
-    Hessian of the l2 cost (:func:`_gauss_newton_hessian`; limited-memory BFGS with a
-    robust loss or constraints): expanded over the window with its exact Hessian, such
+    Hessian of its cost, a robust loss's included (:func:`_gauss_newton_hessian`;
+    limited-memory BFGS with constraints): expanded over the window with its exact Hessian, such
     a model needs gigabytes a window. Other models are expanded (SX) with the exact
     Hessian."""
     f, n, nx = formulation, horizon, formulation.nx

@@ -78,19 +78,14 @@ class TensionGlitches:
         return np.where(self.mask, self.curve, values)
 
 
-def tension_glitches(
-    t: FloatArray, values: FloatArray, noise: float, open_end: bool = False
-) -> TensionGlitches:
+def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> TensionGlitches:
     """The single-row glitches of the tensions ``values`` (n, k) N at ``t`` (n,) s,
-    strictly increasing, whose row-to-row noise is ``noise`` N (module docstring).
-    ``open_end``: the rows are the last ones of a stream so far, and the last two rows
-    but one are judged by the echoes known (the third from the end by those before it):
-    a stream's sample is judged once the two samples after it are in."""
+    strictly increasing, whose row-to-row noise is ``noise`` N (module docstring)."""
     values = np.asarray(values, dtype=float)
     n, k = values.shape
     mask = np.zeros((n, k), dtype=bool)
     curve = values.copy()
-    if n < 5:
+    if n < 9:
         return TensionGlitches(mask, curve)
     rows = np.arange(2, n - 2)
     nodes = np.stack([rows - 2, rows - 1, rows + 1, rows + 2])  # (4, m)
@@ -100,43 +95,37 @@ def tension_glitches(
         for other in range(4):
             if other != j:
                 weights[j] *= (tr - tn[other]) / (tn[j] - tn[other])
-    curve[rows] = np.einsum("jm,jmk->mk", weights, values[nodes])
-    departure = np.full((n, k), np.nan)
-    departure[rows] = np.abs(values[rows] - curve[rows])
-    around = np.full((len(_AROUND), n, k), np.nan)
-    for a, off in enumerate(_AROUND):
-        src = rows + off
-        inside = (src >= 2) & (src < n - 2)
-        around[a, rows[inside]] = departure[src[inside]]
-    counted = np.isfinite(around).any(axis=0)
-    scale = np.zeros((n, k))
-    scale[counted] = np.nanmedian(around[:, counted], axis=0)
     # a white noise of std ``noise`` departs from the cubic with std noise * gain
     gain = np.sqrt(1.0 + np.sum(weights**2, axis=0))  # (m,)
-    limit = np.maximum(GLITCH_SCALE_FACTOR * scale[rows], GLITCH_FLOOR_N)
-    limit = np.maximum(limit, GLITCH_NOISE_FACTOR * noise * gain[:, None])
-    # a glitch h at row i moves the cubics of rows i - 2 to i + 2 (it is one of their
-    # nodes, of weight w) by w h: their departures are its echo -w h, where a step's, a
-    # kink's or a motion's are not
-    signed = values - curve
-    h = signed[rows]
     m = len(rows)
-    echoed = np.zeros_like(h, dtype=bool)
-    first, last = 2, m - 1 if open_end else m - 3  # indices into rows judged, inclusive
-    if last >= first:
-        judged = np.arange(first, last + 1)
-        hj = h[judged]
-        ok = np.ones_like(hj, dtype=bool)
+    judged = np.arange(2, m - 2)  # indices into rows whose echoes two rows away are judged
+    for c in range(k):  # a tendon at a time: the rows around take (8, n) values, not (8, n, k)
+        v = values[:, c]
+        curve[rows, c] = np.einsum("jm,jm->m", weights, v[nodes])
+        signed = v[rows] - curve[rows, c]  # (m,)
+        departure = np.abs(signed)
+        around = np.full((len(_AROUND), m), np.nan)
+        for a, off in enumerate(_AROUND):
+            src = np.arange(m) + off
+            inside = (src >= 0) & (src < m)
+            around[a, inside] = departure[src[inside]]
+        scale = np.zeros(m)
+        full = np.isfinite(around).all(axis=0)  # all but the first and last six
+        scale[full] = np.median(around[:, full], axis=0)
+        edge = ~full & np.isfinite(around).any(axis=0)
+        scale[edge] = np.nanmedian(around[:, edge], axis=0)
+        limit = np.maximum(GLITCH_SCALE_FACTOR * scale, GLITCH_FLOOR_N)
+        limit = np.maximum(limit, GLITCH_NOISE_FACTOR * noise * gain)
+        # a glitch h at row i moves the cubics of rows i - 2 to i + 2 (it is one of their
+        # nodes, of weight w) by w h: their departures are its echo -w h, where a step's,
+        # a kink's or a motion's are not
+        h = signed[judged]
+        echoed = np.ones(len(judged), dtype=bool)
         # (offset, the glitch's node index in that row's cubic: nodes i-2, i-1, i+1, i+2)
-        echoes = [(-2, 3), (-1, 2)] if open_end else [(-2, 3), (-1, 2), (1, 1), (2, 0)]
-        for off, node in echoes:
-            echo = signed[rows[judged + off]] + weights[node, judged + off, None] * hj
-            ok &= np.abs(echo) < SIGNATURE_TOLERANCE * np.abs(hj)
-        if open_end:  # the last row: the echo in the row after it is known too
-            echo = signed[rows[judged[:-1] + 1]] + weights[1, judged[:-1] + 1, None] * hj[:-1]
-            ok[:-1] &= np.abs(echo) < SIGNATURE_TOLERANCE * np.abs(hj[:-1])
-        echoed[judged] = ok
-    mask[rows] = (departure[rows] > limit) & echoed
+        for off, node in ((-2, 3), (-1, 2), (1, 1), (2, 0)):
+            echo = signed[judged + off] + weights[node, judged + off] * h
+            echoed &= np.abs(echo) < SIGNATURE_TOLERANCE * np.abs(h)
+        mask[rows[judged], c] = (departure[judged] > limit[judged]) & echoed
     if mask.any(axis=1).sum() > max(1, math.floor(MAX_GLITCH_SHARE * n)):
         mask[:] = False
     return TensionGlitches(mask, curve)

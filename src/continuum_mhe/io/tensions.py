@@ -47,7 +47,6 @@ from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_tim
 from continuum_mhe.io.input_options import InputOptions, OptionWarning
 from continuum_mhe.io.sample_rows import RowProblems, read_samples
 from continuum_mhe.io.tension_derivatives import (
-    NOISE_ORDER,
     TENSION_ACCELERATION_NOISE,
     TENSION_RATE_NOISE,
     TensionSmoothing,
@@ -208,10 +207,14 @@ class Tensions:
         values: FloatArray,
         binned: bool = True,
         lines: tuple[int, ...] | None = None,
+        replace_glitches: bool = True,
     ) -> Tensions:
         """The tensions of rows ``values`` (n, k) N at ``t`` (n,) s, with their
         derivatives (:func:`tension_derivatives`); ``lines``: each row's line in its
-        file (None: rows of no file).
+        file (None: rows of no file); ``replace_glitches``: a tension that one row alone
+        gets wrong is replaced by the cubic through its neighbours, with a
+        :class:`TensionsWarning` (:func:`~.tension_glitches.tension_glitches`; off for a
+        recording's own tension columns, read as ``live`` took them).
 
         Raises:
             UserError: arrays that are not numbers of those shapes, of different
@@ -220,11 +223,20 @@ class Tensions:
                 the tensions are interpolated across it) or is negative.
         """
         t, values = _checked_rows(name, t, values, lines)
-        glitches = tension_glitches(t, values, tension_noise_std(values, t))
-        if glitches.count:
-            warnings.warn(_glitches_said(name, values, glitches, lines), TensionsWarning, 2)
-        taken = tension_derivatives(t, _without_glitches(values, glitches), binned=binned)
-        changed = taken.smoothing is not None or taken.hold_period_s > 0 or glitches.count
+        glitches = (
+            tension_glitches(t, values, tension_noise_std(values, t)) if replace_glitches else None
+        )
+        if glitches is not None and glitches.count:
+            values_used = _without_glitches(values, glitches)
+            warnings.warn(
+                _glitches_said(name, values, values_used, glitches, lines), TensionsWarning, 2
+            )
+        else:
+            values_used = values
+        taken = tension_derivatives(t, values_used, binned=binned)
+        changed = (
+            taken.smoothing is not None or taken.hold_period_s > 0 or values_used is not values
+        )
         return cls(
             name,
             t,
@@ -462,14 +474,18 @@ class Tensions:
 def _without_glitches(values: FloatArray, glitches: TensionGlitches) -> FloatArray:
     """``values`` (n, k) N with each glitch replaced by the cubic through its
     neighbours, not below zero."""
-    return np.maximum(glitches.replaced(values), 0.0) if glitches.count else values
+    return np.where(glitches.mask, np.maximum(glitches.curve, 0.0), values)
 
 
 def _glitches_said(
-    name: str, values: FloatArray, glitches: TensionGlitches, lines: tuple[int, ...] | None
+    name: str,
+    values: FloatArray,
+    used: FloatArray,
+    glitches: TensionGlitches,
+    lines: tuple[int, ...] | None,
 ) -> str:
     """The warning of the glitches of the tensions ``name`` (:func:`tension_glitches`):
-    their count, the first one's line (or row), tendon, value and its replacement."""
+    their count, the first one's line (or row), tendon, value and the value ``used``."""
     rows = np.flatnonzero(glitches.mask.any(axis=1))
     i = int(rows[0])
     j = int(np.flatnonzero(glitches.mask[i])[0])
@@ -479,7 +495,7 @@ def _glitches_said(
         f"{name}: {count} tension{'s' if count > 1 else ''} in {len(rows)} "
         f"row{'s' if len(rows) > 1 else ''} {'leave' if count > 1 else 'leaves'} the curve "
         f"through the rows around alone, the first at {where} (tension_{j + 1} "
-        f"{values[i, j]:.6g} N where its neighbours give {glitches.curve[i, j]:.6g} N): "
+        f"{values[i, j]:.6g} N where its neighbours give {used[i, j]:.6g} N): "
         "taken as glitches of the sensor "
         "or the link, each replaced by that curve (as a spike of the tensions' rates it "
         "would move the estimate far, for the rest of the recording)"
@@ -611,7 +627,9 @@ def read_tensions(
     # (a negative tension is refused on its line by from_rows)
     # a recording's own columns row by row, as live's TensionStream differenced them
     lines = tuple(int(d[0]) for d in data)
-    read = Tensions.from_rows(name, t, values, binned=not other_columns, lines=lines)
+    read = Tensions.from_rows(
+        name, t, values, binned=not other_columns, lines=lines, replace_glitches=not other_columns
+    )
     return replace(read, time_column="t_ms" if rows.time_scale == 1e-3 else "t")
 
 
@@ -629,11 +647,6 @@ class TensionsAt:
     values: FloatArray
     rates: FloatArray
     accelerations: FloatArray
-
-
-#: The samples a :class:`TensionStream` keeps: eight before the oldest one not given out
-#: (:func:`tension_glitches` judges it by them), that one and two after it.
-_STREAM_KEPT = 11
 
 
 class TensionStream:
@@ -654,13 +667,10 @@ class TensionStream:
         self.name = name
         #: the tensions a sample holds (the robot's tendons; else the first sample's count)
         self.n_tendons = None if n_tendons is None else int(n_tendons)
-        #: the last samples: those before the oldest one not yet given out that judge
-        #: it (:func:`tension_glitches`, eight) and its derivatives, that one, and the
-        #: ones after it (eleven at most)
-        self._t: deque[float] = deque(maxlen=_STREAM_KEPT)
-        self._values: deque[FloatArray] = deque(maxlen=_STREAM_KEPT)
-        #: samples' tensions taken as glitches and replaced (:func:`tension_glitches`)
-        self.glitches = 0
+        #: the last samples: two before the oldest one not yet given out, that one, and
+        #: the ones after it (five at most)
+        self._t: deque[float] = deque(maxlen=5)
+        self._values: deque[FloatArray] = deque(maxlen=5)
         self._done = 0  # samples given out so far
         self._seen = 0  # samples pushed so far
         # the last samples whose scatter is checked (:meth:`_check_noise`), and whether
@@ -746,34 +756,6 @@ class TensionStream:
             stacklevel=3,
         )
 
-    def _replace_glitch(self, first: int) -> None:
-        """Sample ``done``'s tensions judged by the samples kept (the two after it in;
-        from the stream's seventeenth sample on, once the noise they are judged against
-        is known),
-        a glitch replaced by the cubic through its neighbours (:func:`tension_glitches`)
-        and counted in :attr:`glitches`, said once (:class:`TensionsWarning`)."""
-        i = self._done - first
-        if i < 4 or len(self._recent) < 2 * NOISE_ORDER + 1:  # the noise not known yet
-            return
-        t, v = np.array(self._t), np.array(self._values)
-        noise = tension_noise_std(np.array(self._recent), np.array(self._recent_t))
-        glitches = tension_glitches(t[: i + 3], v[: i + 3], noise, open_end=True)
-        if not glitches.mask[i].any():
-            return
-        if self.glitches == 0:
-            j = int(np.flatnonzero(glitches.mask[i])[0])
-            warnings.warn(
-                f"{self.name}: the tensions of the sample at t = {time_text(t[i])} s leave "
-                f"the curve through the samples around alone (tension_{j + 1} "
-                f"{v[i, j]:.6g} N where its neighbours give {glitches.curve[i, j]:.6g} N): "
-                "taken as a glitch of the sensor or the link and replaced by that curve, as "
-                "every such sample is (counted: TensionStream.glitches)",
-                TensionsWarning,
-                stacklevel=4,
-            )
-        self._values[i] = _without_glitches(v[: i + 3], glitches)[i]
-        self.glitches += 1
-
     def end(self) -> list[TensionsAt]:
         """The stream ended: the samples still waiting, with one-sided derivatives at
         the end; the stream starts afresh after."""
@@ -791,11 +773,9 @@ class TensionStream:
     def _ready(self, end: bool) -> list[TensionsAt]:
         out = []
         while self._done < self._seen and (end or self._seen - self._done > 2):
-            first = self._seen - len(self._t)  # the index of the window's first sample
-            if not end:
-                self._replace_glitch(first)
             # the window: up to two samples each side of sample `done` (its derivatives'
             # neighbours), cut where the stream starts or ends
+            first = self._seen - len(self._t)  # the index of the window's first sample
             lo, hi = max(self._done - 2, first), min(self._done + 3, self._seen)
             t = np.array(list(self._t)[lo - first : hi - first])
             v = np.array(list(self._values)[lo - first : hi - first])

@@ -1123,11 +1123,6 @@ class LiveSession:
             msg += "; note: " + wide_note
         if glitches := glitch_clause(self.estimator.diagnostics):
             msg += f"; {glitches}"
-        if self._tension_stream is not None and self._tension_stream.glitches:
-            msg += (
-                f"; replaced {self._tension_stream.glitches} sample(s)' tension glitches (a "
-                "tension off the curve through the samples around alone)"
-            )
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (
                 f"; warning: stopped restarting {chains} time(s) after "
