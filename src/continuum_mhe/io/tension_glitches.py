@@ -31,12 +31,14 @@ of :mod:`.tension_derivatives` takes. The first and last four rows are not judge
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.io.tension_derivatives import NOISE_ORDER, tension_noise_std
 
 #: How many times the noise's share of its departure a glitch leaves the cubic through
 #: its neighbours by, at least.
@@ -51,6 +53,13 @@ GLITCH_FLOOR_N = 1e-4
 SIGNATURE_TOLERANCE = 0.1
 #: The largest share of the rows that may be glitches (else none is).
 MAX_GLITCH_SHARE = 0.01
+#: How many times the same departure of the six samples before it a stream's sample
+#: leaves the cubic through the four before it by, at least, to be judged
+#: (:class:`StreamGlitches`).
+CANDIDATE_FACTOR = 4.0
+#: The samples a :class:`StreamGlitches` keeps: a candidate's eight before it, itself and
+#: the two after it (the oldest kept enters the departures the newest is compared with).
+STREAM_KEPT = 11
 #: The rows away from a judged row whose departures give the local scale.
 _AROUND = (-6, -5, -4, -3, 3, 4, 5, 6)
 
@@ -129,3 +138,120 @@ def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> Tension
     if mask.any(axis=1).sum() > max(1, math.floor(MAX_GLITCH_SHARE * n)):
         mask[:] = False
     return TensionGlitches(mask, curve)
+
+
+def _lagrange(t_nodes: FloatArray, t_at: float) -> FloatArray:
+    """The weights (4,) of the cubic through the rows at ``t_nodes`` (4,) s, at ``t_at``."""
+    w = np.ones(4)
+    for j in range(4):
+        for other in range(4):
+            if other != j:
+                w[j] *= (t_at - t_nodes[other]) / (t_nodes[j] - t_nodes[other])
+    return w
+
+
+class StreamGlitches:
+    """The single-row glitches of tensions that come one sample at a time (``live``'s
+    serial line, and a recording's own tension columns, read as ``live`` took them), by
+    the samples known when the two after a sample are in.
+
+    A sample is a candidate where its tensions leave the cubic through the four samples
+    before it, extrapolated, by more than :data:`CANDIDATE_FACTOR` times the same
+    departure of the six samples before it and half :data:`GLITCH_FLOOR_N` (a smooth
+    motion departs alike from sample to sample). A candidate is judged once the two
+    samples after it are in, as :func:`tension_glitches` judges a row, by what is known
+    then: the rows around are the ones 3 to 6 samples before, the echoes those in the
+    two samples before it, and the noise is that of the last :attr:`noise_rows`
+    samples as given (judged from the 25th sample on, when it is known). A glitch's
+    tensions are replaced by the cubic through its neighbours, not below zero. Until a
+    candidate is judged, the samples whose derivatives it enters (two each side) wait
+    (:meth:`waiting`).
+
+    The samples are numbered from 0 as pushed; :attr:`t` and :attr:`values` keep the
+    last :data:`STREAM_KEPT` (replaced where glitches)."""
+
+    def __init__(self, noise_rows: int) -> None:
+        #: samples of the noise estimate (:func:`~.tension_derivatives.tension_noise_std`)
+        self.noise_rows = noise_rows
+        self.t: deque[float] = deque(maxlen=STREAM_KEPT)
+        self.values: deque[FloatArray] = deque(maxlen=STREAM_KEPT)
+        self._candidate: deque[bool] = deque(maxlen=STREAM_KEPT)
+        # each sample's departure from the cubic through the four before it, as pushed
+        self._departure: deque[FloatArray] = deque(maxlen=7)
+        self._given_t: deque[float] = deque(maxlen=noise_rows)
+        self._given: deque[FloatArray] = deque(maxlen=noise_rows)
+        #: samples pushed
+        self.seen = 0
+        #: (sample number, tendon, value given, value used) of each glitch replaced
+        self.replaced: list[tuple[int, int, float, float]] = []
+
+    @property
+    def first(self) -> int:
+        """The number of the oldest sample kept."""
+        return self.seen - len(self.t)
+
+    def push(self, t: float, values: FloatArray) -> None:
+        """Add a sample (``t`` s, later than the last; ``values`` N, NaN where missing)."""
+        v = np.array(values, dtype=float)
+        self.t.append(float(t))
+        self.values.append(v)
+        self._given_t.append(float(t))
+        self._given.append(v.copy())
+        self.seen += 1
+        self._candidate.append(self._departs())
+        if len(self.t) == STREAM_KEPT and self._candidate[-3]:
+            self._judge(len(self.t) - 3)
+            self._candidate[-3] = False
+
+    def waiting(self, lo: int, hi: int) -> bool:
+        """Whether a sample numbered ``lo`` to ``hi`` (inclusive) is a candidate not
+        judged yet."""
+        first = self.first
+        return any(
+            self._candidate[i - first] for i in range(max(lo, first), min(hi, self.seen - 1) + 1)
+        )
+
+    def clear(self) -> None:
+        """Start afresh (the stream ended)."""
+        self.__init__(self.noise_rows)  # type: ignore[misc]
+
+    def _departs(self) -> bool:
+        """Whether the newest sample is a candidate (the class docstring), judged once
+        eleven samples are kept (its departure is kept from the fifth on)."""
+        if len(self.t) < 5:
+            return False
+        t = np.array(list(self.t)[-5:])
+        v = np.array(list(self.values)[-5:])
+        self._departure.append(np.abs(v[-1] - _lagrange(t[:-1], t[-1]) @ v[:-1]))
+        if len(self.t) < STREAM_KEPT:
+            return False
+        before = np.array(list(self._departure)[:-1])
+        limit = np.maximum(CANDIDATE_FACTOR * np.median(before, axis=0), 0.5 * GLITCH_FLOOR_N)
+        return bool(np.any(self._departure[-1] > limit))  # NaN compares False: no candidate
+
+    def _judge(self, i: int) -> None:
+        """Judge kept sample ``i`` (the third newest; eight kept before it)."""
+        if len(self._given) < 3 * NOISE_ORDER + 1:
+            return
+        noise = tension_noise_std(np.array(self._given), np.array(self._given_t))
+        t = np.array(self.t)
+        v = np.array(self.values)
+        signed = np.empty((7, v.shape[1]))  # rows i - 6 .. i from their centred cubics
+        weights = np.empty((7, 4))
+        for a, r in enumerate(range(i - 6, i + 1)):
+            nodes = [r - 2, r - 1, r + 1, r + 2]
+            weights[a] = _lagrange(t[nodes], t[r])
+            signed[a] = v[r] - weights[a] @ v[nodes]
+        h = signed[-1]
+        gain = math.sqrt(1.0 + float(np.sum(weights[-1] ** 2)))
+        scale = np.median(np.abs(signed[:4]), axis=0)  # rows i - 6 .. i - 3
+        limit = np.maximum(GLITCH_SCALE_FACTOR * scale, GLITCH_FLOOR_N)
+        limit = np.maximum(limit, GLITCH_NOISE_FACTOR * noise * gain)
+        echoed = np.ones_like(h, dtype=bool)
+        for a, node in ((4, 3), (5, 2)):  # rows i - 2 and i - 1: the glitch is node 3, 2
+            echoed &= np.abs(signed[a] + weights[a, node] * h) < SIGNATURE_TOLERANCE * np.abs(h)
+        glitch = (np.abs(h) > limit) & echoed
+        for c in np.flatnonzero(glitch):
+            used = max(float(v[i, c] - h[c]), 0.0)
+            self.replaced.append((self.first + i, int(c), float(v[i, c]), used))
+            self.values[i][c] = used

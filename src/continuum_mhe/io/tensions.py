@@ -18,9 +18,12 @@ must cover the recording: a measurement before its first row or after its last i
 error, as are a negative or non-finite tension, a wrong number of tension columns and
 times that do not increase.
 
+A tension that one row alone gets wrong (a glitch) is replaced by the cubic through its
+neighbours (:mod:`.tension_glitches`).
+
 The tensions may also come one sample at a time (``live``'s serial line:
 :class:`TensionStream`), with the same derivatives: those of a sample are known once
-the two samples after it have arrived.
+the two samples after it have arrived (four near a candidate glitch).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import warnings
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
@@ -57,7 +61,7 @@ from continuum_mhe.io.tension_derivatives import (
     tension_derivatives,
     tension_noise_std,
 )
-from continuum_mhe.io.tension_glitches import TensionGlitches, tension_glitches
+from continuum_mhe.io.tension_glitches import StreamGlitches, TensionGlitches, tension_glitches
 from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot, modulus_unit_hint
@@ -207,14 +211,16 @@ class Tensions:
         values: FloatArray,
         binned: bool = True,
         lines: tuple[int, ...] | None = None,
-        replace_glitches: bool = True,
+        glitches: Literal["rows", "stream"] = "rows",
     ) -> Tensions:
         """The tensions of rows ``values`` (n, k) N at ``t`` (n,) s, with their
         derivatives (:func:`tension_derivatives`); ``lines``: each row's line in its
-        file (None: rows of no file); ``replace_glitches``: a tension that one row alone
-        gets wrong is replaced by the cubic through its neighbours, with a
-        :class:`TensionsWarning` (:func:`~.tension_glitches.tension_glitches`; off for a
-        recording's own tension columns, read as ``live`` took them).
+        file (None: rows of no file). A tension that one row alone gets wrong is
+        replaced by the cubic through its neighbours, with a :class:`TensionsWarning`:
+        judged by the rows around (``glitches="rows"``,
+        :func:`~.tension_glitches.tension_glitches`) or as ``live``'s stream judges it
+        (``"stream"``, :class:`~.tension_glitches.StreamGlitches`: a recording's own
+        tension columns, so that a replay gives ``live``'s estimates).
 
         Raises:
             UserError: arrays that are not numbers of those shapes, of different
@@ -223,16 +229,22 @@ class Tensions:
                 the tensions are interpolated across it) or is negative.
         """
         t, values = _checked_rows(name, t, values, lines)
-        glitches = (
-            tension_glitches(t, values, tension_noise_std(values, t)) if replace_glitches else None
-        )
-        if glitches is not None and glitches.count:
-            values_used = _without_glitches(values, glitches)
-            warnings.warn(
-                _glitches_said(name, values, values_used, glitches, lines), TensionsWarning, 2
-            )
+        if glitches == "stream":
+            watch = StreamGlitches(NOISE_CHECK_ROWS)
+            for tk, vk in zip(t, values):
+                watch.push(float(tk), vk)
+            found = np.zeros(values.shape, dtype=bool)
+            curve = values.copy()
+            for i, c, _, used in watch.replaced:
+                found[i, c], curve[i, c] = True, used
+            judged = TensionGlitches(found, curve)
         else:
-            values_used = values
+            judged = tension_glitches(t, values, tension_noise_std(values, t))
+        values_used = _without_glitches(values, judged) if judged.count else values
+        if judged.count:
+            warnings.warn(
+                _glitches_said(name, values, values_used, judged, lines), TensionsWarning, 2
+            )
         taken = tension_derivatives(t, values_used, binned=binned)
         changed = (
             taken.smoothing is not None or taken.hold_period_s > 0 or values_used is not values
@@ -628,7 +640,12 @@ def read_tensions(
     # a recording's own columns row by row, as live's TensionStream differenced them
     lines = tuple(int(d[0]) for d in data)
     read = Tensions.from_rows(
-        name, t, values, binned=not other_columns, lines=lines, replace_glitches=not other_columns
+        name,
+        t,
+        values,
+        binned=not other_columns,
+        lines=lines,
+        glitches="stream" if other_columns else "rows",
     )
     return replace(read, time_column="t_ms" if rows.time_scale == 1e-3 else "t")
 
@@ -653,9 +670,11 @@ class TensionStream:
     """Tensions that come one sample at a time, with the derivatives a recording's own
     tension columns of the same rows give (:func:`central_differences`, of the values
     and then of the rates; not smoothed): a sample's are known once the two samples
-    after it are in, or at the :meth:`end` of the stream (one-sided there, as at a
-    file's last row). Samples that scatter so that a tensions file of them would be
-    smoothed are said once (:meth:`_check_noise`)."""
+    after it are in (four where a sample near it is a candidate glitch, until it is
+    judged: :class:`~.tension_glitches.StreamGlitches`, whose glitches are replaced,
+    counted in :attr:`glitches` and said once), or at the :meth:`end` of the stream
+    (one-sided there, as at a file's last row). Samples that scatter so that a tensions
+    file of them would be smoothed are said once (:meth:`_check_noise`)."""
 
     def __init__(self, name: str = "the tension stream", n_tendons: int | None = None) -> None:
         if n_tendons is not None and not (is_integer(n_tendons) and n_tendons >= 1):
@@ -667,12 +686,13 @@ class TensionStream:
         self.name = name
         #: the tensions a sample holds (the robot's tendons; else the first sample's count)
         self.n_tendons = None if n_tendons is None else int(n_tendons)
-        #: the last samples: two before the oldest one not yet given out, that one, and
-        #: the ones after it (five at most)
-        self._t: deque[float] = deque(maxlen=5)
-        self._values: deque[FloatArray] = deque(maxlen=5)
+        #: the last samples (those before the oldest one not yet given out that its
+        #: derivatives and the glitch test take, that one, and the ones after it), with
+        #: their glitches replaced
+        self._kept = StreamGlitches(NOISE_CHECK_ROWS)
         self._done = 0  # samples given out so far
-        self._seen = 0  # samples pushed so far
+        self._said_glitch = False
+        self._glitches_before = 0  # replaced before the last end()
         # the last samples whose scatter is checked (:meth:`_check_noise`), and whether
         # it has been said
         self._recent_t: deque[float] = deque(maxlen=NOISE_CHECK_ROWS)
@@ -693,10 +713,10 @@ class TensionStream:
             raise UserError(f"{self.name}: a sample's time must be a number of seconds, got {t!r}")
         if not math.isfinite(t):
             raise SampleTimeError(f"{self.name}: a sample's time is {t}: left out (seconds)")
-        if self._t and t <= self._t[-1]:
+        if self._kept.t and t <= self._kept.t[-1]:
             raise SampleTimeError(
                 f"{self.name}: a sample at t = {time_text(t)} s is not later than the last "
-                f"one ({time_text(self._t[-1])} s): left out (the tensions' times must "
+                f"one ({time_text(self._kept.t[-1])} s): left out (the tensions' times must "
                 "increase)"
             )
         try:
@@ -713,14 +733,31 @@ class TensionStream:
                 f"{self.name}: a sample at t = {t:g} s has tensions of shape {v.shape}; "
                 f"the robot has {self.n_tendons} tendons: one tension each (N)"
             )
-        self._t.append(t)
-        self._values.append(v)
-        self._seen += 1
+        replaced = len(self._kept.replaced)
+        self._kept.push(t, v)
         self._recent_t.append(t)
-        self._recent.append(self._values[-1])
-        if not self._noise_said and self._seen % NOISE_CHECK_ROWS == 0:
+        self._recent.append(v)
+        if not self._noise_said and self._kept.seen % NOISE_CHECK_ROWS == 0:
             self._check_noise()
+        if len(self._kept.replaced) > replaced and not self._said_glitch:
+            self._said_glitch = True
+            i, j, given, used = self._kept.replaced[replaced]
+            warnings.warn(
+                f"{self.name}: the tensions of the sample at t = "
+                f"{time_text(self._kept.t[i - self._kept.first])} s leave the curve "
+                f"through the samples around alone (tension_{j + 1} {given:.6g} N where "
+                f"its neighbours give {used:.6g} N): taken as a glitch of the sensor or the "
+                "link and replaced, as every such sample is (counted: "
+                "TensionStream.glitches)",
+                TensionsWarning,
+                stacklevel=2,
+            )
         return self._ready(end=False)
+
+    @property
+    def glitches(self) -> int:
+        """The tensions replaced as glitches so far (:class:`StreamGlitches`)."""
+        return self._glitches_before + len(self._kept.replaced)
 
     def _check_noise(self) -> None:
         """A :class:`TensionsWarning`, once, where the last :data:`NOISE_CHECK_ROWS`
@@ -760,25 +797,30 @@ class TensionStream:
         """The stream ended: the samples still waiting, with one-sided derivatives at
         the end; the stream starts afresh after."""
         out = self._ready(end=True)
-        self._t.clear()
-        self._values.clear()
-        self._done = self._seen = 0
+        self._glitches_before += len(self._kept.replaced)
+        self._kept.clear()
+        self._recent_t.clear()
+        self._recent.clear()
+        self._done = 0
         return out
 
     @property
     def waiting(self) -> int:
         """Samples pushed whose derivatives are not known yet."""
-        return self._seen - self._done
+        return self._kept.seen - self._done
 
     def _ready(self, end: bool) -> list[TensionsAt]:
         out = []
-        while self._done < self._seen and (end or self._seen - self._done > 2):
+        kept = self._kept
+        while self._done < kept.seen and (
+            end or (kept.seen - self._done > 2 and not kept.waiting(self._done - 2, self._done + 2))
+        ):
             # the window: up to two samples each side of sample `done` (its derivatives'
             # neighbours), cut where the stream starts or ends
-            first = self._seen - len(self._t)  # the index of the window's first sample
-            lo, hi = max(self._done - 2, first), min(self._done + 3, self._seen)
-            t = np.array(list(self._t)[lo - first : hi - first])
-            v = np.array(list(self._values)[lo - first : hi - first])
+            first = kept.first  # the index of the window's first sample
+            lo, hi = max(self._done - 2, first), min(self._done + 3, kept.seen)
+            t = np.array(list(kept.t)[lo - first : hi - first])
+            v = np.array(list(kept.values)[lo - first : hi - first])
             rates = central_differences(t, v)
             acc = central_differences(t, rates)
             i = self._done - lo

@@ -198,8 +198,9 @@ class LiveSession:
     line's fields after the IMUs' (``tension_1..k``, N; recorded as such columns).
     Tensions from the line enter with the derivatives the same rows give in a file
     (:class:`~continuum_mhe.io.tensions.TensionStream`): each sample is estimated once
-    the two samples after it have arrived (the last two at the end of the session), so
-    that ``estimate`` on the recording gives the same estimates.
+    the two samples after it have arrived (four near a candidate glitch of the tensions,
+    until it is judged; the last ones at the end of the session), so that ``estimate``
+    on the recording gives the same estimates.
     """
 
     def __init__(
@@ -1123,6 +1124,11 @@ class LiveSession:
             msg += "; note: " + wide_note
         if glitches := glitch_clause(self.estimator.diagnostics):
             msg += f"; {glitches}"
+        if self._tension_stream is not None and self._tension_stream.glitches:
+            msg += (
+                f"; replaced {self._tension_stream.glitches} tension glitch(es) (a tension "
+                "off the curve through the samples around alone)"
+            )
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (
                 f"; warning: stopped restarting {chains} time(s) after "
