@@ -125,11 +125,13 @@ def test_live_replaces_a_glitch_before_its_derivatives_are_given_and_a_replay_al
 ) -> None:
     """``live``'s stream holds the samples a candidate glitch enters (two each side)
     until the two samples after it are in and judge it: the derivatives it gives are
-    those of the tensions without the glitch, it counts and says it once, and a
-    recording's own tension columns (a replay) give the same values and derivatives."""
+    those of the tensions without the glitches (two on one tendon five samples apart
+    among them), it counts and says them once, and a recording's own tension columns (a
+    replay) give the same values and derivatives."""
     clean = np.round(_smooth(3, fastest=1.0), 6)  # as the recording below writes them
     v = clean.copy()
     v[150, 0] += 0.05
+    v[155, 0] += 0.05  # judged after the one before it was replaced
     v[300, 2] -= 0.05
     given = {}
     for name, x in (("clean", clean), ("glitched", v)):
@@ -142,7 +144,7 @@ def test_live_replaces_a_glitch_before_its_derivatives_are_given_and_a_replay_al
             out.extend(stream.end())
         given[name] = out
     notes = [w for w in said if "glitch" in str(w.message)]
-    assert len(notes) == 1 and "t = 3 s" in str(notes[0].message) and stream.glitches == 2
+    assert len(notes) == 1 and "t = 3 s" in str(notes[0].message) and stream.glitches == 3
     for part in ("values", "rates", "accelerations"):
         a = np.array([getattr(s, part) for s in given["glitched"]])
         b = np.array([getattr(s, part) for s in given["clean"]])
@@ -151,7 +153,7 @@ def test_live_replaces_a_glitch_before_its_derivatives_are_given_and_a_replay_al
     rows = [f"{tk:.2f},0,0,9.81,0,0,0," + ",".join(f"{x:.6f}" for x in vk) for tk, vk in zip(T, v)]
     recording = tmp_path / "rec.csv"
     recording.write_text("\n".join([header, *rows]) + "\n")
-    with pytest.warns(TensionsWarning, match="2 tensions in 2 rows leave .* line 152"):
+    with pytest.warns(TensionsWarning, match="3 tensions in 3 rows leave .* line 152"):
         own = read_tensions(recording, 3, other_columns=True)
     for part in ("values", "rates", "accelerations"):
         streamed = np.array([getattr(s, part) for s in given["glitched"]])

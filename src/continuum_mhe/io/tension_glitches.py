@@ -56,7 +56,7 @@ MAX_GLITCH_SHARE = 0.01
 #: How many times the same departure of the six samples before it a stream's sample
 #: leaves the cubic through the four before it by, at least, to be judged
 #: (:class:`StreamGlitches`).
-CANDIDATE_FACTOR = 4.0
+CANDIDATE_FACTOR = 2.0
 #: The samples a :class:`StreamGlitches` keeps: a candidate's eight before it, itself and
 #: the two after it (the oldest kept enters the departures the newest is compared with).
 STREAM_KEPT = 11
@@ -162,7 +162,9 @@ class StreamGlitches:
     samples after it are in, as :func:`tension_glitches` judges a row, by what is known
     then: the rows around are the ones 3 to 6 samples before, the echoes those in the
     two samples before it, and the noise is that of the last :attr:`noise_rows`
-    samples as given (judged from the 25th sample on, when it is known). A glitch's
+    samples as given (judged from the 23rd sample on, the 25th pushed, when it is
+    known). A replaced glitch's departure is taken again out of the two samples after
+    it (their candidacy compares with it). A glitch's
     tensions are replaced by the cubic through its neighbours, not below zero. Until a
     candidate is judged, the samples whose derivatives it enters (two each side) wait
     (:meth:`waiting`).
@@ -255,3 +257,9 @@ class StreamGlitches:
             used = max(float(v[i, c] - h[c]), 0.0)
             self.replaced.append((self.first + i, int(c), float(v[i, c]), used))
             self.values[i][c] = used
+        if glitch.any():  # the two samples after it departed from its glitch: again
+            t_all, v_all = np.array(self.t), np.array(self.values)
+            for back in (2, 1):
+                r = len(t_all) - back
+                w = _lagrange(t_all[r - 4 : r], t_all[r])
+                self._departure[-back] = np.abs(v_all[r] - w @ v_all[r - 4 : r])

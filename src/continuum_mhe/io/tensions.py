@@ -747,8 +747,7 @@ class TensionStream:
                 f"{time_text(self._kept.t[i - self._kept.first])} s leave the curve "
                 f"through the samples around alone (tension_{j + 1} {given:.6g} N where "
                 f"its neighbours give {used:.6g} N): taken as a glitch of the sensor or the "
-                "link and replaced, as every such sample is (counted: "
-                "TensionStream.glitches)",
+                "link and replaced, as every such sample is (and counted)",
                 TensionsWarning,
                 stacklevel=2,
             )
