@@ -163,11 +163,10 @@ class StreamGlitches:
     then: the rows around are the ones 3 to 6 samples before, the echoes those in the
     two samples before it, and the noise is that of the last :attr:`noise_rows`
     samples as given (judged from the 23rd sample on, the 25th pushed, when it is
-    known). A replaced glitch's departure is taken again out of the two samples after
-    it (their candidacy compares with it). A glitch's
-    tensions are replaced by the cubic through its neighbours, not below zero. Until a
-    candidate is judged, the samples whose derivatives it enters (two each side) wait
-    (:meth:`waiting`).
+    known). A glitch's tensions are replaced by the cubic through its neighbours, not
+    below zero, and its departure is taken again out of the two samples after it (their
+    candidacy compares with it). Until a candidate is judged, the samples whose
+    derivatives it enters (two each side) wait (:meth:`waiting`).
 
     The samples are numbered from 0 as pushed; :attr:`t` and :attr:`values` keep the
     last :data:`STREAM_KEPT` (replaced where glitches)."""
@@ -214,8 +213,13 @@ class StreamGlitches:
         )
 
     def clear(self) -> None:
-        """Start afresh (the stream ended)."""
-        self.__init__(self.noise_rows)  # type: ignore[misc]
+        """Start afresh (the stream ended): no sample kept, none pushed or replaced."""
+        for kept in (self.t, self.values, self._candidate, self._departure):
+            kept.clear()
+        self._given_t.clear()
+        self._given.clear()
+        self.seen = 0
+        self.replaced = []
 
     def _departs(self) -> bool:
         """Whether the newest sample is a candidate (the class docstring), judged once
