@@ -325,7 +325,12 @@ def _raw_recording(path: Path, dt: float, duration: float, scale: float, column:
 @pytest.mark.parametrize(
     ("scale", "column", "says"),
     [
-        (1e3, "t", "t looks like milliseconds: name the column t_ms (t is read in seconds)"),
+        (
+            1e3,
+            "t",
+            "t looks like milliseconds: name the column t_ms (t is read in seconds; "
+            "microseconds: divide them by 1000 first)",
+        ),
         (1e6, "t_ms", "t_ms looks like microseconds: give milliseconds"),
     ],
 )
@@ -367,7 +372,10 @@ def test_a_still_start_longer_than_a_block_does_not_hide_milliseconds(
     capsys.readouterr()
     assert main(["estimate", str(path), "-o", str(out), "--robot", "two-section"]) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
-    assert err.endswith("t looks like milliseconds: name the column t_ms (t is read in seconds)")
+    assert err.endswith(
+        "t looks like milliseconds: name the column t_ms (t is read in seconds; microseconds: "
+        "divide them by 1000 first)"
+    )
     assert not out.exists()
 
 

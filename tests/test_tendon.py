@@ -1011,6 +1011,10 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
         ([[0.5 * i, 1.0 + 0.001 * i] for i in range(201)], ["t", "tension_1"],
          "its t spans 100 s in steps of 0.5 s, the recording 0.1 s: if t is in "
          "milliseconds, name the column t_ms"),
+        # microseconds in t
+        ([[0.0, 1.0], [20000.0, 1.1], [40000.0, 1.2], [60000.0, 1.3], [80000.0, 1.4],
+          [100000.0, 1.5]], ["t", "tension_1"], "name the column t_ms (it is read in "
+         "seconds; microseconds: divide them by 1000 first)"),
         # microseconds in t_ms: the column is already t_ms
         ([[0.0, 1.0], [20000.0, 1.1], [40000.0, 1.2], [60000.0, 1.3], [80000.0, 1.4],
           [100000.0, 1.5]], ["t_ms", "tension_1"], "its t_ms spans 100 s in steps of 20 s, "

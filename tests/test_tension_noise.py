@@ -482,3 +482,29 @@ def test_the_start_of_a_10_hz_tensions_file_is_not_thrown_off(tmp_path: Path) ->
     err = np.linalg.norm(tip - true_tip, axis=1)
     assert err.max() < 1e-3, err.max()
     assert list(est.status).count("ok") >= len(tip) - 2
+
+
+def test_a_recordings_own_noisy_tension_columns_are_said_as_live_says_them(tmp_path) -> None:
+    """A recording whose own tension columns carry a load cell's noise (as ``live
+    --record`` writes them) is differenced row by row, as ``live`` took it, and
+    ``estimate`` says so as ``live`` does, naming a tensions file of their own (smoothed);
+    the shipped smooth tensions in the same columns are not said."""
+    smooth = read_tensions(DATA / "force-29_tensions.csv", 6)
+    rng = np.random.default_rng(5)
+    cols = ",".join(f"tension_{j}" for j in range(1, 7))
+    for noise, said in ((0.0, False), (0.001, True)):
+        values = smooth.values + rng.normal(0.0, noise, smooth.values.shape)
+        values = np.maximum(values, 0.0)
+        rows = [
+            f"{tk:.2f},0,0,9.81,0,0,0," + ",".join(f"{x:.6f}" for x in vk)
+            for tk, vk in zip(smooth.t, values)
+        ]
+        path = tmp_path / f"rec{noise}.csv"
+        path.write_text("\n".join([f"t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,{cols}", *rows]) + "\n")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            read_tensions(path, 6, other_columns=True).warn_slower_log()
+        notes = [str(w.message) for w in caught if "scatter" in str(w.message)]
+        assert bool(notes) == said
+        if said:
+            assert re.search(r"scatter by about 0\.00\d+ N .*--inputs TENSIONS\.csv", notes[0])

@@ -340,7 +340,8 @@ def check_time_unit(
     fix = (
         "t_ms looks like microseconds: give milliseconds"
         if time_scale == 1e-3
-        else "t looks like milliseconds: name the column t_ms (t is read in seconds)"
+        else "t looks like milliseconds: name the column t_ms (t is read in seconds; "
+        "microseconds: divide them by 1000 first)"
     )
     raise InputError(f"{name}: {problem}: {fix}")
 

@@ -309,7 +309,9 @@ class Tensions:
         """A :class:`TensionsWarning` where a recording's own tension columns,
         differenced row by row (as ``live`` takes them), carry a slower log's samples
         (:func:`~.tension_derivatives.slower_log`): each of that log's samples is then
-        a spike of the rates and second derivatives, which the estimate follows."""
+        a spike of the rates and second derivatives, which the estimate follows; or
+        where they scatter so that a tensions file of them would be smoothed (as
+        ``live`` says of its stream)."""
         said = slower_log_said(
             f"{self.name}: the tension columns",
             self.t,
@@ -321,6 +323,24 @@ class Tensions:
         )
         if said:
             warnings.warn(said, TensionsWarning, stacklevel=2)
+            return
+        noise = tension_noise_std(self.values, self.t)
+        step = float(np.median(np.diff(self.t))) if len(self.t) > 1 else 0.0
+        if not step > 0 or smoothing_rows(noise, step) == 0:
+            return
+        rate, acc = central_difference_gains(step)
+        warnings.warn(
+            f"{self.name}: the tension columns scatter by about {noise:.2g} N from row to "
+            "row (a load cell's noise?), and a recording's own tension columns are "
+            "differenced row by row, as live takes them, with a noise of about "
+            f"{noise * rate:.2g} N/s and {noise * acc:.2g} N/s^2 (the estimators take "
+            f"{TENSION_RATE_NOISE:g} and {TENSION_ACCELERATION_NOISE:g} without losing "
+            "accuracy): give the tensions as a file of their own (--inputs TENSIONS.csv, "
+            "columns t,tension_1,...), whose noise is smoothed, or filter them at their "
+            "source",
+            TensionsWarning,
+            stacklevel=2,
+        )
 
     def check_span(self, first: float, last: float) -> None:
         """An :class:`InputError` where the file spans over a hundred times the
@@ -339,8 +359,8 @@ class Tensions:
             unit = (
                 "if t_ms is in microseconds, give milliseconds; if it is in milliseconds"
                 if self.time_column == "t_ms"
-                else "if t is in milliseconds, name the column t_ms (it is read in seconds); "
-                "if it is in seconds"
+                else "if t is in milliseconds, name the column t_ms (it is read in seconds; "
+                "microseconds: divide them by 1000 first); if it is in seconds"
             )
             raise InputError(
                 f"{self.name}: its {self.time_column} spans {span:g} s in steps of {step:g} s, "
@@ -445,7 +465,8 @@ class Tensions:
             unit = (
                 "if t_ms is in microseconds, give milliseconds"
                 if self.time_column == "t_ms"
-                else "if t is in milliseconds, name the column t_ms (it is read in seconds)"
+                else "if t is in milliseconds, name the column t_ms (it is read in seconds; "
+                "microseconds: divide them by 1000 first)"
             )
             raise InputError(
                 f"{self.name}: its {self.time_column} steps by a median of {step:g} s: "
