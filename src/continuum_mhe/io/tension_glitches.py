@@ -17,15 +17,16 @@ A tension at row ``i`` is a glitch where
   than :data:`GLITCH_SCALE_FACTOR` times the same departure of the rows 3 to 6 rows
   away (their median: a smooth motion moves those as far, a glitch does not reach
   them), and more than :data:`GLITCH_FLOOR_N`;
-* and the departures of rows ``i - 2`` to ``i + 2`` from their own cubics are the
-  glitch's echo in them (``-w h``, ``h`` the glitch and ``w`` its weight in their
-  cubics: at even times 2/3 one row away, -1/6 two rows away) within
+* and the departures of rows ``i - 2`` to ``i + 2`` (those judged, two at least, near
+  a file's ends) from their own cubics are the glitch's echo in them (``-w h``, ``h``
+  the glitch and ``w`` its weight in their cubics: at even times 2/3 one row away,
+  -1/6 two rows away) within
   :data:`SIGNATURE_TOLERANCE` of ``h``: a step of the tensions (a controller's), a
   kink (a slack tendon that starts to pull) or a fast motion leaves another pattern.
 
 Where more than :data:`MAX_GLITCH_SHARE` of the rows would be glitches, none is: such
 departures are the sensor's way (a quantised or noisy load cell), which the smoothing
-of :mod:`.tension_derivatives` takes. The first and last four rows are not judged.
+of :mod:`.tension_derivatives` takes. The first and last two rows are not judged.
 """
 
 from __future__ import annotations
@@ -107,7 +108,7 @@ def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> Tension
     # a white noise of std ``noise`` departs from the cubic with std noise * gain
     gain = np.sqrt(1.0 + np.sum(weights**2, axis=0))  # (m,)
     m = len(rows)
-    judged = np.arange(2, m - 2)  # indices into rows whose echoes two rows away are judged
+    judged = np.arange(m)  # indices into rows: rows 2 to n - 3
     for c in range(k):  # a tendon at a time: the rows around take (8, n) values, not (8, n, k)
         v = values[:, c]
         curve[rows, c] = np.einsum("jm,jm->m", weights, v[nodes])
@@ -128,12 +129,18 @@ def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> Tension
         # a glitch h at row i moves the cubics of rows i - 2 to i + 2 (it is one of their
         # nodes, of weight w) by w h: their departures are its echo -w h, where a step's,
         # a kink's or a motion's are not
+        # (near a file's ends, those of the rows judged: two at least)
         h = signed[judged]
         echoed = np.ones(len(judged), dtype=bool)
+        echoes = np.zeros(len(judged), dtype=int)
         # (offset, the glitch's node index in that row's cubic: nodes i-2, i-1, i+1, i+2)
         for off, node in ((-2, 3), (-1, 2), (1, 1), (2, 0)):
-            echo = signed[judged + off] + weights[node, judged + off] * h
-            echoed &= np.abs(echo) < SIGNATURE_TOLERANCE * np.abs(h)
+            there = (judged + off >= 0) & (judged + off < m)
+            at = judged[there] + off
+            echo = signed[at] + weights[node, at] * h[there]
+            echoed[there] &= np.abs(echo) < SIGNATURE_TOLERANCE * np.abs(h[there])
+            echoes[there] += 1
+        echoed &= echoes >= 2
         mask[rows[judged], c] = (departure[judged] > limit[judged]) & echoed
     if mask.any(axis=1).sum() > max(1, math.floor(MAX_GLITCH_SHARE * n)):
         mask[:] = False
