@@ -60,12 +60,13 @@ def test_a_glitch_is_found_alone_and_replaced_by_the_curve_through_its_neighbour
 
 @pytest.mark.parametrize(
     "case",
-    ["steps", "slack-start", "fast-sine", "held-log", "noise", "uneven-times"],
+    ["steps", "slack-start", "fast-sine", "held-log", "noise", "uneven-times", "early-kink"],
 )
 def test_no_glitch_in_what_tensions_do(case: str) -> None:
     """A controller's steps, a slack tendon that starts to pull (a kink at zero), a 5 Hz
-    swing of 2 N, a 10 Hz log held at every 50 Hz row, a load cell's white noise, and
-    rows at jittered times: none is a glitch."""
+    swing of 2 N, a 10 Hz log held at every 50 Hz row, a load cell's white noise, rows
+    at jittered times, and kinks and steps within a file's first and last rows: none is
+    a glitch."""
     rng = np.random.default_rng(1)
     t = T
     if case == "steps":
@@ -76,6 +77,10 @@ def test_no_glitch_in_what_tensions_do(case: str) -> None:
         v = 2.0 + 2.0 * np.sin(2 * math.pi * 5.0 * T)[:, None]
     elif case == "held-log":
         v = np.repeat(np.round(1 + 0.3 * np.sin(T[::5]), 3), 5)[:, None]
+    elif case == "early-kink":  # a tendon that starts to pull, and a step, at rows 2 to 5
+        k = np.arange(len(T))[:, None]
+        v = np.hstack([np.maximum(0.0, (k - j) * 0.02) for j in (2, 3, 4, 5)])
+        v = np.hstack([v, np.where(k >= 3, 1.0, 0.5), np.where(k >= len(T) - 3, 1.0, 0.5)])
     elif case == "noise":
         v = 1.0 + 0.01 * rng.normal(size=(len(T), 3))
     else:
