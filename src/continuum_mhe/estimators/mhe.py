@@ -370,6 +370,8 @@ class MovingHorizonInference(Inference):
                 warnings.warn(self.covariance_note, BackendFallbackWarning, stacklevel=2)
             self._window = ReferenceWindow(formulation, s, feasible)
         self._blocks = block_array(formulation.measurement_blocks)
+        #: the blocks a robust loss acts on (the IMUs')
+        self._robust_block = robust_blocks(formulation.measurement_blocks) == 1
         self._no_input = np.zeros(formulation.nu)
         self._no_weight = np.zeros((formulation.nx, formulation.nx))
         #: True when the robust loss is in use (estimates carry outlier flags)
@@ -742,8 +744,7 @@ class MovingHorizonInference(Inference):
         several is not a lost estimate); None when the sample had no valid block."""
         if not self.flags_outliers:
             return False
-        imu = np.array([b.is_imu for b in self.formulation.measurement_blocks])
-        valid = (self._window.zmask[-1][self._blocks[:, 0]] > 0.0) & imu
+        valid = (self._window.zmask[-1][self._blocks[:, 0]] > 0.0) & self._robust_block
         if not valid.any():
             return None
         return bool(np.all(np.asarray(self._window.w_last)[valid] < OUTLIER_WEIGHT))

@@ -121,8 +121,8 @@ def build_nlp(
     model: ``second_order_residuals`` False) keeps each node's residual and transition
     as one function called per node (CasADi MX), and IPOPT takes the Gauss-Newton
     Hessian of its cost, a robust loss's included (:func:`_gauss_newton_hessian`;
-    limited-memory BFGS with constraints): expanded over the window with its exact Hessian, such
-    a model needs gigabytes a window. Other models are expanded (SX) with the exact
+    limited-memory BFGS with constraints): expanded over the window with its exact
+    Hessian, such a model needs gigabytes a window. Other models are expanded (SX) with the exact
     Hessian."""
     f, n, nx = formulation, horizon, formulation.nx
     per_node = not f.second_order_residuals

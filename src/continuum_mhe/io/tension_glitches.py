@@ -88,6 +88,17 @@ class TensionGlitches:
         return np.where(self.mask, self.curve, values)
 
 
+def _lagrange(t_nodes: FloatArray, t_at: FloatArray | float) -> FloatArray:
+    """The weights (4, ...) of the cubic through the rows at ``t_nodes`` (4, ...) s, at
+    ``t_at`` (... , broadcast against ``t_nodes[0]``)."""
+    w = np.ones(np.shape(t_nodes))
+    for j in range(4):
+        for other in range(4):
+            if other != j:
+                w[j] *= (t_at - t_nodes[other]) / (t_nodes[j] - t_nodes[other])
+    return w
+
+
 def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> TensionGlitches:
     """The single-row glitches of the tensions ``values`` (n, k) N at ``t`` (n,) s,
     strictly increasing, whose row-to-row noise is ``noise`` N (module docstring)."""
@@ -99,12 +110,8 @@ def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> Tension
         return TensionGlitches(mask, curve)
     rows = np.arange(2, n - 2)
     nodes = np.stack([rows - 2, rows - 1, rows + 1, rows + 2])  # (4, m)
-    tn, tr = t[nodes], t[rows]
-    weights = np.ones(nodes.shape)
-    for j in range(4):
-        for other in range(4):
-            if other != j:
-                weights[j] *= (tr - tn[other]) / (tn[j] - tn[other])
+    tr = t[rows]
+    weights = _lagrange(t[nodes], tr)  # (4, m)
     # a white noise of std ``noise`` departs from the cubic with std noise * gain
     gain = np.sqrt(1.0 + np.sum(weights**2, axis=0))  # (m,)
     m = len(rows)
@@ -147,16 +154,6 @@ def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> Tension
     return TensionGlitches(mask, curve)
 
 
-def _lagrange(t_nodes: FloatArray, t_at: float) -> FloatArray:
-    """The weights (4,) of the cubic through the rows at ``t_nodes`` (4,) s, at ``t_at``."""
-    w = np.ones(4)
-    for j in range(4):
-        for other in range(4):
-            if other != j:
-                w[j] *= (t_at - t_nodes[other]) / (t_nodes[j] - t_nodes[other])
-    return w
-
-
 class StreamGlitches:
     """The single-row glitches of tensions that come one sample at a time (``live``'s
     serial line, and a recording's own tension columns, read as ``live`` took them), by
@@ -186,8 +183,9 @@ class StreamGlitches:
         self._candidate: deque[bool] = deque(maxlen=STREAM_KEPT)
         # each sample's departure from the cubic through the four before it, as pushed
         self._departure: deque[FloatArray] = deque(maxlen=7)
-        self._given_t: deque[float] = deque(maxlen=noise_rows)
-        self._given: deque[FloatArray] = deque(maxlen=noise_rows)
+        #: the last :attr:`noise_rows` samples as given (their noise judges a candidate)
+        self.given_t: deque[float] = deque(maxlen=noise_rows)
+        self.given: deque[FloatArray] = deque(maxlen=noise_rows)
         #: samples pushed
         self.seen = 0
         #: (sample number, tendon, value given, value used) of each glitch replaced
@@ -203,8 +201,8 @@ class StreamGlitches:
         v = np.array(values, dtype=float)
         self.t.append(float(t))
         self.values.append(v)
-        self._given_t.append(float(t))
-        self._given.append(v.copy())
+        self.given_t.append(float(t))
+        self.given.append(v.copy())
         self.seen += 1
         self._candidate.append(self._departs())
         if len(self.t) == STREAM_KEPT and self._candidate[-3]:
@@ -223,8 +221,8 @@ class StreamGlitches:
         """Start afresh (the stream ended): no sample kept, none pushed or replaced."""
         for kept in (self.t, self.values, self._candidate, self._departure):
             kept.clear()
-        self._given_t.clear()
-        self._given.clear()
+        self.given_t.clear()
+        self.given.clear()
         self.seen = 0
         self.replaced = []
 
@@ -244,9 +242,9 @@ class StreamGlitches:
 
     def _judge(self, i: int) -> None:
         """Judge kept sample ``i`` (the third newest; eight kept before it)."""
-        if len(self._given) < 3 * NOISE_ORDER + 1:
+        if len(self.given) < 3 * NOISE_ORDER + 1:
             return
-        noise = tension_noise_std(np.array(self._given), np.array(self._given_t))
+        noise = tension_noise_std(np.array(self.given), np.array(self.given_t))
         t = np.array(self.t)
         v = np.array(self.values)
         signed = np.empty((7, v.shape[1]))  # rows i - 6 .. i from their centred cubics
@@ -274,3 +272,17 @@ class StreamGlitches:
                 r = len(t_all) - back
                 w = _lagrange(t_all[r - 4 : r], t_all[r])
                 self._departure[-back] = np.abs(v_all[r] - w @ v_all[r - 4 : r])
+
+
+def stream_glitches(t: FloatArray, values: FloatArray, noise_rows: int) -> TensionGlitches:
+    """The glitches :class:`StreamGlitches` finds in the rows ``values`` (n, k) N at
+    ``t`` (n,) s pushed one at a time (a recording's own tension columns, judged as
+    ``live`` judged them), as a :class:`TensionGlitches`."""
+    watch = StreamGlitches(noise_rows)
+    for tk, vk in zip(t, values):
+        watch.push(float(tk), vk)
+    mask = np.zeros(np.shape(values), dtype=bool)
+    curve = np.array(values, dtype=float)
+    for i, c, _, used in watch.replaced:
+        mask[i, c], curve[i, c] = True, used
+    return TensionGlitches(mask, curve)

@@ -31,7 +31,6 @@ from __future__ import annotations
 import math
 import os
 import warnings
-from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
@@ -61,7 +60,12 @@ from continuum_mhe.io.tension_derivatives import (
     tension_derivatives,
     tension_noise_std,
 )
-from continuum_mhe.io.tension_glitches import StreamGlitches, TensionGlitches, tension_glitches
+from continuum_mhe.io.tension_glitches import (
+    StreamGlitches,
+    TensionGlitches,
+    stream_glitches,
+    tension_glitches,
+)
 from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot, modulus_unit_hint
@@ -229,17 +233,11 @@ class Tensions:
                 the tensions are interpolated across it) or is negative.
         """
         t, values = _checked_rows(name, t, values, lines)
-        if glitches == "stream":
-            watch = StreamGlitches(NOISE_CHECK_ROWS)
-            for tk, vk in zip(t, values):
-                watch.push(float(tk), vk)
-            found = np.zeros(values.shape, dtype=bool)
-            curve = values.copy()
-            for i, c, _, used in watch.replaced:
-                found[i, c], curve[i, c] = True, used
-            judged = TensionGlitches(found, curve)
-        else:
-            judged = tension_glitches(t, values, tension_noise_std(values, t))
+        judged = (
+            stream_glitches(t, values, NOISE_CHECK_ROWS)
+            if glitches == "stream"
+            else tension_glitches(t, values, tension_noise_std(values, t))
+        )
         values_used = _without_glitches(values, judged) if judged.count else values
         if judged.count:
             warnings.warn(
@@ -714,10 +712,8 @@ class TensionStream:
         self._done = 0  # samples given out so far
         self._said_glitch = False
         self._glitches_before = 0  # replaced before the last end()
-        # the last samples whose scatter is checked (:meth:`_check_noise`), and whether
-        # it has been said
-        self._recent_t: deque[float] = deque(maxlen=NOISE_CHECK_ROWS)
-        self._recent: deque[FloatArray] = deque(maxlen=NOISE_CHECK_ROWS)
+        # whether the last samples' scatter (:meth:`_check_noise`, on the samples as
+        # given that the glitch test keeps) has been said
         self._noise_said = False
 
     def push(self, t: float, values: FloatArray) -> list[TensionsAt]:
@@ -756,8 +752,6 @@ class TensionStream:
             )
         replaced = len(self._kept.replaced)
         self._kept.push(t, v)
-        self._recent_t.append(t)
-        self._recent.append(v)
         if not self._noise_said and self._kept.seen % NOISE_CHECK_ROWS == 0:
             self._check_noise()
         if len(self._kept.replaced) > replaced and not self._said_glitch:
@@ -784,11 +778,11 @@ class TensionStream:
         samples scatter so that a tensions file of them would be smoothed
         (:func:`smoothing_rows`): the stream differences its samples as they come, and
         their noise then reaches the estimate."""
-        t = np.array(self._recent_t)
+        t = np.array(self._kept.given_t)
         said = slower_log_said(
             f"{self.name}: the tensions",
             t,
-            np.array(self._recent),
+            np.array(self._kept.given),
             "live takes their rates and second derivatives from consecutive samples",
             "send the tensions measured at each IMU sample",
         )
@@ -796,7 +790,7 @@ class TensionStream:
             self._noise_said = True
             warnings.warn(said, TensionsWarning, stacklevel=3)
             return
-        noise = tension_noise_std(np.array(self._recent), t)
+        noise = tension_noise_std(np.array(self._kept.given), t)
         step = float(np.median(np.diff(t)))
         if smoothing_rows(noise, step) == 0:
             return
@@ -819,8 +813,6 @@ class TensionStream:
         out = self._ready(end=True)
         self._glitches_before += len(self._kept.replaced)
         self._kept.clear()
-        self._recent_t.clear()
-        self._recent.clear()
         self._done = 0
         return out
 
