@@ -17,6 +17,7 @@ import pytest
 from estimator_helpers import assert_ok_after_the_start
 
 from continuum_mhe.cli import main
+from continuum_mhe.cli.config import recorded_tensions
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import Estimate, Measurement, make_estimator
 from continuum_mhe.estimators.sensor_health import Estimator
@@ -216,6 +217,10 @@ def test_the_command_line_live_writes_the_tip_force_and_replays(
                                                      "tension_4,tension_5,tension_6")  # fmt: skip
     live = read_state_table(est)
     assert live.names[-3:] == ("fx", "fy", "fz") and live.std is not None
+    # its first line names the recording, whose tension columns plot and view draw with
+    assert est.read_text().splitlines()[0].endswith(' live, recorded in rec.csv"')
+    recorded = recorded_tensions(str(est))
+    assert recorded is not None and recorded.own_columns and Path(recorded.path) == rec
     batch_out = np.array([e.output for e in runs.batch])
     np.testing.assert_allclose(live.values, batch_out, rtol=1e-9, atol=1e-12)
     assert main(["estimate", str(rec), "--robot", ROBOT, "-o", str(replay)]) == 0

@@ -966,6 +966,42 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     assert not refused.exists()
 
 
+def test_plot_and_view_draw_an_estimate_with_its_recordings_tension_columns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An estimate of a recording that carries its tensions beside its IMU's columns
+    (no ``--inputs``): ``plot`` and ``view`` find them in the recording its first line
+    names, say so in a note, and draw what ``--inputs`` that recording draws; where the
+    recording is not found, or has no tension columns, the section ends joined."""
+    robot = _small_robot(tmp_path)
+    rec = tmp_path / "with_tensions.csv"
+    write_table(rec, ["t", "roll", "pitch", "tension_1"],
+                [[*r, 1.0 + 5 * r[0]] for r in _recording_rows()])  # fmt: skip
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(rec), "--robot", str(robot), "-o", str(est), "--method", "ekf"]
+    assert main(argv) == 0
+    assert est.read_text().splitlines()[0].endswith(' estimate with_tensions.csv"')
+    capsys.readouterr()
+    found, given = tmp_path / "found.png", tmp_path / "given.png"
+    assert main(["plot", str(est), "-o", str(found)]) == 0
+    err = capsys.readouterr().err
+    assert f"{est} was estimated from with_tensions.csv (its first line): its backbone " in err
+    assert "section ends" not in err
+    assert main(["plot", str(est), "--inputs", str(rec), "-o", str(given)]) == 0
+    assert found.read_bytes() == given.read_bytes()
+    pytest.importorskip("rerun")
+    saved = tmp_path / "found.rrd"
+    assert main(["view", str(est), "--save", str(saved)]) == 0
+    assert "with_tensions.csv (its first line)" in capsys.readouterr().err
+    # a recording without tension columns, or none found: the section ends joined
+    rec.write_text("t,roll,pitch\n0,0,0\n")
+    assert main(["plot", str(est), "-o", str(tmp_path / "ends.png")]) == 0
+    assert "drawn through the section ends" in capsys.readouterr().err
+    rec.unlink()
+    assert main(["plot", str(est), "-o", str(tmp_path / "gone.png")]) == 0
+    assert "drawn through the section ends" in capsys.readouterr().err
+
+
 def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

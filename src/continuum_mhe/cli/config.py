@@ -18,7 +18,8 @@ import difflib
 import os
 import re
 import sys
-from collections.abc import Collection
+from collections.abc import Collection, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -312,23 +313,113 @@ def beside(path: str, value: str) -> str:
     return str(there)
 
 
-def recorded_inputs(source: str) -> tuple[str, str] | None:
-    """The tensions file the estimate ``source``'s options line names (``--inputs``), as
-    written there and as a path here, where it is a file here, else None."""
+@dataclass(frozen=True)
+class RecordedTensions:
+    """Where the tensions an estimate was made with are found here.
+
+    ``written``: the file as the estimate's notes name it; ``path``: that file here;
+    ``own_columns``: the recording itself (its tension columns beside the IMUs'), not a
+    ``--inputs`` file."""
+
+    written: str
+    path: str
+    own_columns: bool
+
+    @property
+    def how(self) -> str:
+        """How the estimate was given them, and which of its lines says so."""
+        if self.own_columns:
+            return f"from {self.written}'s tension columns, its first line"
+        return f"with --inputs {self.written}, its options line"
+
+    def note(self, source: str) -> str:
+        """The note that the estimate ``source``'s backbone is drawn with these tensions."""
+        if self.own_columns:
+            made = f"from {self.written} (its first line): its backbone drawn with that file's"
+        else:
+            made = f"with --inputs {self.written} (its options line): its backbone drawn with"
+        return f"{PROG}: note: {source} was estimated {made} tensions (pass --inputs for others)"
+
+
+def recorded_tensions(source: str) -> RecordedTensions | None:
+    """The tensions the estimate ``source`` was made with, where they are a file here:
+    the ``--inputs`` file its options line names, else the recording its
+    ``continuum-mhe`` note names (``estimate REC.csv``; ``live``'s ``--record`` file)
+    where that has tension columns (``tension_1``...); else None."""
+    from continuum_mhe.io.text_rows import open_rows
+
     name = recorded_option(source, "inputs")
-    path = beside(source, name) if isinstance(name, str) else None
-    if path is None or not Path(path).is_file():
+    if isinstance(name, str):
+        path = beside(source, name)
+        return RecordedTensions(name, path, False) if Path(path).is_file() else None
+    name = recorded_recording(source)
+    if name is None:
         return None
-    return name, path
+    path = beside(source, name)
+    if not Path(path).is_file():  # (a recording read from a pipe: "-")
+        return None
+    try:  # its header alone: the reader of the tensions checks them against the robot
+        with open_rows(path, "t,...") as rows:
+            carries = any(c.startswith("tension_") for c in rows.header)
+    except (InputError, OSError):
+        return None
+    return RecordedTensions(name, path, True) if carries else None
 
 
-def recorded_inputs_note(source: str, written: str) -> str:
-    """The note that the estimate ``source``'s backbone is drawn with the tensions file
-    its options line names (``written``, as written there)."""
-    return (
-        f"{PROG}: note: {source} was estimated with --inputs {written} (its options line): "
-        "its backbone drawn with those tensions (pass --inputs for others)"
+#: the estimate's note of the version and command that made it, and of their input
+MADE_LINE = "continuum-mhe"
+#: live's words in that note before the name of its --record file
+LIVE_RECORDING = "recorded in"
+
+
+def recorded_recording(source: str) -> str | None:
+    """The recording the estimate ``source`` was made from, as its ``continuum-mhe`` note
+    names it (``VERSION estimate REC.csv``, ``VERSION live, recorded in RAW.csv``), or
+    None (no such note, ``live`` without ``--record``, a file not read)."""
+    made = _made_line(source)
+    found = (
+        None
+        if made is None
+        else re.fullmatch(rf"\S+ (?:estimate |live, {LIVE_RECORDING} )(.+)", made)
     )
+    return None if found is None else found.group(1)
+
+
+def _made_note(lines: Iterable[str]) -> str | None:
+    """The ``continuum-mhe = ...`` note among the ``#`` lines above a CSV's header."""
+    for ln in lines:
+        if not ln.startswith("#"):
+            return None
+        if re.match(rf"{MADE_LINE}\s*=", ln[1:].strip()):
+            return ln[1:].strip()
+    return None
+
+
+def _made_line(source: str) -> str | None:
+    """The value of the estimate ``source``'s ``continuum-mhe`` note (CSV: a ``#`` line
+    above its header; MCAP: its notes record), or None."""
+    if Path(source).suffix.lower() == ".mcap":
+        from continuum_mhe.io.mcap_estimates import read_notes_mcap
+
+        text = read_notes_mcap(source).get(MADE_LINE)
+        line = None if text is None else f"{MADE_LINE} = {text}"
+    else:
+        held = held_text(source)
+        try:
+            if held is not None:
+                line = _made_note(held.splitlines())
+            else:
+                with Path(source).open(encoding="utf-8-sig") as fh:
+                    line = _made_note(fh)
+        except (OSError, UnicodeDecodeError):
+            return None
+    if line is None:
+        return None
+    try:
+        value = tomllib.loads(line).get(MADE_LINE)
+    except tomllib.TOMLDecodeError:
+        return None
+    return value if isinstance(value, str) else None
 
 
 def recorded_option(path: str, key: str) -> Any:

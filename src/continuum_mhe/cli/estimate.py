@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, TextIO, cast
 import numpy as np
 
 from continuum_mhe.cli.config import (
+    MADE_LINE,
     MODEL_LINE,
     OPTIONS_LINE,
     T0_LINE,
@@ -246,7 +247,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         )
         made = f"{version()} estimate {Path(args.measurements).name}"
         notes = [
-            ("continuum-mhe", json.dumps(made)),
+            (MADE_LINE, json.dumps(made)),
             (OPTIONS_LINE, args.options_record),
             (MODEL_LINE, model_record(formulation)),
         ]

@@ -5,9 +5,17 @@ from __future__ import annotations
 
 import argparse
 import gc
+import json
 import os
 
-from continuum_mhe.cli.config import MODEL_LINE, OPTIONS_LINE, add_config_option, model_record
+from continuum_mhe.cli.config import (
+    LIVE_RECORDING,
+    MADE_LINE,
+    MODEL_LINE,
+    OPTIONS_LINE,
+    add_config_option,
+    model_record,
+)
 from continuum_mhe.cli.input_options import (
     add_raw_imu_options,
     add_tension_gain_option,
@@ -120,7 +128,11 @@ def run(args: argparse.Namespace) -> int:
             estimate_columns(formulation.outputs, outlier=estimator.flags_outliers),
             args.overwrite,
             (
-                f'continuum-mhe = "{version()} live"',
+                f"{MADE_LINE} = "
+                + json.dumps(
+                    f"{version()} live"
+                    + (f", {LIVE_RECORDING} {rec_path.name}" if rec_path is not None else "")
+                ),
                 f"{OPTIONS_LINE} = {args.options_record}",
                 f"{MODEL_LINE} = {model_record(formulation)}",
             ),

@@ -178,7 +178,7 @@ def _tendon_backbone(
     file the estimate's options line names, said in a note) and ``--inputs`` (checked
     against ``t`` as ``estimate`` checks it); None (the section ends joined, said in a
     note) without them."""
-    from continuum_mhe.cli.config import recorded_inputs, recorded_inputs_note, recorded_option
+    from continuum_mhe.cli.config import recorded_option, recorded_tensions
     from continuum_mhe.cli.robot_options import recorded_robot
     from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
     from continuum_mhe.io.tensions import read_tensions
@@ -191,8 +191,8 @@ def _tendon_backbone(
             )
         return None
     name = args.robot
-    recorded = None if args.inputs else recorded_inputs(args.source)
-    inputs = args.inputs or (recorded[1] if recorded else None)
+    recorded = None if args.inputs else recorded_tensions(args.source)
+    inputs = args.inputs or (recorded.path if recorded else None)
     if robot is None and inputs:  # the robot the estimate's options line names
         robot = recorded_robot(args.source, "drawn on that robot")
         name = recorded_option(args.source, "robot")
@@ -200,14 +200,14 @@ def _tendon_backbone(
     if robot is not None and inputs and not tendons:
         if args.inputs:
             raise InputError(f"{name}: --inputs needs a tendon robot ([backbone], [[tendon]])")
-        written = recorded[0] if recorded else inputs  # as its options line names it
+        how = recorded.how if recorded else f"with --inputs {inputs}, its options line"
         raise InputError(
             f"{name}: the robot has no [[tendon]], but {args.source} is a tendon robot's "
-            f"estimate (its tip force columns; estimated with --inputs {written}, its "
-            "options line): give that robot's file, or no --robot for the one it names"
+            f"estimate (its tip force columns; estimated {how}): give that robot's file, "
+            "or no --robot for the one it names"
         )
     if robot is not None and recorded:
-        print(recorded_inputs_note(args.source, recorded[0]), file=sys.stderr)
+        print(recorded.note(args.source), file=sys.stderr)
     if robot is None or not inputs:
         print(
             f"{PROG}: note: the backbone is drawn through the section ends; give "

@@ -42,15 +42,15 @@ def run(args: argparse.Namespace) -> int:
 def _recorded_tensions(estimates: str, robot: Robot) -> str | None:
     """For a tendon robot (``robot``), the tensions file the estimate's options line
     names where it is a file here, said in a note, as ``plot`` takes it; else None."""
-    from continuum_mhe.cli.config import recorded_inputs, recorded_inputs_note
+    from continuum_mhe.cli.config import recorded_tensions
 
     if robot.backbone is None or not robot.n_tendons:
         return None
-    recorded = recorded_inputs(estimates)
+    recorded = recorded_tensions(estimates)
     if recorded is None:
         return None
-    print(recorded_inputs_note(estimates, recorded[0]), file=sys.stderr)
-    return recorded[1]
+    print(recorded.note(estimates), file=sys.stderr)
+    return recorded.path
 
 
 def _refuse_tendon_estimate_on_another_robot(
