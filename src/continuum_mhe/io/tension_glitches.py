@@ -1,6 +1,7 @@
-"""Single-row glitches of the given tensions: a tension that one row alone gets wrong
-(a load cell's or a serial link's error), found and replaced by the cubic through its
-neighbouring rows (:func:`tension_glitches`).
+"""Glitches of the given tensions: a tension that one row alone, or two rows in a row,
+get wrong (a load cell's or a serial link's error, a logger that held a sample), found
+and replaced by the cubic through the neighbouring rows (:func:`tension_glitches`; a
+stream's, one row alone: :class:`StreamGlitches`).
 
 The estimators take the tensions' rates and second derivatives from their rows'
 differences, so that a row off by a few hundredths of a newton is a spike of both,
@@ -23,6 +24,10 @@ A tension at row ``i`` is a glitch where
   -1/6 two rows away) within
   :data:`SIGNATURE_TOLERANCE` of ``h``: a step of the tensions (a controller's), a
   kink (a slack tendon that starts to pull) or a fast motion leaves another pattern.
+
+A tension wrong at rows ``i`` and ``i + 1`` alike (neither a single-row glitch) is judged
+the same way by the cubic through rows ``i - 2``, ``i - 1``, ``i + 2`` and ``i + 3``, and
+the pair's echo in rows ``i - 2`` to ``i + 3`` (:func:`_pair_glitches`).
 
 Where more than :data:`MAX_GLITCH_SHARE` of the rows would be glitches, none is: such
 departures are the sensor's way (a quantised or noisy load cell), which the smoothing
@@ -100,7 +105,7 @@ def _lagrange(t_nodes: FloatArray, t_at: FloatArray | float) -> FloatArray:
 
 
 def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> TensionGlitches:
-    """The single-row glitches of the tensions ``values`` (n, k) N at ``t`` (n,) s,
+    """The single-row and two-row glitches of the tensions ``values`` (n, k) N at ``t`` (n,) s,
     strictly increasing, whose row-to-row noise is ``noise`` N (module docstring)."""
     values = np.asarray(values, dtype=float)
     n, k = values.shape
@@ -116,6 +121,7 @@ def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> Tension
     gain = np.sqrt(1.0 + np.sum(weights**2, axis=0))  # (m,)
     m = len(rows)
     judged = np.arange(m)  # indices into rows: rows 2 to n - 3
+    pairs = _PairCubics.of(t) if n >= 10 else None
     for c in range(k):  # a tendon at a time: the rows around take (8, n) values, not (8, n, k)
         v = values[:, c]
         curve[rows, c] = np.einsum("jm,jm->m", weights, v[nodes])
@@ -149,9 +155,107 @@ def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> Tension
             echoes[there] += 1
         echoed &= echoes >= 2
         mask[rows[judged], c] = (departure[judged] > limit[judged]) & echoed
+        if pairs is not None:
+            _pair_glitches(pairs, v, signed, departure, weights, noise, mask[:, c], curve[:, c])
     if mask.any(axis=1).sum() > max(1, math.floor(MAX_GLITCH_SHARE * n)):
         mask[:] = False
     return TensionGlitches(mask, curve)
+
+
+#: A pair's rows' departures from their own cubics that its errors ``(h1, h2)`` give,
+#: by the offset of the row from the pair's first: (the row's own error, 1 for ``h1``,
+#: 2 for ``h2``, 0 for none), then (the pair's error, its node in the row's cubic: nodes
+#: ``r - 2, r - 1, r + 1, r + 2`` are 0 to 3) for each error among the row's nodes.
+_PAIR_ECHOES: tuple[tuple[int, int, tuple[tuple[int, int], ...]], ...] = (
+    (-2, 0, ((1, 3),)),
+    (-1, 0, ((1, 2), (2, 3))),
+    (0, 1, ((2, 2),)),
+    (1, 2, ((1, 1),)),
+    (2, 0, ((1, 0), (2, 1))),
+    (3, 0, ((2, 0),)),
+)
+#: The rows away from a pair's first row whose single-row departures give the local
+#: scale (3 to 6 rows from either of its rows).
+_PAIR_AROUND = (-6, -5, -4, -3, 4, 5, 6, 7)
+
+
+@dataclass(frozen=True)
+class _PairCubics:
+    """The cubics through rows ``i - 2, i - 1, i + 2, i + 3`` of a table at ``t``, at the
+    times of rows ``i`` and ``i + 1``, for ``i`` = 2 to n - 4: ``nodes`` (4, p) their rows,
+    ``weights`` (2, 4, p) at the two rows, ``gain`` (2, p) a white noise's departure from
+    them in its std."""
+
+    first: NDArray[np.int_]
+    nodes: NDArray[np.int_]
+    weights: FloatArray
+    gain: FloatArray
+
+    @classmethod
+    def of(cls, t: FloatArray) -> _PairCubics:
+        first = np.arange(2, len(t) - 3)
+        nodes = np.stack([first - 2, first - 1, first + 2, first + 3])
+        weights = np.stack([_lagrange(t[nodes], t[first + j]) for j in (0, 1)])
+        gain = np.sqrt(1.0 + np.sum(weights**2, axis=1))
+        return cls(first, nodes, weights, gain)
+
+
+def _pair_glitches(
+    pairs: _PairCubics,
+    v: FloatArray,
+    signed: FloatArray,
+    departure: FloatArray,
+    weights: FloatArray,
+    noise: float,
+    mask: NDArray[np.bool_],
+    curve: FloatArray,
+) -> None:
+    """Mark in ``mask`` (n,) the glitches of one tendon's tensions ``v`` (n,) N that two
+    rows in a row get wrong (a logger that held a sample for two rows; two readings of
+    a link that failed), where no row of the pair is a single-row glitch, and put in
+    ``curve`` (n,) the cubic through the two rows either side at each. ``signed`` and
+    ``departure`` (m,): rows 2 to n - 3's signed and absolute departures from their own
+    cubics, of ``weights`` (4, m). Both rows leave the cubic beyond the limits a single
+    row's glitch leaves it by (their gains, the single-row departures 3 to 6 rows away),
+    and the departures of rows ``i - 2`` to ``i + 3`` from their own cubics (all six
+    judged: pairs from row 4 to row n - 5) are the pair's echo in them within
+    :data:`SIGNATURE_TOLERANCE` of its larger error."""
+    m = len(signed)
+    p = len(pairs.first)
+    fit = np.einsum("jkp,kp->jp", pairs.weights, v[pairs.nodes])  # (2, p)
+    h = v[pairs.first + np.arange(2)[:, None]] - fit  # (2, p)
+    around = np.full((len(_PAIR_AROUND), p), np.nan)
+    base = pairs.first - 2  # the pair's first row among the judged rows
+    for j, off in enumerate(_PAIR_AROUND):
+        src = base + off
+        inside = (src >= 0) & (src < m)
+        around[j, inside] = departure[src[inside]]
+    scale = np.zeros(p)
+    known = np.isfinite(around).any(axis=0)
+    scale[known] = np.nanmedian(around[:, known], axis=0)
+    limit = np.maximum(GLITCH_SCALE_FACTOR * scale, GLITCH_FLOOR_N)
+    limit = np.maximum(limit[None, :], GLITCH_NOISE_FACTOR * noise * pairs.gain)
+    larger = np.max(np.abs(h), axis=0)
+    echoed = np.ones(p, dtype=bool)
+    echoes = np.zeros(p, dtype=int)
+    for off, own, among in _PAIR_ECHOES:
+        at = base + off
+        there = (at >= 0) & (at < m)
+        rows = at[there]
+        echo = h[own - 1, there] if own else np.zeros(len(rows))
+        for which, node in among:
+            echo = echo - weights[node, rows] * h[which - 1, there]
+        echoed[there] &= np.abs(signed[rows] - echo) < SIGNATURE_TOLERANCE * larger[there]
+        echoes[there] += 1
+    found = np.all(np.abs(h) > limit, axis=0) & echoed & (echoes == len(_PAIR_ECHOES))
+    taken = mask.copy()
+    for q in np.flatnonzero(found):
+        i = int(pairs.first[q])
+        if taken[i - 1 : i + 3].any():  # a single-row glitch, or a pair beside: not this
+            continue
+        taken[i : i + 2] = True
+        mask[i : i + 2] = True
+        curve[i : i + 2] = fit[:, q]
 
 
 class StreamGlitches:

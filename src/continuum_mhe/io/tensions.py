@@ -18,8 +18,8 @@ must cover the recording: a measurement before its first row or after its last i
 error, as are a negative or non-finite tension, a wrong number of tension columns and
 times that do not increase.
 
-A tension that one row alone gets wrong (a glitch) is replaced by the cubic through its
-neighbours (:mod:`.tension_glitches`).
+A tension that one row alone gets wrong (a glitch; in a file, two rows in a row too) is
+replaced by the cubic through its neighbours (:mod:`.tension_glitches`).
 
 The tensions may also come one sample at a time (``live``'s serial line:
 :class:`TensionStream`), with the same derivatives: those of a sample are known once
