@@ -317,7 +317,7 @@ def test_parse_line_reads_the_tensions_after_the_imus() -> None:
     np.testing.assert_array_equal(s.tensions, [1.5, 0.0, 2.25])
     assert parse_line("20,0.1,-0.2", "tilt").tensions.shape == (0,)  # type: ignore[union-attr]
     for line, why in [
-        ("20,0.1,-0.2,1.5,-0.01", "a negative tension"),
+        ("20,0.1,-0.2,1.5,-0.05", "a negative tension"),
         ("20,0.1,-0.2,1.5,inf", "a tension: non-finite value"),
         ("20,0.1,-0.2,1.5,x", "a tension: non-numeric field"),
         ("20,0.1,-0.2,1.5", "expected 5 fields, found 4"),

@@ -162,6 +162,7 @@ def test_a_stream_of_noisy_tensions_is_said_once() -> None:
         for i in range(len(smooth.t)):
             stream.push(float(smooth.t[i]), noisy[i])
     relevant = [w for w in said if issubclass(w.category, TensionsWarning)]
+    relevant = [w for w in relevant if "below 0" not in str(w.message)]  # slack readings
     assert len(relevant) == 1
     assert re.match(r"port: the tensions scatter by about 0\.01\d* N .* about 0\.[34]\d* N/s",
                     str(relevant[0].message))  # fmt: skip

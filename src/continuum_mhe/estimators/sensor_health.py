@@ -68,7 +68,8 @@ from continuum_mhe.io.input_options import (
     mounting_checked,
 )
 from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
-from continuum_mhe.io.tensions import tension_scale_problem
+from continuum_mhe.io.slack_readings import take_slack_readings
+from continuum_mhe.io.tensions import TensionsWarning, tension_scale_problem
 from continuum_mhe.model.descriptions import tip_position_indices
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
@@ -286,6 +287,8 @@ class Estimator(Generic[InferenceT]):
         self._consistency = ConsistencyCheck(formulation)
         self._direct_rows = direct_blocks(formulation)
         self._tension_rows = tension_rows(formulation)
+        # whether a slack tendon's reading below zero was said (once a recording)
+        self._slack_said = False
         #: the rows of the tensions and their derivatives (blocks of kind "tension"):
         #: without one, a sample is a dropout as a whole (the IMUs' model needs them)
         self._tension_block_rows = [
@@ -430,6 +433,7 @@ class Estimator(Generic[InferenceT]):
             self.inference.clear_counts()
         self._ran = False
         if not keep_counts:  # a new recording: its units and mounting are checked anew
+            self._slack_said = False
             self._units.reset()
             self._time_steps.reset()
             self.mounting_watch.reset()
@@ -537,7 +541,7 @@ class Estimator(Generic[InferenceT]):
             )
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
         if self._tension_rows:
-            self._check_tensions(z[None, :], np.array([t], dtype=float))
+            z = self._check_tensions(z[None, :], np.array([t], dtype=float))[0]
         if not self._units.done:
             problem = self._units.see(np.array([t], dtype=float), z[None, :])
             if problem is not None:
@@ -561,26 +565,43 @@ class Estimator(Generic[InferenceT]):
             outlier=r.outlier, outputs=self.formulation.outputs,
         )  # fmt: skip
 
-    def _check_tensions(self, z: FloatArray, t: FloatArray) -> None:
-        """A :class:`UserError` for the first negative tension in ``z`` (n, nz) at the
-        times ``t`` (n,) s, and for tensions that would bend a section through turns on
-        their own (mN given for N), as the tensions file's reader gives them."""
+    def _check_tensions(self, z: FloatArray, t: FloatArray) -> FloatArray:
+        """``z`` (n, nz) at the times ``t`` (n,) s with a slack tendon's tension read
+        below zero taken as 0 (a copy where one is; said once until a reset, a
+        :class:`~continuum_mhe.io.tensions.TensionsWarning`); a :class:`UserError` for
+        the first tension further below zero (:mod:`~continuum_mhe.io.slack_readings`),
+        and for tensions that would bend a section through turns on their own (mN given
+        for N), as the tensions file's reader gives them."""
         names = self.formulation.measurement_names
         tensions = z[:, self._tension_rows]
-        negative = np.argwhere((tensions < 0) & np.isfinite(tensions))  # -inf: infinite
+        taken = take_slack_readings(tensions)
+        negative = np.argwhere(taken.too_negative & np.isfinite(tensions))  # -inf: infinite
         if len(negative):
             i, j = negative[0]
             row = self._tension_rows[j]
             raise UserError(
                 f"measurement at t={float(t[i])!r} s: {names[row]} = {z[i, row]:g} N is "
-                "negative: a tendon cannot push (a slack tendon's tension is 0)"
+                "negative: a tendon cannot push (a slack tendon's tension is 0; its load "
+                f"cell may read down to -{taken.limit[i]:.3g} N there, taken as 0)"
             )
+        if taken.count:
+            z = z.copy()
+            z[:, self._tension_rows] = taken.values
+            if not self._slack_said:
+                self._slack_said = True
+                first = int(np.flatnonzero(taken.slack.any(axis=1))[0])
+                warnings.warn(
+                    taken.said("the measurements' tensions", f"t = {float(t[first]):g} s"),
+                    TensionsWarning,
+                    stacklevel=4,
+                )
         robot = getattr(self.formulation, "robot", None)
         if isinstance(robot, Robot):  # (an infinite tension is the policy's to refuse)
             finite = np.where(np.isfinite(tensions), tensions, np.nan)
             problem = tension_scale_problem(robot, t, finite, "the measurements' tensions")
             if problem is not None:
                 raise UserError(problem)
+        return z
 
     def _check_units(self, t: FloatArray, z: FloatArray) -> None:
         """A :class:`UserError` where the ``direct`` IMU readings of a whole recording
@@ -797,7 +818,7 @@ class Estimator(Generic[InferenceT]):
                 f"(a row of {nz} readings a sample), got {z.shape}"
             )
         if self._tension_rows:
-            self._check_tensions(z, t)
+            z = self._check_tensions(z, t)
         return t, z
 
     def continue_run(

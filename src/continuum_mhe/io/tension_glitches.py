@@ -174,6 +174,9 @@ _PAIR_ECHOES: tuple[tuple[int, int, tuple[tuple[int, int], ...]], ...] = (
     (2, 0, ((1, 0), (2, 1))),
     (3, 0, ((2, 0),)),
 )
+#: How far a step between the rows a pair's judgement reads may lie from the median
+#: step, as a share of it (rows at jittered times are judged; rows across a hole not).
+PAIR_EVEN_STEPS = 0.5
 #: The rows away from a pair's first row whose single-row departures give the local
 #: scale (3 to 6 rows from either of its rows).
 _PAIR_AROUND = (-6, -5, -4, -3, 4, 5, 6, 7)
@@ -193,7 +196,16 @@ class _PairCubics:
 
     @classmethod
     def of(cls, t: FloatArray) -> _PairCubics:
+        """Those of the pairs whose rows ``i - 4`` to ``i + 5`` (those their judgement
+        reads) lie :data:`PAIR_EVEN_STEPS` of the median step apart at most: across a
+        hole in the rows, two rows' departures from a cubic over it are not a glitch's."""
+        step = np.diff(t)
+        usual = float(np.median(step))
+        even = np.abs(step - usual) <= PAIR_EVEN_STEPS * usual  # (n - 1,)
         first = np.arange(2, len(t) - 3)
+        uneven = np.concatenate([[0], np.cumsum(~even)])  # uneven steps before each row
+        lo, hi = np.maximum(first - 4, 0), np.minimum(first + 5, len(step))  # steps lo..hi-1
+        first = first[uneven[hi] == uneven[lo]]
         nodes = np.stack([first - 2, first - 1, first + 2, first + 3])
         weights = np.stack([_lagrange(t[nodes], t[first + j]) for j in (0, 1)])
         gain = np.sqrt(1.0 + np.sum(weights**2, axis=1))

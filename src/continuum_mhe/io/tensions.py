@@ -49,6 +49,7 @@ from continuum_mhe.errors import (
 from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_time_units
 from continuum_mhe.io.input_options import InputOptions, OptionWarning
 from continuum_mhe.io.sample_rows import RowProblems, read_samples
+from continuum_mhe.io.slack_readings import take_slack_readings
 from continuum_mhe.io.tension_derivatives import (
     TENSION_ACCELERATION_NOISE,
     TENSION_RATE_NOISE,
@@ -577,14 +578,19 @@ def _checked_rows(
             f"{name}: {where(i)}: tension_{j + 1} is {v_arr[i, j]}: leave the row out (the "
             "tensions are interpolated across it)"
         )
-    neg = np.argwhere(v_arr < 0)
+    taken = take_slack_readings(v_arr)
+    neg = np.argwhere(taken.too_negative)
     if len(neg):
         i, j = neg[0]
         raise error(
             f"{name}: {where(i)}: tension_{j + 1} = {v_arr[i, j]:g} N is negative: a tendon "
-            "cannot push (a slack tendon's tension is 0)"
+            "cannot push (a slack tendon's tension is 0; its load cell may read down to "
+            f"-{taken.limit[i]:.3g} N there, taken as 0)"
         )
-    return t_arr, v_arr
+    if taken.count:
+        first = int(np.flatnonzero(taken.slack.any(axis=1))[0])
+        warnings.warn(taken.said(name, where(first)), TensionsWarning, stacklevel=3)
+    return t_arr, taken.values
 
 
 def read_tensions(
@@ -715,15 +721,18 @@ class TensionStream:
         # whether the last samples' scatter (:meth:`_check_noise`, on the samples as
         # given that the glitch test keeps) has been said
         self._noise_said = False
+        # whether a slack tendon's reading below zero has been said
+        self._slack_said = False
 
     def push(self, t: float, values: FloatArray) -> list[TensionsAt]:
         """Add a sample (``t`` s, increasing; ``values`` N, one per tendon, NaN where a
         tension is missing); the samples whose derivatives are now known, oldest first
         (none for the first two). A sample of another count of tensions than the
         robot's (:attr:`n_tendons`, else the first sample's) raises
-        :class:`~continuum_mhe.errors.UserError`, and is not added (a negative tension,
-        a load cell's noise about a slack tendon, is taken: the estimator's step refuses
-        it). A sample whose time is not later than the last one's raises
+        :class:`~continuum_mhe.errors.UserError`, and is not added (a negative tension
+        is taken as 0 where it is a slack tendon's reading, said once: the tensions
+        file's rule, :mod:`.slack_readings`; one further below zero, the estimator's
+        step refuses). A sample whose time is not later than the last one's raises
         :class:`~continuum_mhe.errors.SampleTimeError` and is not added (its differences
         would be of a step back in time)."""
         if not is_real(t):
@@ -750,6 +759,12 @@ class TensionStream:
                 f"{self.name}: a sample at t = {t:g} s has tensions of shape {v.shape}; "
                 f"the robot has {self.n_tendons} tendons: one tension each (N)"
             )
+        slack = take_slack_readings(v[None, :])
+        if slack.count and not slack.too_negative.any():
+            v = slack.values[0]
+            if not self._slack_said:
+                self._slack_said = True
+                warnings.warn(slack.said(self.name, f"t = {t:g} s"), TensionsWarning, 2)
         replaced = len(self._kept.replaced)
         self._kept.push(t, v)
         if not self._noise_said and self._kept.seen % NOISE_CHECK_ROWS == 0:

@@ -25,6 +25,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.io.csv_files import tilt_columns
 from continuum_mhe.io.raw_imu import raw_columns
+from continuum_mhe.io.slack_readings import take_slack_readings
 from continuum_mhe.io.tensions import tension_columns
 from continuum_mhe.io.text_rows import declared_fields
 from continuum_mhe.model.imu import STANDARD_GRAVITY
@@ -169,14 +170,20 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1, n_tensions: int = 0)
 
 
 def _tensions(fields: list[str]) -> FloatArray:
-    """A line's tendon tensions, N: finite and non-negative, or :class:`GarbledLine`."""
+    """A line's tendon tensions, N: finite and not below zero by more than a slack
+    tendon's load cell reads (:mod:`~continuum_mhe.io.slack_readings`), or
+    :class:`GarbledLine`."""
     try:
         v = np.array([_number(f) for f in fields])
     except GarbledLine as exc:
         raise GarbledLine(f"a tension: {exc}") from None
-    if (v < 0).any():
-        raise GarbledLine("a negative tension (a tendon cannot push; a slack one's is 0)")
-    return v
+    taken = take_slack_readings(v[None, :])
+    if taken.too_negative.any():
+        raise GarbledLine(
+            "a negative tension (a tendon cannot push; a slack one's is 0, read down to "
+            f"-{taken.limit[0]:.3g} N)"
+        )
+    return v  # a slack tendon's reading below zero: the estimator's step takes it as 0
 
 
 def beyond_range(values: list[float], imu: int, n_imus: int) -> str:
