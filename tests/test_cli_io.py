@@ -243,6 +243,21 @@ def test_bad_measurement_file_is_rejected_cleanly(tmp_path, capsys, case):
     assert list(tmp_path.iterdir()) == [meas]  # no output, no temporary left behind
 
 
+@pytest.mark.parametrize("case", ["degrees", "roll-pitch-swapped"])
+def test_skip_bad_does_not_read_a_files_wrong_unit_or_columns_as_dropouts(
+    tmp_path, capsys, case
+):
+    """Angles in degrees, or roll and pitch swapped, are the file's, not a few rows'
+    glitches: refused with --skip-bad as without it (they were read as dropouts and the
+    rest estimated with the wrong unit or columns, `ok` and far off)."""
+    text, expected = BAD_INPUTS[case]
+    meas = _write(tmp_path / "meas.csv", text)
+    code = main(["estimate", str(meas), "--skip-bad", "-o", str(tmp_path / "est.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and expected in err
+    assert list(tmp_path.iterdir()) == [meas]
+
+
 def test_swapped_angles_of_one_imu_of_several_are_named_by_their_columns(tmp_path, capsys):
     """Two IMUs, the second's pitch column holding roll values (up to pi) and its roll
     column pitch values: the line names that IMU's columns and says they look swapped."""

@@ -400,14 +400,18 @@ def _check_angle_units(
 ) -> None:
     """Refuse angles (n, 2) beyond their range in one line naming the first; with
     ``skipped`` (``skip_bad``) such a row's angles become a dropout (NaN, in place) and
-    its description is appended there instead. ``columns``: the angles' column names."""
+    its description is appended there instead, unless so many rows are (a share of
+    :data:`DEGREES_LIKE_SHARE` at least) that the file's unit or columns are wrong
+    (degrees, roll and pitch swapped): refused with ``skip_bad`` too. ``columns``: the angles' column names."""
     with np.errstate(invalid="ignore"):
         over = (np.abs(z[:, 0]) > ROLL_LIMIT) | (np.abs(z[:, 1]) > PITCH_LIMIT)
     if not over.any():
         return
     unit = "deg" if degrees else "rad"
     roll_name, pitch_name = columns
-    if skipped is not None:
+    valid = int(np.isfinite(z).all(axis=1).sum())
+    many = over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1)  # not a few glitches
+    if skipped is not None and not many:  # (many: the file's unit or columns, refused)
         for row in np.flatnonzero(over).tolist():
             shown = np.degrees(z[row]) if degrees else z[row]
             skipped.append(
@@ -423,9 +427,7 @@ def _check_angle_units(
         shown = np.degrees(z[i]) if degrees else z[i]
         where = f"{path}: line {lines[i]}: {roll_name}={shown[0]:.4g}, {pitch_name}={shown[1]:.4g}"
         raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
-    valid = int(np.isfinite(z).all(axis=1).sum())
     roll_most, pitch_most = (float(np.nanmax(np.abs(z[:, k]), initial=0.0)) for k in (0, 1))
-    many = over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1)  # not a few glitches
     if many and roll_most <= PITCH_LIMIT < pitch_most <= ROLL_LIMIT:
         # a pitch column with a roll's range beside a roll column with a pitch's
         hint = (
