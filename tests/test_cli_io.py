@@ -244,9 +244,7 @@ def test_bad_measurement_file_is_rejected_cleanly(tmp_path, capsys, case):
 
 
 @pytest.mark.parametrize("case", ["degrees", "roll-pitch-swapped"])
-def test_skip_bad_does_not_read_a_files_wrong_unit_or_columns_as_dropouts(
-    tmp_path, capsys, case
-):
+def test_skip_bad_does_not_read_a_files_wrong_unit_or_columns_as_dropouts(tmp_path, capsys, case):
     """Angles in degrees, or roll and pitch swapped, are the file's, not a few rows'
     glitches: refused with --skip-bad as without it (they were read as dropouts and the
     rest estimated with the wrong unit or columns, `ok` and far off)."""

@@ -2261,8 +2261,8 @@ def test_plot_says_when_the_models_backbone_misses_the_estimated_tip(tmp_path: P
 
 
 def test_tensions_that_look_like_a_sensor_or_logger_fault_are_said(tmp_path: Path) -> None:
-    """A tendon at 0 in every row, tensions repeated exactly for 6 s, and a 2 s hole
-    between rows 0.02 s apart: one TensionsWarning each, naming the file, the tendon or
+    """A tendon at 0 in every row, tensions repeated exactly for 6 s, and a 2 s or a
+    0.4 s hole between rows 0.02 s apart: one TensionsWarning each, naming the file, the tendon or
     the times; the shipped tensions file gives none."""
     import warnings
 
@@ -2278,12 +2278,17 @@ def test_tensions_that_look_like_a_sensor_or_logger_fault_are_said(tmp_path: Pat
         "zero": (t, np.where(np.arange(6) == 1, 0.0, v)),
         "frozen": (t, np.where((t > 2.0)[:, None], v[np.searchsorted(t, 2.0)], v)),
         "hole": (t[(t < 2.0) | (t > 4.0)], v[(t < 2.0) | (t > 4.0)]),
+        "short-hole": (t[(t < 1.61) | (t > 1.99)], v[(t < 1.61) | (t > 1.99)]),
     }
     said = {
         "zero": r"zero.csv: tension_2 is 0 in every row: a sensor not connected",
         "frozen": r"frozen.csv: the tensions repeat exactly from t = 2 to 8 s \(6 s\): a logger",
         "hole": r"hole.csv: no tensions between t = 1\.98 and 4\.02 s \(2\.04 s; the rows are "
         r"0\.02 s apart elsewhere\): interpolated linearly across",
+        # 0.4 s: the estimate would stay off after it where the tensions curve there
+        "short-hole": r"short-hole.csv: no tensions between t = 1\.6 and 2 s \(0\.4 s; .*: "
+        r"interpolated linearly across; where the tensions do not change linearly there, "
+        r"the estimate may stay off",
     }
     for name, (tc, vc) in cases.items():
         path = tmp_path / f"{name}.csv"

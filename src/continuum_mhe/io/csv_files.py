@@ -402,7 +402,8 @@ def _check_angle_units(
     ``skipped`` (``skip_bad``) such a row's angles become a dropout (NaN, in place) and
     its description is appended there instead, unless so many rows are (a share of
     :data:`DEGREES_LIKE_SHARE` at least) that the file's unit or columns are wrong
-    (degrees, roll and pitch swapped): refused with ``skip_bad`` too. ``columns``: the angles' column names."""
+    (degrees, roll and pitch swapped): refused with ``skip_bad`` too. ``columns``: the
+    angles' column names."""
     with np.errstate(invalid="ignore"):
         over = (np.abs(z[:, 0]) > ROLL_LIMIT) | (np.abs(z[:, 1]) > PITCH_LIMIT)
     if not over.any():

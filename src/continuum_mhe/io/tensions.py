@@ -85,9 +85,11 @@ PLAUSIBLE_TENSION_N = 200.0
 #: tension constant for a while, so this is longer than an IMU's freeze
 #: (:data:`~continuum_mhe.settings.FREEZE_S`).
 TENSIONS_FROZEN_S = 1.0
-#: A step between two rows of more than this many times the median step (and over 1 s)
-#: is said: the tensions are interpolated across the hole.
+#: A step between two rows of more than this many times the median step (and over
+#: :data:`TENSIONS_HOLE_S`) is said: the tensions are interpolated across the hole.
 TENSIONS_HOLE_FACTOR = 10.0
+#: The shortest hole between two rows that is said, s.
+TENSIONS_HOLE_S = 0.1
 #: Rows more than this many times as far apart as the recording's samples are said.
 TENSIONS_SPARSE_FACTOR = 10.0
 #: Samples of a stream of tensions (``live``) whose scatter is checked at a time
@@ -380,10 +382,11 @@ class Tensions:
         logger: a tendon whose tension is 0 in every row (a sensor not connected, or a
         tendon slack all along), tensions that repeat exactly for over
         :data:`TENSIONS_FROZEN_S` (a logger that froze), and a hole between two rows of
-        over :data:`TENSIONS_HOLE_FACTOR` times the usual step and a second (bridged by
-        the linear interpolation). ``first`` and ``last``: the recording's first and
-        last times, s, where known: only the rows the recording uses count (from the
-        last row at or before ``first`` to the first at or after ``last``)."""
+        over :data:`TENSIONS_HOLE_FACTOR` times the usual step and
+        :data:`TENSIONS_HOLE_S` (bridged by the linear interpolation). ``first`` and
+        ``last``: the recording's first and last times, s, where known: only the rows
+        the recording uses count (from the last row at or before ``first`` to the first
+        at or after ``last``)."""
         t, rows = self.t, self.rows
         if first is not None and last is not None:
             lo = max(int(np.searchsorted(t, first, side="right")) - 1, 0)
@@ -422,11 +425,15 @@ class Tensions:
             steps = np.diff(t)
             usual = float(np.median(steps))
             i = int(np.argmax(steps))
-            if steps[i] > max(TENSIONS_HOLE_FACTOR * usual, 1.0):
+            holes = int(np.sum(steps > max(TENSIONS_HOLE_FACTOR * usual, TENSIONS_HOLE_S)))
+            if holes:
+                more = f"; {holes - 1} shorter hole(s) too" if holes > 1 else ""
                 warnings.warn(
                     f"{self.name}: no tensions between t = {time_text(float(t[i]))} and "
                     f"{time_text(float(t[i + 1]))} s ({steps[i]:.3g} s; the rows are "
-                    f"{usual:.3g} s apart elsewhere): interpolated linearly across",
+                    f"{usual:.3g} s apart elsewhere{more}): interpolated linearly across; "
+                    "where the tensions do not change linearly there, the estimate may "
+                    "stay off for seconds after the hole, beyond its standard deviations",
                     TensionsWarning,
                     stacklevel=2,
                 )
