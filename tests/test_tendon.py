@@ -3304,3 +3304,40 @@ def test_uncertain_rows_of_a_wide_standard_deviation_are_said(
             assert "over --uncertain-fraction 0.1 of the robot's length (40 mm)" in notes[0]
         else:
             assert wide <= 8 and not notes
+
+
+def test_evaluate_refuses_a_truths_tip_force_in_mn_and_twist_in_degrees(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A truth whose tip force is in mN (about 1000 times the estimate's) or whose twist
+    ``psi_k`` is in degrees (beyond 2 pi) is refused in one line naming the truth file
+    (the scores were 108 N of force error, 67.8 deg of twist); the truth in N and rad
+    is scored; an estimate free of load says nothing of the force's unit."""
+    from continuum_mhe.io.position_units import force_unit_against
+
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(data / "force-29_raw.csv"), "--robot", "tendon-two-section",
+            "--inputs", str(data / "force-29_tensions.csv"), "-o", str(est)]  # fmt: skip
+    assert main(argv) == 0
+    truth = read_state_table(data / "force-29_truth.csv")
+    for name, column, factor in (("mN", "f", 1000.0), ("deg", "psi", 180 / math.pi)):
+        scaled = np.array(truth.values, dtype=float)
+        for j, c in enumerate(truth.names):
+            if c.startswith(column):
+                scaled[:, j] *= factor
+        path = tmp_path / f"truth_{name}.csv"
+        write_table(path, ["t", *truth.names], np.column_stack([truth.t, scaled]))
+        capsys.readouterr()
+        assert main(["evaluate", str(est), str(path)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert err.startswith(f"continuum-mhe: error: {path}: ")
+        assert (
+            "fx, fy, fz in mN? give them in N" if name == "mN" else "beyond 2 pi: degrees?"
+        ) in err
+    assert main(["evaluate", str(est), str(data / "force-29_truth.csv")]) == 0
+    names = ["fx", "fy", "fz"]
+    f = np.array([[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])
+    assert "2000 times" in force_unit_against(names, f * 2000, names, f)
+    assert force_unit_against(names, f * 20, names, f) == ""
+    assert force_unit_against(names, f * 1000, names, f * 0) == ""  # free of load

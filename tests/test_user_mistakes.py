@@ -2022,7 +2022,7 @@ def test_bend_angles_in_degrees_are_refused_on_their_line(tmp_path, capsys) -> N
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1
     assert err.startswith(f"continuum-mhe: error: {degrees}: line {first + 2}: theta=")
-    assert "beyond 2 pi: degrees? bend angles are in rad" in err
+    assert "beyond 2 pi: degrees? angles are in rad" in err
 
 
 def test_plot_refuses_a_truth_in_mm_without_the_robot(tmp_path, capsys) -> None:

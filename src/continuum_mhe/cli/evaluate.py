@@ -41,6 +41,7 @@ from continuum_mhe.evaluation.metrics import (
 )
 from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.io.position_units import (
+    force_unit_against,
     position_unit_problem,
     steady_ratio,
 )
@@ -199,6 +200,8 @@ def _evaluate(args: argparse.Namespace) -> int:
     for path, table in ((args.estimates, est), (args.truth, truth)):
         if unit := position_unit_problem(table.names, table.values, robot.lengths):
             raise InputError(f"{path}: {unit}")
+    if unit := force_unit_against(truth.names, truth.values, est.names, est.values):
+        raise InputError(f"{args.truth}: {unit}")
     scored_from = _scored_from(est, args.skip_start)
     est = _after_start(args.estimates, est, args.skip_start)
     aligned = _align(args.estimates, est.t, args.truth, truth, scored_from)

@@ -21,6 +21,7 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, real_number
 from continuum_mhe.io.position_units import (
     LENGTH_RATIO_TOLERANCE,
+    force_unit_against,
     has_bend_columns,
     position_unit_against,
     position_unit_problem,
@@ -196,6 +197,8 @@ def compute_metrics(
         ):
             raise UserError(f"{side}: {problem}")
     if problem := position_unit_against(tnames, tru_all, names, est_all):
+        raise UserError(f"truth: {problem}")
+    if problem := force_unit_against(tnames, tru_all, names, est_all):
         raise UserError(f"truth: {problem}")
     for side, side_names, values in (("estimate", names, est_all), ("truth", tnames, tru_all)):
         turned = angle_beyond_a_turn(side_names, values)

@@ -1,6 +1,7 @@
 """Whether the positions of an estimate or truth table (``x, y, z``, m) are in another
 unit (mm, cm), or made for a robot of another length: the tip's distance from the base
-against the one the table's own bend angles give on the robot."""
+against the one the table's own bend angles give on the robot; and whether a truth's
+tip force (``fx, fy, fz``, N) is in mN against the estimate's."""
 
 from __future__ import annotations
 
@@ -198,4 +199,40 @@ def tip_direction_problem(
         f"its tip points {angle:.0f} degrees from where its own bend angles put it (median "
         "over its bent rows): x and y swapped, a sign flipped, or positions in another frame "
         f"than its angles{wrapped}?"
+    )
+
+
+#: The tip force's columns (N).
+FORCE_COLUMNS = ("fx", "fy", "fz")
+#: A truth whose median tip force is within this factor of 1000 times the estimate's
+#: (and over :data:`FORCE_UNIT_LEAST_N`) is taken to be in mN.
+FORCE_UNIT_FACTOR = 3.0
+#: The least median tip force, N, of a truth taken to be in mN.
+FORCE_UNIT_LEAST_N = 0.1
+
+
+def force_unit_against(
+    names: Sequence[str], values: FloatArray, ref_names: Sequence[str], ref_values: FloatArray
+) -> str:
+    """``""``, or why the tip force of a truth (``fx, fy, fz`` of ``names``, ``values``)
+    is in mN against the estimate's (``ref_names``, ``ref_values``): its median
+    magnitude about 1000 times the estimate's (within :data:`FORCE_UNIT_FACTOR`) and over
+    :data:`FORCE_UNIT_LEAST_N`. An estimate free of load (a force of 0) says nothing."""
+    if not all(c in names and c in ref_names for c in FORCE_COLUMNS):
+        return ""
+    sizes = []
+    for cols, table in ((names, values), (ref_names, ref_values)):
+        f = np.asarray(table, dtype=float)[:, [list(cols).index(c) for c in FORCE_COLUMNS]]
+        size = np.linalg.norm(f, axis=1)
+        size = size[np.isfinite(size)]
+        sizes.append(float(np.median(size)) if len(size) else 0.0)
+    truth, estimate = sizes
+    if not (truth > FORCE_UNIT_LEAST_N and estimate > 0.0):
+        return ""
+    ratio = truth / estimate
+    if not 1000.0 / FORCE_UNIT_FACTOR <= ratio <= 1000.0 * FORCE_UNIT_FACTOR:
+        return ""
+    return (
+        f"its tip force is {ratio:.4g} times the estimate's (a median of {truth:.4g} against "
+        f"{estimate:.4g}): fx, fy, fz in mN? give them in N"
     )

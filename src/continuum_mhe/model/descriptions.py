@@ -171,15 +171,20 @@ ANGLE_LIMIT = 2.0 * math.pi + 1e-9
 
 
 def angle_beyond_a_turn(names: Sequence[str], values: FloatArray) -> tuple[int, str] | None:
-    """The first row of the table ``values`` (n, len(names)) with a bend angle (a
-    ``theta`` or ``phi`` column) beyond :data:`ANGLE_LIMIT`, angles in degrees, and what
-    to say of it (``theta=90 beyond 2 pi: degrees? ...``); else None."""
-    angles = [j for j, n in enumerate(names) if n.partition("_")[0] in ("theta", "phi")]
+    """The first row of the table ``values`` (n, len(names)) with an angle (a bend's
+    ``theta`` or ``phi``, a section end's twist ``psi``, an IMU's ``imu_twist``) beyond
+    :data:`ANGLE_LIMIT`, angles in degrees, and what to say of it (``theta=90 beyond 2
+    pi: degrees? ...``); else None."""
+    angles = [
+        j
+        for j, n in enumerate(names)
+        if n.partition("_")[0] in ("theta", "phi", "psi") or n.startswith("imu_twist")
+    ]
     turned = np.argwhere(np.abs(values[:, angles]) > ANGLE_LIMIT)
     if not len(turned):
         return None
     i, j = turned[0]
     return int(i), (
-        f"{names[angles[j]]}={values[i, angles[j]]:.6g} beyond 2 pi: degrees? bend angles "
-        "are in rad (numpy.radians converts)"
+        f"{names[angles[j]]}={values[i, angles[j]]:.6g} beyond 2 pi: degrees? angles are "
+        "in rad (numpy.radians converts)"
     )
