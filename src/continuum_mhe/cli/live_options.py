@@ -114,8 +114,8 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
         else:
             sink = ViewerSink("web" if args.serve_web else "spawn", **ports)
     refuse_unused_view_options(args, sink.kind)
-    if sink.display_missing():
-        raise InputError(f"{option} needs a display (DISPLAY is not set); use {others}")
+    if why := sink.display_missing():
+        raise InputError(f"{option} needs a display ({why}); use {others}")
     return sink
 
 

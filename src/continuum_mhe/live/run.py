@@ -22,9 +22,7 @@ The command itself (its options, the estimator and the files): :mod:`continuum_m
 
 from __future__ import annotations
 
-import os
 import queue
-import sys
 import time
 from collections import deque
 from collections.abc import Iterator
@@ -33,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.display import display_problem
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators.base import Estimate, Measurement
 from continuum_mhe.estimators.reading_units import direct_blocks
@@ -261,9 +260,8 @@ def plot_unavailable() -> str | None:
         import matplotlib
     except ImportError:
         return "--plot needs matplotlib (pip install matplotlib)"
-    on_x11 = sys.platform.startswith(("linux", "freebsd"))
-    if on_x11 and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        return "--plot needs a display (DISPLAY is not set: ssh -X, or a desktop session)"
+    if (why := display_problem()) is not None:
+        return f"--plot needs a display ({why}: ssh -X, or a desktop session)"
     backend = str(matplotlib.get_backend()).lower()
     if backend in _NON_INTERACTIVE:
         return (

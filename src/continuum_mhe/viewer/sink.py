@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Literal
 from urllib.parse import quote
 
+from continuum_mhe.display import display_problem
 from continuum_mhe.errors import InputError
 
 LOOPBACK = "127.0.0.1"
@@ -45,14 +46,11 @@ class ViewerSink:
             if not (isinstance(v, int) and 0 < v < 65536):
                 raise InputError(f"--{name.replace('_', '-')} must be a port in 1..65535, got {v}")
 
-    def display_missing(self) -> bool:
-        """Whether this is Rerun's native viewer on Linux without a display (neither
-        ``DISPLAY`` nor ``WAYLAND_DISPLAY`` set): it cannot open."""
-        return (
-            self.kind == "spawn"
-            and sys.platform.startswith("linux")
-            and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-        )
+    def display_missing(self) -> str | None:
+        """Why Rerun's native viewer cannot open here (no display, or one that does not
+        answer: :func:`~continuum_mhe.display.display_problem`), or None (it can, or
+        this is not the native viewer)."""
+        return display_problem() if self.kind == "spawn" else None
 
     @property
     def grpc_url(self) -> str:

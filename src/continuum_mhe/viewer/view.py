@@ -211,9 +211,9 @@ class BackboneView:
                 self._tmp.unlink(missing_ok=True)
                 raise InputError(f"{sink.path}: cannot write ({exc}) (nothing written)") from None
         elif sink.kind == "spawn":
-            if sink.display_missing():  # the commands say so first, in their own options
+            if why := sink.display_missing():  # the commands say so first, in their options
                 raise InputError(
-                    "Rerun's native viewer needs a display (DISPLAY is not set); "
+                    f"Rerun's native viewer needs a display ({why}); "
                     "use ViewerSink('web') or ViewerSink('save', Path('FILE.rrd'))"
                 )
             self.rec.spawn(port=sink.grpc_port, default_blueprint=blueprint)
@@ -509,8 +509,15 @@ class BackboneView:
             elif self.sink.kind == "save":
                 with contextlib.suppress(RuntimeError):  # a file not kept: whatever Rerun
                     self._flush_file()  # could not write goes with it
-            else:
-                self.rec.flush()
+            else:  # a viewer that went away, or never came up, holds a flush for ever
+                try:
+                    self.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                except RuntimeError as exc:
+                    self._stuck = True
+                    raise InputError(
+                        f"the Rerun viewer did not take the view within {FLUSH_TIMEOUT_S:g} s "
+                        f"({exc}): the estimates are not drawn there"
+                    ) from None
             if self.sink.kind == "web" and wait and self._web is not None:
                 print(f"serving the view at {self.sink.web_url} (Ctrl-C stops)", file=sys.stderr)
                 try:

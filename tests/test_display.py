@@ -1,0 +1,80 @@
+"""Whether a window can open (:mod:`continuum_mhe.display`): a display that answers, one
+that is not set, and one that names no server (a stale ``DISPLAY`` over ssh), which
+``live --view``, ``live --plot`` and ``view`` name in one line before they start
+instead of waiting for a viewer that never comes up."""
+
+from __future__ import annotations
+
+import socket
+import sys
+from pathlib import Path
+
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.display import display_problem
+from continuum_mhe.live.run import plot_unavailable
+
+pytestmark = pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="DISPLAY and abstract sockets are Linux's"
+)
+
+#: a display number no X server here uses
+FREE_DISPLAY = 4711
+
+
+def test_a_display_that_answers_is_taken(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An X server listening on the display's (abstract) socket: a window can open."""
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as server:
+        server.bind(f"\0/tmp/.X11-unix/X{FREE_DISPLAY}")
+        server.listen(1)
+        monkeypatch.setenv("DISPLAY", f":{FREE_DISPLAY}.0")
+        assert display_problem() is None
+    monkeypatch.setenv("DISPLAY", f":{FREE_DISPLAY}")  # the server gone
+    assert display_problem() == (
+        f"DISPLAY=:{FREE_DISPLAY} names no display that answers (one closed since, or a stale "
+        "ssh -X?)"
+    )
+    monkeypatch.delenv("DISPLAY")
+    assert display_problem() == "DISPLAY is not set"
+
+
+@pytest.mark.parametrize(
+    ("command", "said"),
+    [
+        (["live", "--port", "PORT", "--view"], "--view needs a display"),
+        (["view", "EST"], "--spawn (the default) needs a display"),
+    ],
+)
+def test_a_display_that_does_not_answer_is_named_before_the_viewer_starts(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    command: list[str],
+    said: str,
+) -> None:
+    """``live --view`` and ``view`` with a ``DISPLAY`` whose server is gone: one line
+    naming it, exit 2, before the port or the viewer (Rerun's viewer never came up, and
+    ``live`` then waited for it for ever after Ctrl-C)."""
+    pytest.importorskip("rerun")
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setenv("DISPLAY", f":{FREE_DISPLAY}")
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi\n0,0,0,0.1,0,0\n")
+    argv = [str(tmp_path / "none") if a == "PORT" else str(est) if a == "EST" else a
+            for a in command]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and said in err[0]
+    assert f"(DISPLAY=:{FREE_DISPLAY} names no display that answers" in err[0]
+
+
+def test_live_plot_names_a_display_that_does_not_answer(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--plot`` with a ``DISPLAY`` whose server is gone says so, not that the backend
+    is not interactive (whose advice, an interactive backend, failed without a word)."""
+    pytest.importorskip("matplotlib")
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setenv("DISPLAY", f":{FREE_DISPLAY}")
+    why = plot_unavailable()
+    assert why is not None and why.startswith(f"--plot needs a display (DISPLAY=:{FREE_DISPLAY}")
