@@ -40,7 +40,7 @@ using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 auto counts_of(const PolicyDiagnostics& d) {
   return std::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.bad_starts,
                          d.reject_resets, d.bound_samples, d.bad_start_chains,
-                         d.untrusted_start_samples, d.glitches,
+                         d.untrusted_start_samples, d.glitches, d.drift_resets,
                          d.first_freezes.size(), d.has_failure, d.max_noise_scale,
                          d.model_error);
 }
@@ -505,6 +505,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
               "Restarts after a bad start (an IMU back from a silence included).")
       .def_ro("reject_resets", &PolicyDiagnostics::reject_resets,
               "Restarts after the robust MHE rejected every reading for too long.")
+      .def_ro("drift_resets", &PolicyDiagnostics::drift_resets,
+              "Restarts from the last ok estimate's sensor states after rows drifted "
+              "for drift_reset s.")
       .def_prop_ro(
           "last_failure",
           [](const PolicyDiagnostics& d) {
@@ -638,7 +641,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<double> change_scale, std::vector<double> change_psd,
              std::vector<double> change_limit, double change_lag, int confirm_samples,
              std::vector<double> std_limit, bool jump_hold,
-             std::vector<double> freeze_tolerance, double silent_after, double glitch_factor) {
+             std::vector<double> freeze_tolerance, double silent_after, double glitch_factor,
+             double drift_reset) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -692,6 +696,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             if (!(std::isfinite(glitch_factor) && glitch_factor >= 0.0))
               throw std::invalid_argument("glitch_factor must be finite and >= 0");
             s.glitch_factor = glitch_factor;
+            if (!(std::isnan(drift_reset) || drift_reset > 0.0))
+              throw std::invalid_argument("drift_reset must be > 0 s, or NaN (off)");
+            s.drift_reset = drift_reset;
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -727,7 +734,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("confirm_samples") = 5, nb::arg("std_limit") = std::vector<double>(),
           nb::arg("jump_hold") = false, nb::arg("freeze_tolerance") = std::vector<double>(),
           nb::arg("silent_after") = INFINITY, nb::arg("glitch_factor") = 0.0,
-          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
+          nb::arg("drift_reset") = NAN, nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
           "block and of the IMUs'; ``whole_rows``: rows without which a sample is a dropout "
@@ -746,7 +753,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "freeze's first one and still repeat it; ``silent_after`` (s): an IMU silent for "
           "longer no longer observes its part of the shape (inf: the unobserved window); "
           "``glitch_factor``: an IMU's reading beyond this many times the one-sample limit "
-          "against the prediction from an ok estimate is skipped as a glitch (0: off).")
+          "against the prediction from an ok estimate is skipped as a glitch (0: off); "
+          "``drift_reset`` (s, NaN: off): rows drifted for longer since the last ok one "
+          "restart the estimate from that one's sensor states.")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

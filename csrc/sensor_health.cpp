@@ -126,6 +126,8 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
     diagnostics = PolicyDiagnostics();
     drifted_t_ = -INFINITY;
   }
+  drift_since_ = NAN;
+  drift_armed_ = true;
   last_t_ = last_valid_t_ = first_valid_t_ = -INFINITY;
   std::fill(has_freeze_value_.begin(), has_freeze_value_.end(), 0);
   std::fill(frozen_now_.begin(), frozen_now_.end(), 0);
@@ -140,6 +142,9 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   forced_t_.clear();
   consistency_.reset();
   if (!keep_counts) has_last_ = false;  // a new recording: another robot's sensors, maybe
+  // a caller that keeps no sensor states (a new recording, a failure that may have come
+  // from them) keeps none for a drift reset either
+  if (!(keep_counts && keep_sensors)) has_ok_ = false;
   restart(keep_counts && keep_sensors);
 }
 
@@ -572,7 +577,24 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     end_chain();
     restart(false);
   }
-  if (gated > 0 && (gap_reset || bad_start || reject_reset)) gated = 0;
+  // rows drifted since the last ok one for longer than drift_reset: a fault that has
+  // passed left the error states off; restart from those of the last ok estimate
+  bool drift_reset = false;
+  if (!gap_reset && !bad_start && !reject_reset && valid && has_ok_ && drift_armed_ &&
+      !std::isnan(s_.drift_reset) && !std::isnan(drift_since_) &&
+      t - drift_since_ > s_.drift_reset) {
+    drift_reset = true;
+    ++diagnostics.drift_resets;
+    has_last_ = true;  // the last ok estimate's, as last_x_ holds it
+    restart(true);
+  }
+  if (drift_reset) {
+    drift_since_ = NAN;
+    drift_armed_ = false;
+  }
+  // the restarts this sample's readings forced (its estimate starts from them)
+  const bool forced_restart = bad_start || reject_reset || drift_reset;
+  if (gated > 0 && (gap_reset || forced_restart)) gated = 0;
   if (gated > 0) {
     z = z_gated;
     std::copy(gated_mask_.begin(), gated_mask_.end(), mask_.begin());
@@ -599,8 +621,8 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     }
     if (has_state) status = ST_RESET;
   }
-  if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
-  const bool forced = (bad_start || reject_reset || !healthy) && has_state;
+  if ((gap_reset || forced_restart) && has_state) status = ST_RESET;
+  const bool forced = (forced_restart || !healthy) && has_state;
   // a sample without any IMU's reading is a dropout, whatever else it carried (a
   // tendon robot's tensions update the estimate, but nothing read the robot)
   const bool imu_read = s_.imu_blocks.empty() || imu_reading();
@@ -785,6 +807,11 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // a restart does not make a model that did not follow the robot follow it: the rows
   // after a restart within the probation time of the last drifted row are not trusted
   // (the restart cleared the IMU error states and their change, which showed it)
+  if (status == ST_DRIFTED && std::isnan(drift_since_)) drift_since_ = t;
+  if (status == ST_OK) {
+    drift_since_ = NAN;
+    drift_armed_ = true;
+  }
   if (status == ST_DRIFTED) {
     drifted_t_ = t;
     restarted_since_drift_ = false;
@@ -809,7 +836,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       std::copy(x, x + nx, last_x_.begin());
       std::copy(P, P + nx * nx, last_P_.begin());
       last_state_t_ = t;
-      has_last_ = true;
+      has_last_ = has_ok_ = true;
     }
   }
   // the gate predicts from an estimate the readings confirmed only: readings far from an

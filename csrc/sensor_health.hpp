@@ -192,6 +192,10 @@ struct PolicySettings {
   // residual alone is beyond the limit is judged with the Jacobian at the IMU's reading
   // before as well (a tilt reading near the opposite gravity direction); 0: off
   double glitch_factor = 0.0;
+  // s: rows drifted (the model's slowly varying error states gone from their prior) for
+  // longer than this since the last ok row restart the estimate from the sensors' states
+  // of that ok row (a fault that has passed: a frozen IMU, wrong tensions for a while)
+  double drift_reset = NAN;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
@@ -200,7 +204,8 @@ struct PolicyDiagnostics {
           reject_resets = 0, bound_samples = 0,
           bad_start_chains = 0,  // chains in which the check held a restart back
           untrusted_start_samples = 0,  // estimates of a start the inference did not trust
-          glitches = 0;  // IMU readings skipped as glitches (glitch_factor)
+          glitches = 0,  // IMU readings skipped as glitches (glitch_factor)
+          drift_resets = 0;  // restarts after rows drifted for drift_reset
   std::vector<std::pair<int, double>> first_freezes;  // (IMU, t), in order
   bool has_failure = false;
   std::string last_failure;
@@ -320,6 +325,10 @@ class SensorHealth {
   // the last drifted row's time (-inf: none), kept across restarts, and whether the
   // estimator restarted after it
   double drifted_t_ = -INFINITY;
+  // the first drifted row since the last ok row or restart (NaN: none), and whether a
+  // drift reset may restart (once after each ok row)
+  double drift_since_ = NAN;
+  bool drift_armed_ = true;
   bool restarted_since_drift_ = false;
   std::vector<double> freeze_value_, freeze_since_, freeze_last_t_, imu_last_valid_;
   std::vector<int64_t> freeze_count_;
@@ -339,6 +348,10 @@ class SensorHealth {
   std::vector<double> last_x_, last_P_;
   double last_state_t_ = 0.0;  // its time, s
   bool has_last_ = false;
+  // whether last_x_ holds an ok estimate of this recording, which a restart that keeps
+  // nothing leaves there: a drift reset takes it (a restart the readings forced at a
+  // fault's samples forgets what the fault did not change)
+  bool has_ok_ = false;
   std::vector<int> back_rows_, rows_;
   std::optional<double> rejecting_since_;
   // the bad-start check's state

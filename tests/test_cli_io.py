@@ -1452,3 +1452,22 @@ def test_a_value_of_many_digits_is_named_short(tmp_path, capsys) -> None:
     assert main(["evaluate", str(truth), str(truth)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and len(err) < 300, err[:300]
+
+
+def test_evaluate_names_the_shift_of_a_clock_that_did_not_start_at_zero(tmp_path, capsys):
+    """An estimate whose times are the truth's plus one offset (a device clock that did
+    not start at 0, as live's): the refusal names the --truth-shift that compares them,
+    and that shift scores them."""
+    t = np.arange(50) * 0.02
+    tip = np.column_stack([0.01 * np.sin(t), 0.01 * np.cos(t), 0.2 + 0 * t])
+    truth = tmp_path / "truth.csv"
+    est = tmp_path / "est.csv"
+    _write(truth, "t,x,y,z\n" + "".join(f"{a:.6f},{b},{c},{d}\n" for a, (b, c, d) in zip(t, tip)))
+    _write(est, "t,x,y,z\n" + "".join(
+        f"{a + 123.456:.6f},{b},{c},{d}\n" for a, (b, c, d) in zip(t, tip)))  # fmt: skip
+    assert main(["evaluate", str(est), str(truth), "--length", "0.2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "the files' times do not match" in err
+    assert err.endswith("(a clock that did not start at 0?): --truth-shift -123.456 compares them")
+    assert main(["evaluate", str(est), str(truth), "--length", "0.2",
+                 "--truth-shift=-123.456"]) == 0  # fmt: skip

@@ -321,6 +321,7 @@ def test_parse_line_reads_the_tensions_after_the_imus() -> None:
         ("20,0.1,-0.2,1.5,inf", "a tension: non-finite value"),
         ("20,0.1,-0.2,1.5,x", "a tension: non-numeric field"),
         ("20,0.1,-0.2,1.5", "expected 5 fields, found 4"),
+        ("20,0.1,-0.2,1.5,2.0,", r"found 6 \(the last one empty: a separator at the end"),
     ]:
         with pytest.raises(GarbledLine, match=why):
             parse_line(line, "tilt", n_tensions=2)
@@ -655,3 +656,21 @@ def test_live_summary_says_a_tip_force_beyond_every_tension_as_estimate_does() -
         f"; warning: the estimated tip force reached {force:.3g} N, beyond the largest tendon "
         f"tension given ({largest:.3g} N)"
     ) in session.summary()
+
+
+def test_lines_that_arrive_but_give_no_estimate_are_not_called_no_sample(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A session whose lines all arrive garbled (a non-number in a field) does not say
+    that no sample arrived: it names what arrived and that no estimate was made of it
+    (a trial read "no sample arrived" where lines had)."""
+    data = "".join(f"{20 * k},abc,0.1\n" for k in range(5))  # the first read as partial
+    monkeypatch.setattr("continuum_mhe.cli.live.open_port", lambda *a: _Port(data.encode()))
+    est = tmp_path / "est.csv"
+    argv = ["live", "--port", "/dev/ttyIMU", "--format", "tilt", "-o", str(est),
+            "--duration", "0.3"]  # fmt: skip
+    assert main(argv) == 2  # no valid sample: said in one line after the summary
+    err = capsys.readouterr().err
+    assert "no sample arrived" not in err
+    assert "4 garbled line(s) arrived, but no estimate was made of them (the summary says " in err
+    assert f"why): {est} not written" in err and not est.exists()

@@ -33,6 +33,7 @@ from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.settings import NoiseSettings
 from continuum_mhe.results import Measurement
+from continuum_mhe.settings import RecoverySettings
 
 
 def main() -> None:
@@ -45,6 +46,8 @@ def main() -> None:
     p.add_argument("--gain", choices=("off", "on", "both"), default="both")
     p.add_argument("--skip", type=float, default=1.0)
     p.add_argument("--robot", default="tendon-two-section")
+    p.add_argument("--drift-reset", type=float, default=RecoverySettings.drift_reset,
+                   help="RecoverySettings.drift_reset, s (0: never)")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="a TendonFormulation field (repeatable)")  # fmt: skip
     a = p.parse_args()
@@ -68,7 +71,8 @@ def main() -> None:
                 [f.measurement_row(zi, *(scale * v for v in tensions.at(ti)))
                  for ti, zi in zip(t, z_imu)]
             )  # fmt: skip
-            est = make_estimator("ekf", f)
+            recovery = RecoverySettings(drift_reset=a.drift_reset or None)
+            est = make_estimator("ekf", f, recovery=recovery)
             est.reset()
             cols = [o.name for o in f.outputs]
             out = np.full((len(t), len(cols)), np.nan)

@@ -239,6 +239,8 @@ class Diagnostics:
             inconsistent (the model does not fit them).
         reject_resets: restarts of a robust MHE after it rejected every reading for longer
             than ``recovery.reject_reset``.
+        drift_resets: restarts from the last ``ok`` estimate's sensor states after the
+            estimates drifted for longer than ``recovery.drift_reset`` (a tendon robot).
         last_failure: the last numerical failure's message, if any.
         bound_samples: estimates of status ``at-bound``: a section's bend on its
             ``theta_max`` (the MHE holds it there) or beyond it (a filter); such an
@@ -273,6 +275,7 @@ class Diagnostics:
     bad_start_chains: int = 0
     untrusted_start_samples: int = 0
     glitches: int = 0
+    drift_resets: int = 0
 
     def copy(self) -> Diagnostics:
         """An independent copy (later steps do not change it)."""

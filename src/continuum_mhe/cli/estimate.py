@@ -361,6 +361,11 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             f"; restarted {diag.bad_starts} time(s) after readings inconsistent with the "
             "start or an IMU's return"
         )
+    if diag.drift_resets:
+        msg += (
+            f"; restarted {diag.drift_resets} time(s) from the last ok estimate's IMU errors "
+            f"after {args.drift_reset:g} s of drifted rows"
+        )
     if diag.bad_start_chains:
         msg += (
             f"; stopped restarting {diag.bad_start_chains} time(s) after "

@@ -77,7 +77,7 @@ def _align(
         print(f"{PROG}: note: {interpolated_note(path_truth, path_est, k, n)}", file=sys.stderr)
     problem, warning = rows_matched(path_est, path_truth, k, n, interpolated)
     if problem:
-        raise InputError(problem)
+        raise InputError(problem + _offset_hint(t_est, t_truth))
     warnings = [warning] if warning else []
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
@@ -92,6 +92,24 @@ def _align(
             "the scores are of that part only (an interrupted or cut estimate?)"
         )
     return Aligned(i_est, rows, interpolated, warnings)
+
+
+def _offset_hint(t_est: np.ndarray, t_truth: np.ndarray) -> str:
+    """Where the estimate's times are the truth's plus one offset (a device clock that
+    did not start at 0, as ``live``'s), the ``--truth-shift`` that compares them (a
+    clause to end a refusal); else ``""``."""
+    offset = float(t_est[0] - t_truth[0])
+    if not math.isfinite(offset) or offset == 0.0:
+        return ""
+    shifted = t_truth + offset
+    i = np.searchsorted(shifted, t_est).clip(1, len(shifted) - 1)
+    near = np.minimum(np.abs(shifted[i] - t_est), np.abs(shifted[i - 1] - t_est))
+    if not np.mean(near <= 1e-6 * max(1.0, abs(offset))) >= WARN_MATCHED:
+        return ""
+    return (
+        f"; the estimate's times are the truth's {offset:+.6g} s (a clock that did not "
+        f"start at 0?): --truth-shift {-offset:.6g} compares them"
+    )
 
 
 class Aligned(NamedTuple):

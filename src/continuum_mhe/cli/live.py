@@ -183,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
                 say(
                     f"the view in {path}" + (f" (with the estimates {why})" if why else "")
                     if view.estimates
-                    else f"no sample arrived: {path} not written"
+                    else _not_written(session, path, "estimate")
                 )
         removed = False  # the estimates not kept (session.discarded), and the file
         why = None if session is None else session.discarded
@@ -208,10 +208,27 @@ def run(args: argparse.Namespace) -> int:
             if sink.rows:
                 say(f"{sink.rows} {what} in {sink.path}")
             else:
-                say(f"no sample arrived: {sink.path} not written")
+                say(_not_written(session, sink.path, "estimate" if sink is out else "sample"))
     if view_error is not None:
         raise view_error
     return code
+
+
+def _not_written(session: LiveSession | None, path: object, what: str) -> str:
+    """The line that the file ``path`` was not written, as it holds no ``what``: no
+    sample arrived, or (the session's counts) lines arrived that gave none."""
+    counts = None if session is None else session.counts
+    if counts is None or not (counts.samples or counts.garbled):
+        return f"no sample arrived: {path} not written"
+    arrived = [
+        f"{n} {name}"
+        for n, name in ((counts.samples, "sample(s)"), (counts.garbled, "garbled line(s)"))
+        if n
+    ]
+    return (
+        f"{' and '.join(arrived)} arrived, but no {what} was made of them (the summary "
+        f"says why): {path} not written"
+    )
 
 
 DESCRIPTION = (

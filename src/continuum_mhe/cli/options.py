@@ -99,6 +99,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "freeze": OptionRange(0.0, 1e6, "s"),
     "bad_start": OptionRange(0.0, 1e6, "s"),
     "reject_reset": OptionRange(0.0, 1e6, "s"),
+    "drift_reset": OptionRange(0.0, 1e6, "s"),
     "glitch": OptionRange(0.0, 1e6),
     "uncertain_fraction": OptionRange(0.0, 100.0, lo_open=True),
     "model_error_deg": OptionRange(0.0, 90.0, "deg", above="--model-error-deg is in degrees"),

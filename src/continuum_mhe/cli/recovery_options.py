@@ -80,6 +80,17 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         f"(default {RecoverySettings.glitch:g})",
     )
     g.add_argument(
+        "--drift-reset",
+        type=float,
+        default=RecoverySettings.drift_reset,
+        metavar="SECONDS",
+        help="a tendon robot: where the estimates drift (the IMUs' error states leave their "
+        "prior or change faster than their model allows) for longer than this since the "
+        "last ok one, restart keeping that ok estimate's IMU errors (status reset): a "
+        "fault that has passed (an IMU frozen, tensions wrong for a while) left the "
+        f"estimate off; 0: never (default {RecoverySettings.drift_reset:g})",
+    )
+    g.add_argument(
         "--uncertain-fraction",
         type=float,
         default=RecoverySettings.uncertain_fraction,
@@ -93,7 +104,7 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
 
 
 def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
-    for name in ("gap_reset", "freeze", "bad_start", "reject_reset"):
+    for name in ("gap_reset", "freeze", "bad_start", "reject_reset", "drift_reset"):
         v = getattr(args, name)
         if not (math.isfinite(v) and v >= 0):
             raise InputError(f"--{name.replace('_', '-')} must be >= 0 seconds, got {v}")
@@ -109,4 +120,5 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
         bad_start=args.bad_start or None,
         reject_reset=args.reject_reset or None,
         glitch=args.glitch or None,
+        drift_reset=args.drift_reset or None,
     )

@@ -363,6 +363,13 @@ class Estimator(Generic[InferenceT]):
             # the start would restart it onto them); its reject reset covers a lost start
             bad_start=off(None if self.flags_outliers else r.bad_start),
             reject_reset=off(r.reject_reset),
+            # the formulations whose drift is that of their slowly varying error states;
+            # not where they estimate tension gains, whose drift is the gains settling
+            drift_reset=off(
+                r.drift_reset
+                if change is not None and not getattr(f, "estimate_tension_gain", False)
+                else None
+            ),
             uncertain_fraction=r.uncertain_fraction,
             length=f.robot.length,
             # the start and consistency checks need a covariance that is one (not the
@@ -450,6 +457,7 @@ class Estimator(Generic[InferenceT]):
         d.max_noise_scale, d.model_error = got.max_noise_scale, got.model_error
         d.untrusted_start_samples = got.untrusted_start_samples
         d.glitches = got.glitches
+        d.drift_resets = got.drift_resets
         for k, t in got.first_freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t
         self.inference.sync_counts()

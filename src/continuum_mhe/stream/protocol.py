@@ -147,7 +147,12 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1, n_tensions: int = 0)
     k = VALUES_PER_IMU[fmt]
     n_fields = 1 + k * n_imus + n_tensions
     if len(parts) != n_fields:
-        raise GarbledLine(f"expected {n_fields} fields, found {len(parts)}")
+        trailing = (
+            " (the last one empty: a separator at the end of the line?)"
+            if len(parts) == n_fields + 1 and not parts[-1].strip()
+            else ""
+        )
+        raise GarbledLine(f"expected {n_fields} fields, found {len(parts)}{trailing}")
     t_ms = _number(parts[0])
     if t_ms < 0:
         raise GarbledLine("negative time")
