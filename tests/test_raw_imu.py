@@ -801,3 +801,39 @@ def test_raw_arrays_of_a_robot_give_what_its_file_gives() -> None:
     z_dropped = raw_measurements(turned, table.t, dropped, gyr)
     assert np.isnan(z_dropped[7, 6:]).all() and np.isfinite(z_dropped[7, :6]).all()
     np.testing.assert_array_equal(np.delete(z_dropped, 7, 0), np.delete(z, 7, 0))
+
+
+def test_an_imu_whose_gyro_columns_are_empty_in_every_row_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A two-IMU raw file whose IMU 2 has its gyro columns empty in every row (an IMU
+    without a gyro, written into a template with gyro columns): one line naming those
+    columns and what to give, exit 2, nothing written (every row was a dropout of IMU 2,
+    its accelerometer thrown away, and the estimate said 'IMU 2 never reported'). A gyro
+    with a few empty cells is read, those rows dropouts of its IMU."""
+    from continuum_mhe.cli import main
+
+    shipped = (Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+               / "planar-s_raw.csv").read_text().splitlines()  # fmt: skip
+    header = shipped[0].split(",")
+    gyro2 = [header.index(c) for c in ("gx_2", "gy_2", "gz_2")]
+    rows = [ln.split(",") for ln in shipped[1:41]]
+    for r in rows:
+        for c in gyro2:
+            r[c] = ""
+    meas = tmp_path / "no_gyro_2.csv"
+    meas.write_text("\n".join([shipped[0], *(",".join(r) for r in rows)]) + "\n")
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "--robot", "two-section", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"continuum-mhe: error: {meas}: gx_2, gy_2, gz_2 are empty in every row while IMU 2's "
+        "accelerometer reads: an IMU without a gyro?"
+    )
+    assert "leave every IMU's gyro columns out of the file" in err[0] and not out.exists()
+    some = [ln.split(",") for ln in shipped[1:41]]
+    for r in some[5:8]:
+        for c in gyro2:
+            r[c] = ""
+    meas.write_text("\n".join([shipped[0], *(",".join(r) for r in some)]) + "\n")
+    assert main(["estimate", str(meas), "--robot", "two-section", "-o", str(out)]) == 0

@@ -411,6 +411,8 @@ def raw_blocks(
     for i in range(n_imus):
         label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
         block = values[:, k * i : k * (i + 1)].copy()
+        if has_gyro and first_block:
+            _refuse_a_gyro_never_given(name, block, i, n_imus)
         if n_imus > 1:
             block[~np.all(np.isfinite(block), axis=1)] = np.nan
         acc = block[:, :3]
@@ -449,6 +451,31 @@ def raw_blocks(
             time_watch.add(label, t, acc, block[:, 3:6])
         out.append((acc, block[:, 3:6] if has_gyro else None))
     return out
+
+
+#: A first block of at least this many rows in which an IMU's accelerometer reads and
+#: its gyro columns are empty in every row is a file of an IMU without a gyro.
+NO_GYRO_ROWS = 10
+
+
+def _refuse_a_gyro_never_given(name: str, block: FloatArray, i: int, n_imus: int) -> None:
+    """A one-line :class:`InputError` where IMU ``i``'s gyro columns (``block`` (n, 6),
+    the first block's rows) are empty in every row while its accelerometer reads in
+    some (:data:`NO_GYRO_ROWS` rows at least): each such row would be a dropout of the
+    IMU (its reading needs all six values), the accelerometer thrown away with it."""
+    acc_read = np.all(np.isfinite(block[:, :3]), axis=1)
+    if len(block) < NO_GYRO_ROWS or acc_read.sum() < NO_GYRO_ROWS:
+        return
+    if np.isfinite(block[:, 3:6]).any():
+        return
+    gyro = ", ".join(raw_columns(i, n_imus)[3:6])
+    which = "the IMU" if n_imus == 1 else f"IMU {i + 1}"
+    raise InputError(
+        f"{name}: {gyro} are empty in every row while {which}'s accelerometer reads: an "
+        f"IMU without a gyro? A reading needs all six values (each row would be a dropout); "
+        "leave every IMU's gyro columns out of the file (the accelerometers are then read "
+        "alone, with the tilt model)"
+    )
 
 
 def read_raw_imus(

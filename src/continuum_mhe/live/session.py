@@ -1129,6 +1129,11 @@ class LiveSession:
                 f"; replaced {self._tension_stream.glitches} tension glitch(es) (a tension "
                 "off the curve through the samples around alone)"
             )
+        if resets := self.estimator.diagnostics.drift_resets:
+            msg += (
+                f"; restarted {resets} time(s) from the last ok estimate's IMU errors after "
+                f"{self.estimator.recovery.drift_reset:g} s of drifted rows"
+            )
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (
                 f"; warning: stopped restarting {chains} time(s) after "
