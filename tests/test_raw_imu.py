@@ -542,7 +542,7 @@ def test_a_resting_gyro_in_deg_s_is_told_by_the_accelerometers(
 
 def test_the_gravity_check_of_gyro_units_judges_still_stretches_alone() -> None:
     """Known answers of the gravity check: a resting IMU's gyro in deg/s (bias about 2
-    deg/s) is found; in rad/s (bias 0.05 rad/s) it is not, also at 100 Hz with a 20 s
+    deg/s, or 0.4) is found; in rad/s (bias 0.05 rad/s) it is not, also at 100 Hz with a 20 s
     gap and short stretches between its readings (each stretch pairs its own rows
     only); nor is a swinging IMU in rad/s (a pendulum: the specific force stays along
     the rod while the gyro turns, so its stretches are not still), nor a turn about the
@@ -554,6 +554,12 @@ def test_the_gravity_check_of_gyro_units_judges_still_stretches_alone() -> None:
     assert gyro_gravity_problem(t, acc, bias + rng.normal(0.0, 0.3, (len(t), 3))) is not None
     rad_s = np.array([0.03, -0.04, 0.01]) + rng.normal(0.0, 0.003, (len(t), 3))
     assert gyro_gravity_problem(t, acc, rad_s) is None
+    # a small bias in deg/s (0.4; read as rad/s, 11 deg in half a second) is found, a
+    # cheap MEMS gyro's in rad/s (0.09 rad/s, 5 deg/s: 2.5 deg) is not
+    small = np.array([0.3, -0.25, 0.1]) + rng.normal(0.0, 0.05, (len(t), 3))
+    assert gyro_gravity_problem(t, acc, small) is not None
+    cheap = np.array([0.06, -0.06, 0.02]) + rng.normal(0.0, 0.003, (len(t), 3))
+    assert gyro_gravity_problem(t, acc, cheap) is None
     # 0.53 s, then 0.5 s more 20 s later: two still stretches and a short one (0.5 to
     # 0.53 s) before the gap, whose step across the gap belongs to no stretch
     gap = np.r_[t[:53], 20.5 + t[:50]]

@@ -49,10 +49,10 @@ GRAVITY_TURN_RATE_SPREAD = 0.5
 FROZEN_ACCEL_SPREAD = 1e-6
 FROZEN_GYRO_SPREAD = 1e-4
 #: ... and finds deg/s where the gyro, read as rad/s, misses the accelerometer's turn by
-#: more than this (rad, 20 deg) in the median stretch: a MEMS gyro's bias in rad/s
-#: (under 0.05) turns a direction by about 1.5 deg in a stretch, one of 1 deg/s read
-#: as rad/s by 29 deg.
-GRAVITY_TURN_MISMATCH = math.radians(20.0)
+#: more than this (rad, 6 deg) in the median stretch: a MEMS gyro's bias in rad/s
+#: (under 0.05, a cheap one's 0.09) turns a direction by about 1.5 (2.5) deg in a
+#: stretch, one of 1 deg/s read as rad/s by 29 deg, of 0.4 deg/s by 11 deg.
+GRAVITY_TURN_MISMATCH = math.radians(6.0)
 #: An acceleration (m/s^2) or a rate (rad/s) of a larger magnitude is beyond any IMU's
 #: range (high-g accelerometers end near 4,000 m/s^2, MEMS gyros near 70 rad/s): a
 #: corrupt value, not a reading.
