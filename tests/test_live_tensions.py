@@ -674,3 +674,12 @@ def test_lines_that_arrive_but_give_no_estimate_are_not_called_no_sample(
     assert "no sample arrived" not in err
     assert "4 garbled line(s) arrived, but no estimate was made of them (the summary says " in err
     assert f"why): {est} not written" in err and not est.exists()
+
+
+def test_the_samples_the_streams_end_releases_do_not_count_in_the_latency(runs: Runs) -> None:
+    """The last two samples of a stream with tensions on the line wait for the tensions
+    after them, and at the stream's end for the end itself (here the 0.5 s session's,
+    the lines all read at its start): their wait is the quiet line's, not the
+    estimator's, and the latency does not count them (its largest was the session's
+    length)."""
+    assert runs.line_session.latency.n == N - 2

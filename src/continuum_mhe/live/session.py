@@ -588,7 +588,7 @@ class LiveSession:
                 self._jumped = None
                 self.counts.out_of_order += 1
         if self._tension_stream is not None:
-            self._estimate_pending(self._tension_stream.end())
+            self._estimate_pending(self._tension_stream.end(), timed=False)
         # a stream that ended inside a run of tilt angles past the radians' range that
         # grew from its valid samples (shorter than the run that stops a session): degrees
         if (
@@ -842,10 +842,14 @@ class LiveSession:
             return self._estimate_pending([None])
         return self._estimate_pending(self._tension_stream.push(t, s.tensions))
 
-    def _estimate_pending(self, ready: Sequence[TensionsAt | None]) -> Estimate | None:
+    def _estimate_pending(
+        self, ready: Sequence[TensionsAt | None], timed: bool = True
+    ) -> Estimate | None:
         """Estimate the oldest waiting samples, one per item of ``ready``: with the
         tensions from the lines (:class:`TensionsAt`), or (None) with their own
-        ``given``; the last estimate made, if any."""
+        ``given``; the last estimate made, if any. ``timed``: their latency counts (not
+        for the samples the stream's end released: they waited for it, however long
+        the line was quiet)."""
         est = None
         for g in ready:
             p = self._pending.popleft()
@@ -862,9 +866,10 @@ class LiveSession:
                 self._write(Estimate(p.t, None, None, None, Status.NO_ESTIMATE, 0.0))
                 raise
             self._write(est)
-            ms = (time.monotonic() - p.arrival) * 1e3
-            self.latency.add(ms)
-            self.latency_max_window = max(self.latency_max_window, ms)
+            if timed:
+                ms = (time.monotonic() - p.arrival) * 1e3
+                self.latency.add(ms)
+                self.latency_max_window = max(self.latency_max_window, ms)
         return est
 
     def check_units(self) -> None:
