@@ -162,6 +162,9 @@ void SensorHealth::restart(bool keep_sensors) {
   started_ = false;
   start_untrusted_ = start_judged_ = false;
   restarted_since_drift_ = true;  // drifted_t_ is kept: see step
+  // the drift reset times the drifted rows since the last ok row or restart (a drift
+  // reset after another restart would restart a start that has not drifted)
+  drift_since_ = NAN;
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
   changed_until_ = -INFINITY;
   std::fill(held_t_.begin(), held_t_.end(), -INFINITY);  // a start holds no past reading
@@ -588,10 +591,9 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     has_last_ = true;  // the last ok estimate's, as last_x_ holds it
     restart(true);
   }
-  if (drift_reset) {
-    drift_since_ = NAN;
-    drift_armed_ = false;
-  }
+  // (the bad-start chain goes on across it: a model that no restart fits stops the
+  // restarts the readings force, and this one is once after each ok row)
+  if (drift_reset) drift_armed_ = false;
   // the restarts this sample's readings forced (its estimate starts from them)
   const bool forced_restart = bad_start || reject_reset || drift_reset;
   if (gated > 0 && (gap_reset || forced_restart)) gated = 0;

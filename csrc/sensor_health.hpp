@@ -325,8 +325,8 @@ class SensorHealth {
   // the last drifted row's time (-inf: none), kept across restarts, and whether the
   // estimator restarted after it
   double drifted_t_ = -INFINITY;
-  // the first drifted row since the last ok row or restart (NaN: none), and whether a
-  // drift reset may restart (once after each ok row)
+  // the first drifted row since the last ok row or restart (NaN: none; restart clears
+  // it), and whether a drift reset may restart (once after each ok row)
   double drift_since_ = NAN;
   bool drift_armed_ = true;
   bool restarted_since_drift_ = false;

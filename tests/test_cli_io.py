@@ -1471,3 +1471,24 @@ def test_evaluate_names_the_shift_of_a_clock_that_did_not_start_at_zero(tmp_path
     assert err.endswith("(a clock that did not start at 0?): --truth-shift -123.456 compares them")
     assert main(["evaluate", str(est), str(truth), "--length", "0.2",
                  "--truth-shift=-123.456"]) == 0  # fmt: skip
+    # the offset is the clock's, not moved by the rows --skip-start leaves out
+    assert main(["evaluate", str(est), str(truth), "--length", "0.2",
+                 "--skip-start", "0.4"]) == 2  # fmt: skip
+    assert capsys.readouterr().err.strip().endswith("--truth-shift -123.456 compares them")
+
+
+def test_skip_bad_takes_one_angle_out_of_range_in_a_short_last_block_as_a_glitch(tmp_path):
+    """A file read in blocks whose last block holds a few rows, one of them out of
+    range: with --skip-bad that row is a dropout (a glitch), as in any other block,
+    not the file's unit refused."""
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import open_input
+    from continuum_mhe.model.registry import make_formulation
+
+    n = 4100  # the last of 4096-row blocks holds four
+    rows = [f"{0.01 * k:.2f},0.1,0.05" for k in range(n)]
+    rows[-2] = f"{0.01 * (n - 2):.2f},5.0,0.05"
+    meas = _write(tmp_path / "m.csv", "t,roll,pitch\n" + "\n".join(rows) + "\n")
+    with open_input(meas, InputOptions(skip_bad=True), make_formulation("bend")) as stream:
+        z = np.vstack([b[1] for b in stream.blocks])
+    assert len(z) == n and np.isnan(z[-2]).all() and np.isfinite(z[-1]).all()

@@ -110,3 +110,23 @@ def test_the_drift_reset_is_a_tendon_robots_and_off_with_zero(
     assert "time(s) from the last ok estimate's IMU errors after 0.5 s of drifted rows" in err
     assert main([*argv[:-1], str(tmp_path / "off.csv"), "--drift-reset", "0"]) == 0
     assert "from the last ok estimate's IMU errors" not in capsys.readouterr().err
+
+
+def test_a_restart_starts_the_drift_anew(tmp_path: Path) -> None:
+    """Two rows drifted (a tension 0.05 N off), then a gap: the gap's restart at 2.3 s
+    is the only one; the drifted rows before it do not time a drift reset of the start
+    after it (it restarted again at the next sample)."""
+    lines = (DATA / "force-29_tensions.csv").read_text().splitlines()
+    rows = [ln.split(",") for ln in lines[1:]]
+    for r in rows:
+        if 1.0 <= float(r[0]) < 1.2:
+            r[1] = f"{float(r[1]) + 0.05:.6f}"
+    bumped = tmp_path / "bumped.csv"
+    bumped.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    f, t, z = _recording(bumped)
+    kept = (t < 1.05) | (t > 2.3 - 1e-9)
+    est = make_estimator("ekf", f)  # type: ignore[arg-type]
+    status = np.asarray(est.run(t[kept], z[kept]).status)
+    assert np.count_nonzero(status[t[kept] < 1.05] == "drifted") >= 1
+    assert est.diagnostics.gap_resets == 1 and est.diagnostics.drift_resets == 0
+    assert np.count_nonzero(status == "reset") == 1

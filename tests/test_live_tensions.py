@@ -218,7 +218,7 @@ def test_the_command_line_live_writes_the_tip_force_and_replays(
     live = read_state_table(est)
     assert live.names[-3:] == ("fx", "fy", "fz") and live.std is not None
     # its first line names the recording, whose tension columns plot and view draw with
-    assert est.read_text().splitlines()[0].endswith(' live, recorded in rec.csv"')
+    assert est.read_text().splitlines()[0].endswith(f' live, recorded in {rec.resolve()}"')
     recorded = recorded_tensions(str(est))
     assert recorded is not None and recorded.own_columns and Path(recorded.path) == rec
     batch_out = np.array([e.output for e in runs.batch])

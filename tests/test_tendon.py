@@ -980,24 +980,33 @@ def test_plot_and_view_draw_an_estimate_with_its_recordings_tension_columns(
     est = tmp_path / "e.csv"
     argv = ["estimate", str(rec), "--robot", str(robot), "-o", str(est), "--method", "ekf"]
     assert main(argv) == 0
-    assert est.read_text().splitlines()[0].endswith(' estimate with_tensions.csv"')
+    assert est.read_text().splitlines()[0].endswith(f' estimate {rec.resolve()}"')
     capsys.readouterr()
     found, given = tmp_path / "found.png", tmp_path / "given.png"
     assert main(["plot", str(est), "-o", str(found)]) == 0
     err = capsys.readouterr().err
-    assert f"{est} was estimated from with_tensions.csv (its first line): its backbone " in err
+    assert f"{est} was estimated from {rec.resolve()} (its first line): its backbone " in err
     assert "section ends" not in err
     assert main(["plot", str(est), "--inputs", str(rec), "-o", str(given)]) == 0
     assert found.read_bytes() == given.read_bytes()
     pytest.importorskip("rerun")
     saved = tmp_path / "found.rrd"
     assert main(["view", str(est), "--save", str(saved)]) == 0
-    assert "with_tensions.csv (its first line)" in capsys.readouterr().err
+    assert f"{rec.resolve()} (its first line)" in capsys.readouterr().err
     # a recording without tension columns, or none found: the section ends joined
     rec.write_text("t,roll,pitch\n0,0,0\n")
     assert main(["plot", str(est), "-o", str(tmp_path / "ends.png")]) == 0
     assert "drawn through the section ends" in capsys.readouterr().err
     rec.unlink()
+    # the estimate and its recording moved to another folder together: found beside it
+    moved = tmp_path / "moved"
+    moved.mkdir()
+    write_table(moved / rec.name, ["t", "roll", "pitch", "tension_1"],
+                [[*r, 1.0 + 5 * r[0]] for r in _recording_rows()])  # fmt: skip
+    est.rename(moved / est.name)
+    assert main(["plot", str(moved / est.name), "-o", str(tmp_path / "moved.png")]) == 0
+    assert "(its first line): its backbone" in capsys.readouterr().err
+    (moved / est.name).rename(est)
     assert main(["plot", str(est), "-o", str(tmp_path / "gone.png")]) == 0
     assert "drawn through the section ends" in capsys.readouterr().err
 

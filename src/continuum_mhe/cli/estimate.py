@@ -245,7 +245,8 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             TwistWithTiltImus(formulation),
             WideUncertain(formulation, args.uncertain_fraction),
         )
-        made = f"{version()} estimate {Path(args.measurements).name}"
+        source = args.measurements  # by its full path, as --robot and --inputs are
+        made = f"{version()} estimate {source if source == '-' else Path(source).resolve()}"
         notes = [
             (MADE_LINE, json.dumps(made)),
             (OPTIONS_LINE, args.options_record),

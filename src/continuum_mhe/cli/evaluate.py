@@ -62,12 +62,14 @@ def _align(
     path_truth: str,
     truth: StateTable,
     scored_from: float | None = None,
+    first_t: float | None = None,
 ) -> Aligned:
     """The estimate rows compared and the truth's values at them
     (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`; a note where the truth is
     interpolated; ``scored_from``: the time from which ``--skip-start`` scores, s, the
     start of the span the rows should cover); a one-line error where too few rows
-    compare, the warnings where few do."""
+    compare, the warnings where few do. ``first_t``: the estimate's first time before
+    ``--skip-start`` (s), from which a clock offset is told (``t_est[0]`` without it)."""
     t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
@@ -77,7 +79,8 @@ def _align(
         print(f"{PROG}: note: {interpolated_note(path_truth, path_est, k, n)}", file=sys.stderr)
     problem, warning = rows_matched(path_est, path_truth, k, n, interpolated)
     if problem:
-        raise InputError(problem + _offset_hint(t_est, t_truth))
+        first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
+        raise InputError(problem + _offset_hint(first, t_est, t_truth))
     warnings = [warning] if warning else []
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
@@ -94,11 +97,12 @@ def _align(
     return Aligned(i_est, rows, interpolated, warnings)
 
 
-def _offset_hint(t_est: np.ndarray, t_truth: np.ndarray) -> str:
-    """Where the estimate's times are the truth's plus one offset (a device clock that
-    did not start at 0, as ``live``'s), the ``--truth-shift`` that compares them (a
-    clause to end a refusal); else ``""``."""
-    offset = float(t_est[0] - t_truth[0])
+def _offset_hint(first_t: float, t_est: np.ndarray, t_truth: np.ndarray) -> str:
+    """Where the estimate's times ``t_est`` are the truth's plus one offset, that of its
+    first time ``first_t`` (before any ``--skip-start``) from the truth's (a device
+    clock that did not start at 0, as ``live``'s), the ``--truth-shift`` that compares
+    them (a clause to end a refusal); else ``""``."""
+    offset = float(first_t - t_truth[0])
     if not math.isfinite(offset) or offset == 0.0:
         return ""
     shifted = t_truth + offset
@@ -221,8 +225,9 @@ def _evaluate(args: argparse.Namespace) -> int:
     if unit := force_unit_against(truth.names, truth.values, est.names, est.values):
         raise InputError(f"{args.truth}: {unit}")
     scored_from = _scored_from(est, args.skip_start)
+    first_t = float(est.t[0]) if len(est.t) else math.nan  # the clock's, before any skip
     est = _after_start(args.estimates, est, args.skip_start)
-    aligned = _align(args.estimates, est.t, args.truth, truth, scored_from)
+    aligned = _align(args.estimates, est.t, args.truth, truth, scored_from, first_t)
     i_e, truth_rows = aligned.i_est, aligned.rows
     length = robot.length
     out_names = [n for n in est.names if not n.startswith("std_")]

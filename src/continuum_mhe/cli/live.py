@@ -131,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
                 f"{MADE_LINE} = "
                 + json.dumps(
                     f"{version()} live"
-                    + (f", {LIVE_RECORDING} {rec_path.name}" if rec_path is not None else "")
+                    + (f", {LIVE_RECORDING} {rec_path.resolve()}" if rec_path is not None else "")
                 ),
                 f"{OPTIONS_LINE} = {args.options_record}",
                 f"{MODEL_LINE} = {model_record(formulation)}",

@@ -337,6 +337,9 @@ class UnitWarning(UserWarning):
 #: The share of a block's rows whose angles are beyond the radian range above which the
 #: file is taken to be in degrees (fewer such rows are glitches).
 DEGREES_LIKE_SHARE = 0.1
+#: ... and with ``--skip-bad`` (whose rows out of range are dropouts) so many rows of a
+#: block at least, or half of a short block's, make it the file's unit, refused.
+SKIP_BAD_UNIT_ROWS = 5
 
 
 #: With ``degrees``, a recording whose every roll and pitch is within this (in the
@@ -412,7 +415,11 @@ def _check_angle_units(
     roll_name, pitch_name = columns
     valid = int(np.isfinite(z).all(axis=1).sum())
     many = over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1)  # not a few glitches
-    if skipped is not None and not many:  # (many: the file's unit or columns, refused)
+    # with skip_bad, the file's unit or columns are refused where several rows, or half
+    # of a short block's, are out (a file read in blocks: one glitch in a last block
+    # of a few rows is a glitch)
+    wrong_unit = many and (over.sum() >= SKIP_BAD_UNIT_ROWS or over.sum() >= 0.5 * max(valid, 1))
+    if skipped is not None and not wrong_unit:
         for row in np.flatnonzero(over).tolist():
             shown = np.degrees(z[row]) if degrees else z[row]
             skipped.append(

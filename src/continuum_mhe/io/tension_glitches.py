@@ -156,7 +156,7 @@ def tension_glitches(t: FloatArray, values: FloatArray, noise: float) -> Tension
         echoed &= echoes >= 2
         mask[rows[judged], c] = (departure[judged] > limit[judged]) & echoed
         if pairs is not None:
-            _pair_glitches(pairs, v, signed, departure, weights, noise, mask[:, c], curve[:, c])
+            _pair_glitches(pairs, t, v, signed, departure, weights, noise, mask[:, c], curve[:, c])
     if mask.any(axis=1).sum() > max(1, math.floor(MAX_GLITCH_SHARE * n)):
         mask[:] = False
     return TensionGlitches(mask, curve)
@@ -177,6 +177,9 @@ _PAIR_ECHOES: tuple[tuple[int, int, tuple[tuple[int, int], ...]], ...] = (
 #: How far a step between the rows a pair's judgement reads may lie from the median
 #: step, as a share of it (rows at jittered times are judged; rows across a hole not).
 PAIR_EVEN_STEPS = 0.5
+#: How far (rms) the four rows each side of a pair may lie from one cubic through them
+#: all, as a share of the pair's larger error (a step leaves 0.12 or more).
+PAIR_OUTER_TOLERANCE = 0.08
 #: The rows away from a pair's first row whose single-row departures give the local
 #: scale (3 to 6 rows from either of its rows).
 _PAIR_AROUND = (-6, -5, -4, -3, 4, 5, 6, 7)
@@ -212,8 +215,21 @@ class _PairCubics:
         return cls(first, nodes, weights, gain)
 
 
+def _outer_rows_smooth(t: FloatArray, v: FloatArray, i: int, size: float) -> bool:
+    """Whether the four rows on each side of the pair at rows ``i``, ``i + 1`` (of
+    tensions ``v`` at ``t``) lie on one cubic (least squares) within
+    :data:`PAIR_OUTER_TOLERANCE` of the pair's larger error ``size`` (rms): a glitch
+    leaves them on the motion's curve, a step (a controller's, one row before, in or
+    after the pair) puts them on two levels."""
+    rows = np.r_[i - 4 : i, i + 2 : i + 6]
+    basis = np.vander(t[rows] - t[i], 4)
+    fit = np.linalg.lstsq(basis, v[rows], rcond=None)[0]
+    return bool(np.sqrt(np.mean((v[rows] - basis @ fit) ** 2)) < PAIR_OUTER_TOLERANCE * size)
+
+
 def _pair_glitches(
     pairs: _PairCubics,
+    t: FloatArray,
     v: FloatArray,
     signed: FloatArray,
     departure: FloatArray,
@@ -222,7 +238,8 @@ def _pair_glitches(
     mask: NDArray[np.bool_],
     curve: FloatArray,
 ) -> None:
-    """Mark in ``mask`` (n,) the glitches of one tendon's tensions ``v`` (n,) N that two
+    """Mark in ``mask`` (n,) the glitches of one tendon's tensions ``v`` (n,) N at ``t``
+    (n,) s that two
     rows in a row get wrong (a logger that held a sample for two rows; two readings of
     a link that failed), where no row of the pair is a single-row glitch, and put in
     ``curve`` (n,) the cubic through the two rows either side at each. ``signed`` and
@@ -231,7 +248,8 @@ def _pair_glitches(
     row's glitch leaves it by (their gains, the single-row departures 3 to 6 rows away),
     and the departures of rows ``i - 2`` to ``i + 3`` from their own cubics (all six
     judged: pairs from row 4 to row n - 5) are the pair's echo in them within
-    :data:`SIGNATURE_TOLERANCE` of its larger error."""
+    :data:`SIGNATURE_TOLERANCE` of its larger error, and the four rows each side lie on
+    one cubic (:func:`_outer_rows_smooth`)."""
     m = len(signed)
     p = len(pairs.first)
     fit = np.einsum("jkp,kp->jp", pairs.weights, v[pairs.nodes])  # (2, p)
@@ -264,6 +282,8 @@ def _pair_glitches(
     for q in np.flatnonzero(found):
         i = int(pairs.first[q])
         if taken[i - 1 : i + 3].any():  # a single-row glitch, or a pair beside: not this
+            continue
+        if not _outer_rows_smooth(t, v, i, float(larger[q])):  # a step's
             continue
         taken[i : i + 2] = True
         mask[i : i + 2] = True

@@ -514,6 +514,7 @@ class BackboneView:
                     self.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
                 except RuntimeError as exc:
                     self._stuck = True
+                    _leave_unclosed(self.rr, self.rec)  # its end would wait for the viewer
                     raise InputError(
                         f"the Rerun viewer did not take the view within {FLUSH_TIMEOUT_S:g} s "
                         f"({exc}): the estimates are not drawn there"
