@@ -35,6 +35,18 @@ def _recording(tensions: Path) -> tuple[object, np.ndarray, np.ndarray]:
     return f, np.concatenate([b[0] for b in blocks]), np.vstack([b[1] for b in blocks])
 
 
+def _tension_off(folder: Path) -> Path:
+    """force-29's tensions with tension_1 0.05 N too high from 1 to 1.2 s."""
+    lines = (DATA / "force-29_tensions.csv").read_text().splitlines()
+    rows = [ln.split(",") for ln in lines[1:]]
+    for r in rows:
+        if 1.0 <= float(r[0]) < 1.2:
+            r[1] = f"{float(r[1]) + 0.05:.6f}"
+    path = folder / "tension_off.csv"
+    path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    return path
+
+
 def _tip_errors(f: object, series: object) -> tuple[np.ndarray, np.ndarray]:
     """The tip's error (mm) and its largest error on an axis in standard deviations."""
     names = [o.name for o in f.outputs]  # type: ignore[attr-defined]
@@ -61,14 +73,7 @@ def test_a_passing_fault_no_longer_loses_the_rest_of_the_recording(
         held = (t > 2.0) & (t <= 3.0)
         z[np.ix_(held, imu)] = z[np.argmax(held), imu]
     else:
-        lines = (DATA / "force-29_tensions.csv").read_text().splitlines()
-        rows = [ln.split(",") for ln in lines[1:]]
-        for r in rows:
-            if 1.0 <= float(r[0]) < 1.2:
-                r[1] = f"{float(r[1]) + 0.05:.6f}"
-        bumped = tmp_path / "bumped.csv"
-        bumped.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
-        f, t, z = _recording(bumped)
+        f, t, z = _recording(_tension_off(tmp_path))
     late = t > 4.0
     without = make_estimator("ekf", f, recovery=RecoverySettings(drift_reset=None))  # type: ignore[arg-type]
     lost, _ = _tip_errors(f, without.run(t, z))
@@ -116,14 +121,7 @@ def test_a_restart_starts_the_drift_anew(tmp_path: Path) -> None:
     """Two rows drifted (a tension 0.05 N off), then a gap: the gap's restart at 2.3 s
     is the only one; the drifted rows before it do not time a drift reset of the start
     after it (it restarted again at the next sample)."""
-    lines = (DATA / "force-29_tensions.csv").read_text().splitlines()
-    rows = [ln.split(",") for ln in lines[1:]]
-    for r in rows:
-        if 1.0 <= float(r[0]) < 1.2:
-            r[1] = f"{float(r[1]) + 0.05:.6f}"
-    bumped = tmp_path / "bumped.csv"
-    bumped.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
-    f, t, z = _recording(bumped)
+    f, t, z = _recording(_tension_off(tmp_path))
     kept = (t < 1.05) | (t > 2.3 - 1e-9)
     est = make_estimator("ekf", f)  # type: ignore[arg-type]
     status = np.asarray(est.run(t[kept], z[kept]).status)
