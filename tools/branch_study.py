@@ -226,8 +226,7 @@ def defaults(paths: list[Path]) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     names = sorted(q.name[: -len("_info.json")] for q in DATA.glob("*_info.json"))
-    p.add_argument("--rod", nargs="*", default=names,
-                   help="recordings (default, and --rod without names: all)")  # fmt: skip
+    p.add_argument("--rod", nargs="*", default=names, help="recordings (default all)")
     p.add_argument("--cases", nargs="+", default=["tilt", "raw"])
     p.add_argument("--seeds", type=int, default=5, help="synthetic seeds (0: none)")
     p.add_argument("--replay", nargs="*", default=[], metavar="NAME", help="rod recordings")
@@ -239,8 +238,6 @@ def main() -> None:
         help="a rod recording's replay, its noise seed and window end samples",
     )  # fmt: skip
     args = p.parse_args()
-    if args.rod == []:  # --rod alone: every recording, as without it
-        args.rod = names
     warnings.simplefilter("ignore")
     if args.seeds:
         synthetic(args.seeds)
