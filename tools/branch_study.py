@@ -226,7 +226,9 @@ def defaults(paths: list[Path]) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     names = sorted(q.name[: -len("_info.json")] for q in DATA.glob("*_info.json"))
-    p.add_argument("--rod", nargs="*", default=names, help="recordings (default all)")
+    p.add_argument("--rod", nargs="*", default=names,
+                   help="rod recordings (default all; --rod without names: none, for "
+                   "--replay, --trace, --window-cost or --defaults alone)")  # fmt: skip
     p.add_argument("--cases", nargs="+", default=["tilt", "raw"])
     p.add_argument("--seeds", type=int, default=5, help="synthetic seeds (0: none)")
     p.add_argument("--replay", nargs="*", default=[], metavar="NAME", help="rod recordings")
