@@ -642,7 +642,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<double> change_limit, double change_lag, int confirm_samples,
              std::vector<double> std_limit, bool jump_hold,
              std::vector<double> freeze_tolerance, double silent_after, double glitch_factor,
-             double drift_reset) {
+             double drift_reset, double whole_gap_reset) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -699,6 +699,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             if (!(std::isnan(drift_reset) || drift_reset > 0.0))
               throw std::invalid_argument("drift_reset must be > 0 s, or NaN (off)");
             s.drift_reset = drift_reset;
+            if (!(std::isnan(whole_gap_reset) || whole_gap_reset > 0.0))
+              throw std::invalid_argument("whole_gap_reset must be > 0 s, or NaN (off)");
+            s.whole_gap_reset = whole_gap_reset;
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -734,7 +737,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("confirm_samples") = 5, nb::arg("std_limit") = std::vector<double>(),
           nb::arg("jump_hold") = false, nb::arg("freeze_tolerance") = std::vector<double>(),
           nb::arg("silent_after") = INFINITY, nb::arg("glitch_factor") = 0.0,
-          nb::arg("drift_reset") = NAN, nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
+          nb::arg("drift_reset") = NAN, nb::arg("whole_gap_reset") = NAN,
+          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
           "block and of the IMUs'; ``whole_rows``: rows without which a sample is a dropout "
@@ -755,7 +759,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "``glitch_factor``: an IMU's reading beyond this many times the one-sample limit "
           "against the prediction from an ok estimate is skipped as a glitch (0: off); "
           "``drift_reset`` (s, NaN: off): rows drifted for longer since the last ok one "
-          "restart the estimate from that one's sensor states.")
+          "restart the estimate from that one's sensor states; ``whole_gap_reset`` (s, "
+          "NaN: off): a valid sample after samples without the whole rows for longer "
+          "restarts as after a gap.")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

@@ -129,6 +129,8 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   drift_since_ = NAN;
   drift_armed_ = true;
   last_t_ = last_valid_t_ = first_valid_t_ = -INFINITY;
+  whole_missing_ = 0;
+  other_missing_ = false;
   std::fill(has_freeze_value_.begin(), has_freeze_value_.end(), 0);
   std::fill(frozen_now_.begin(), frozen_now_.end(), 0);
   gate_has_ = false;
@@ -539,9 +541,24 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   const double* z = unfreeze(t, z_in, out.frozen);
   measurement_mask(z);
   const bool valid = any_positive(mask_);
+  if (!valid) {  // a sample without the whole rows, or one without any reading at all
+    bool whole_gone = false;
+    for (int i : s_.whole_rows) whole_gone = whole_gone || !std::isfinite(z[i]);
+    if (whole_gone)
+      ++whole_missing_;
+    else
+      other_missing_ = true;
+  }
   bool gap_reset = false;
   if (!std::isnan(s_.gap_reset) && valid) {
     gap_reset = -INFINITY < last_valid_t_ && last_valid_t_ < t - s_.gap_reset;
+    // without the tensions the prediction leaves the robot within a fraction of a
+    // second: their return is a gap sooner
+    if (whole_missing_ > 0 && !other_missing_ && !std::isnan(s_.whole_gap_reset))
+      gap_reset = gap_reset || (-INFINITY < last_valid_t_ &&
+                                last_valid_t_ < t - s_.whole_gap_reset);
+    whole_missing_ = 0;
+    other_missing_ = false;
     last_valid_t_ = t;
   }
   const bool back = note_imus(t);

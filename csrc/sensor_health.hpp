@@ -196,6 +196,10 @@ struct PolicySettings {
   // longer than this since the last ok row restart the estimate from the sensors' states
   // of that ok row (a fault that has passed: a frozen IMU, wrong tensions for a while)
   double drift_reset = NAN;
+  // s: a valid sample after samples without the whole rows (a tendon robot's tensions
+  // missing: no reading was used, and the prediction has no tensions) for longer than
+  // this restarts as after a gap (the gap reset on; NaN: only gap_reset's)
+  double whole_gap_reset = NAN;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
@@ -325,6 +329,10 @@ class SensorHealth {
   // the last drifted row's time (-inf: none), kept across restarts, and whether the
   // estimator restarted after it
   double drifted_t_ = -INFINITY;
+  // the samples since the last valid one that lacked the whole rows, and whether one
+  // lacked every reading otherwise (a plain gap)
+  int whole_missing_ = 0;
+  bool other_missing_ = false;
   // the first drifted row since the last ok row or restart (NaN: none; restart clears
   // it), and whether a drift reset may restart (once after each ok row)
   double drift_since_ = NAN;

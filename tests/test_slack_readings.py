@@ -148,3 +148,20 @@ def test_estimate_takes_a_tensions_files_slack_readings_as_zero(tmp_path: Path) 
         outs.append(read_state_table(out))
     assert "noisy.csv: 13 tensions below 0 (down to -0.003 N, the first at line 22)" in slack[0]
     np.testing.assert_array_equal(outs[0].values, outs[1].values)
+
+
+def test_a_stream_takes_a_tension_further_below_zero_as_missing() -> None:
+    """-0.5 N beside 1 N (a limit of 20 mN) in a stream: taken as missing, so that its
+    sample and the two on each side have no tensions (dropouts as a whole; their rates
+    would take it), said once; the samples further away keep theirs (the estimator's
+    step refused the sample alone, and its neighbours' rates took -0.5 N)."""
+    stream = TensionStream("line", 2)
+    t = np.arange(12) * 0.02
+    given = [[1.0 + 0.1 * k, -0.5 if k == 6 else 0.3] for k in range(12)]
+    with pytest.warns(TensionsWarning, match="taken as missing") as said:
+        out = [a for tk, v in zip(t, given) for a in stream.push(float(tk), np.array(v))]
+        out += stream.end()
+    assert sum("taken as missing" in str(w.message) for w in said) == 1
+    gone = [k for k, a in enumerate(out) if not np.isfinite(a.values).all()]
+    assert gone and min(gone) >= 4 and max(gone) <= 8 and 6 in gone
+    assert all(np.isfinite(out[k].values).all() for k in (0, 1, 2, 3, 9, 10, 11))

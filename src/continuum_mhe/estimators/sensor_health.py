@@ -79,6 +79,7 @@ from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measure
 from continuum_mhe.settings import (
     FREEZE_TOLERANCE,
     SILENT_AFTER,
+    TENSION_GAP_S,
     RecoverySettings,
 )
 from continuum_mhe.signals import interrupt_in_chain
@@ -370,6 +371,13 @@ class Estimator(Generic[InferenceT]):
                 if change is not None and not getattr(f, "estimate_tension_gain", False)
                 else None
             ),
+            # a tendon robot's tensions missing: no reading is used, and the prediction
+            # has no tensions (it leaves the robot within a fraction of a second)
+            whole_gap_reset=off(
+                min(TENSION_GAP_S, r.gap_reset)
+                if r.gap_reset is not None and self._tension_block_rows
+                else None
+            ),
             uncertain_fraction=r.uncertain_fraction,
             length=f.robot.length,
             # the start and consistency checks need a covariance that is one (not the
@@ -549,7 +557,7 @@ class Estimator(Generic[InferenceT]):
             )
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
         if self._tension_rows:
-            z = self._check_tensions(z[None, :], np.array([t], dtype=float))[0]
+            z = self._check_tensions(z[None, :], np.array([t], dtype=float), stacklevel=3)[0]
         if not self._units.done:
             problem = self._units.see(np.array([t], dtype=float), z[None, :])
             if problem is not None:
@@ -573,13 +581,14 @@ class Estimator(Generic[InferenceT]):
             outlier=r.outlier, outputs=self.formulation.outputs,
         )  # fmt: skip
 
-    def _check_tensions(self, z: FloatArray, t: FloatArray) -> FloatArray:
+    def _check_tensions(self, z: FloatArray, t: FloatArray, stacklevel: int = 4) -> FloatArray:
         """``z`` (n, nz) at the times ``t`` (n,) s with a slack tendon's tension read
         below zero taken as 0 (a copy where one is; said once until a reset, a
         :class:`~continuum_mhe.io.tensions.TensionsWarning`); a :class:`UserError` for
         the first tension further below zero (:mod:`~continuum_mhe.io.slack_readings`),
         and for tensions that would bend a section through turns on their own (mN given
-        for N), as the tensions file's reader gives them."""
+        for N), as the tensions file's reader gives them. ``stacklevel``: the warning's,
+        the caller of ``step`` (3) or of ``run`` (4, through ``_samples``)."""
         names = self.formulation.measurement_names
         tensions = z[:, self._tension_rows]
         taken = take_slack_readings(tensions)
@@ -599,9 +608,13 @@ class Estimator(Generic[InferenceT]):
                 self._slack_said = True
                 first = int(np.flatnonzero(taken.slack.any(axis=1))[0])
                 warnings.warn(
-                    taken.said("the measurements' tensions", f"t = {float(t[first]):g} s"),
+                    taken.said(
+                        "the measurements' tensions",
+                        f"t = {float(t[first]):g} s",
+                        once=len(t) == 1,  # a step's: the first of those to come
+                    ),
                     TensionsWarning,
-                    stacklevel=4,
+                    stacklevel=stacklevel,
                 )
         robot = getattr(self.formulation, "robot", None)
         if isinstance(robot, Robot):  # (an infinite tension is the policy's to refuse)

@@ -65,13 +65,19 @@ class SlackReadings:
         """The lowest reading taken as 0, N (0 where none)."""
         return float(np.min(np.where(self.slack, self.given, 0.0)))
 
-    def said(self, source: str, where: str) -> str:
+    def said(self, source: str, where: str, once: bool = False) -> str:
         """The warning that :attr:`count` readings of ``source`` were taken as 0, the
-        first at ``where`` (a line or a time)."""
+        first at ``where`` (a line or a time); ``once``: the first sample's of a stream,
+        said for all that follow (none counted)."""
         many = self.count != 1
+        counted = (
+            f"tensions below 0 (the first {self.lowest:.3g} N at {where}; said once)"
+            if once
+            else f"{self.count} tension{'s' if many else ''} below 0 (down to "
+            f"{self.lowest:.3g} N, the first at {where})"
+        )
         return (
-            f"{source}: {self.count} tension{'s' if many else ''} below 0 (down to "
-            f"{self.lowest:.3g} N, the first at {where}): a slack tendon read through its "
+            f"{source}: {counted}: a slack tendon read through its "
             f"load cell's noise or offset, taken as 0 N (a tendon cannot push; below "
             f"-{SLACK_READING_FLOOR_N:g} N, or {SLACK_READING_SHARE:.0%} of the row's "
             "largest tension, a tension is refused)"

@@ -728,18 +728,21 @@ class TensionStream:
         # whether the last samples' scatter (:meth:`_check_noise`, on the samples as
         # given that the glitch test keeps) has been said
         self._noise_said = False
-        # whether a slack tendon's reading below zero has been said
+        # whether a slack tendon's reading below zero, and a tension further below it
+        # (taken as missing), have been said
         self._slack_said = False
+        self._negative_said = False
 
     def push(self, t: float, values: FloatArray) -> list[TensionsAt]:
         """Add a sample (``t`` s, increasing; ``values`` N, one per tendon, NaN where a
         tension is missing); the samples whose derivatives are now known, oldest first
         (none for the first two). A sample of another count of tensions than the
         robot's (:attr:`n_tendons`, else the first sample's) raises
-        :class:`~continuum_mhe.errors.UserError`, and is not added (a negative tension
-        is taken as 0 where it is a slack tendon's reading, said once: the tensions
-        file's rule, :mod:`.slack_readings`; one further below zero, the estimator's
-        step refuses). A sample whose time is not later than the last one's raises
+        :class:`~continuum_mhe.errors.UserError`, and is not added. A negative tension
+        is taken as 0 where it is a slack tendon's reading (the tensions file's rule,
+        :mod:`.slack_readings`), and further below zero as missing (NaN: its sample and
+        the two on each side dropouts, whose rates would take it), each said once. A
+        sample whose time is not later than the last one's raises
         :class:`~continuum_mhe.errors.SampleTimeError` and is not added (its differences
         would be of a step back in time)."""
         if not is_real(t):
@@ -767,11 +770,24 @@ class TensionStream:
                 f"the robot has {self.n_tendons} tendons: one tension each (N)"
             )
         slack = take_slack_readings(v[None, :])
-        if slack.count and not slack.too_negative.any():
-            v = slack.values[0]
+        if slack.too_negative.any():  # its rates and its neighbours' would take it
+            j = int(np.flatnonzero(slack.too_negative[0])[0])
+            if not self._negative_said:
+                self._negative_said = True
+                warnings.warn(
+                    f"{self.name}: tension_{j + 1} = {v[j]:g} N at t = {t:g} s is below 0 "
+                    "beyond a slack tendon's reading (its load cell may read down to "
+                    f"-{slack.limit[0]:.3g} N there; a tendon cannot push): taken as "
+                    "missing, its sample and the two on each side dropouts (said once)",
+                    TensionsWarning,
+                    2,
+                )
+            v = np.where(slack.too_negative[0], np.nan, v)
+        if slack.count:
+            v = np.where(slack.slack[0], 0.0, v)
             if not self._slack_said:
                 self._slack_said = True
-                warnings.warn(slack.said(self.name, f"t = {t:g} s"), TensionsWarning, 2)
+                warnings.warn(slack.said(self.name, f"t = {t:g} s", once=True), TensionsWarning, 2)
         replaced = len(self._kept.replaced)
         self._kept.push(t, v)
         if not self._noise_said and self._kept.seen % NOISE_CHECK_ROWS == 0:
