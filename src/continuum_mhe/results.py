@@ -177,8 +177,11 @@ class Estimate:
             from ``covariance`` through the outputs (``Formulation.output_std``: its
             sigma points), widened by the model error the readings show, by the
             shift the readings ask for where the estimate cannot explain them (a row
-            whose status is not ``ok``), and by the readings' constant errors
-            (``estimators.consistency``); None where unknown.
+            ``inconsistent``), and by the readings' constant errors
+            (``estimators.consistency``); None where unknown. A ``drifted`` row (the
+            readings explained with IMU errors the IMUs are not taken to have) and a
+            ``dropout`` row (the prediction) are not widened for what they may miss:
+            their status, not their standard deviation, says not to trust them.
         outlier: the robust MHE down-weighted this sample's measurement (a block's
             weight below ``estimators.loss.OUTLIER_WEIGHT`` in this solve); always
             False for the quadratic cost and the filters.
