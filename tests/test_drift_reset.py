@@ -177,3 +177,8 @@ def test_the_return_of_the_tensions_after_a_fraction_of_a_second_restarts_as_a_g
     ok = np.asarray(series.status) == "ok"
     assert est.diagnostics.gap_resets == 1
     assert not np.any(ok & after & ((err > 5.0) | (sigmas > 4.0)))
+    # one sample's tensions missing (five samples without them): no restart
+    f, t, z = _streamed_with_tensions_missing(3.0, 3.02)
+    est = make_estimator("ekf", f)  # type: ignore[arg-type]
+    status = np.asarray(est.run(t, z).status)
+    assert np.count_nonzero(status == "dropout") == 5 and est.diagnostics.gap_resets == 0

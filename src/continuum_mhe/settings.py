@@ -207,11 +207,13 @@ GLITCH_FACTOR = 3.0
 DRIFT_RESET_S = 0.5
 #: A tendon robot's samples without tensions for longer than this (s; the gap reset's,
 #: where shorter) make the next sample with them restart as after a gap, keeping the
-#: sensors' states: such samples use no reading (the IMUs' model needs the tensions),
+#: sensors' states (one missing sample of a stream's tensions makes five samples, 0.12
+#: s at 50 Hz, without them: no restart): such samples use no reading (the IMUs' model
+#: needs the tensions),
 #: and the prediction has no tensions to follow; on the shipped ``force-29`` a 0.4 s
 #: hole in them left ``ok`` rows 12 mm off, 4 to 5 standard deviations
 #: (docs/tendon.md, the tensions file).
-TENSION_GAP_S = 0.1
+TENSION_GAP_S = 0.15
 
 
 @dataclass(frozen=True)
