@@ -25,6 +25,7 @@ from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import open_input
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import read_state_table
+from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import RecoverySettings
 
@@ -43,9 +44,21 @@ def _tensions_off(folder: Path, name: str, until: float) -> Path:
     return path
 
 
+def read_force29(tensions: Path) -> tuple[Formulation, np.ndarray, np.ndarray]:
+    """``(formulation, t, z)`` of the shipped ``force-29``'s raw readings with the
+    tensions file ``tensions``, read as the command line reads them."""
+    base = make_formulation("bend", read_robot("tendon-two-section"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        options = InputOptions(tensions=str(tensions))
+        with open_input(DATA / "force-29_raw.csv", options, base) as stream:
+            f = stream.formulation
+            blocks = list(stream.blocks)
+    return f, np.concatenate([b[0] for b in blocks]), np.vstack([b[1] for b in blocks])
+
+
 def main() -> None:
     argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()
-    base = make_formulation("bend", read_robot("tendon-two-section"))
     truth = read_state_table(DATA / "force-29_truth.csv")
     true_tip = np.stack([truth.column(c) for c in "xyz"], axis=1)
     with tempfile.TemporaryDirectory() as tmp:
@@ -56,14 +69,7 @@ def main() -> None:
             "tension_1 +0.05 N, 1 to 1.04 s": _tensions_off(folder, "ten3.csv", 1.05),
         }
         for fault, tensions in faults.items():
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                options = InputOptions(tensions=str(tensions))
-                with open_input(DATA / "force-29_raw.csv", options, base) as stream:
-                    f = stream.formulation
-                    blocks = list(stream.blocks)
-            t = np.concatenate([b[0] for b in blocks])
-            z = np.vstack([b[1] for b in blocks])
+            f, t, z = read_force29(tensions)
             if fault.startswith("tip IMU"):
                 imu = [i for i, n in enumerate(f.measurement_names) if n.endswith("_2")]
                 held = (t >= 2.0 - 1e-9) & (t < 2.99)
