@@ -607,10 +607,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     ++diagnostics.drift_resets;
     has_last_ = true;  // the last ok estimate's, as last_x_ holds it
     restart(true);
+    drift_armed_ = false;  // once after each ok row
   }
   // (the bad-start chain goes on across it: a model that no restart fits stops the
-  // restarts the readings force, and this one is once after each ok row)
-  if (drift_reset) drift_armed_ = false;
+  // restarts the readings force)
   // the restarts this sample's readings forced (its estimate starts from them)
   const bool forced_restart = bad_start || reject_reset || drift_reset;
   if (gated > 0 && (gap_reset || forced_restart)) gated = 0;

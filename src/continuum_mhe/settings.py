@@ -279,9 +279,9 @@ class RecoverySettings:
             estimator restarts (status ``reset``) keeping that ``ok`` estimate's sensor
             states: a fault that has passed (an IMU frozen for a while, wrong tensions
             for a while) left the estimate off, and the sensors are as they were
-            before it. Again after each further such stretch; where the model does not
-            fit the robot (tensions of another scale) the rows after stay ``drifted``
-            or ``uncertain``. Only formulations that have such states (a tendon robot),
+            before it. Once after each ``ok`` row; where the model does not fit the
+            robot (tensions of another scale) the rows after stay ``drifted`` or
+            ``uncertain``. Only formulations that have such states (a tendon robot),
             and not with ``estimate_tension_gain`` (the gains drift as they settle);
             None: never (command line ``--drift-reset``, 0).
 

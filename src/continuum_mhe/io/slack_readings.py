@@ -2,10 +2,12 @@
 
 A tendon cannot push, so a negative tension is no tension. But a load cell on a slack
 tendon reads zero with its noise and offset, a little below it as often as above: such
-a reading is taken as 0 (slack), counted and said, wherever tensions come in (a tensions
-file, a recording's own columns, ``live``'s serial line, an estimator's ``step`` and
-``run``). A tension below zero by more than :func:`slack_reading_limit` is refused as
-before, in one line naming it: a sign, an offset or a wiring that is wrong.
+a reading is taken as 0 (slack) and said once (a file's warning counts them), wherever
+tensions come in (a tensions file, a recording's own columns, ``live``'s serial line,
+an estimator's ``step`` and ``run``). A tension below zero by more than
+:func:`slack_reading_limit` (a sign, an offset or a wiring that is wrong) is refused in
+one line naming it; a :class:`~continuum_mhe.io.tensions.TensionStream` takes it as
+missing.
 """
 
 from __future__ import annotations
@@ -80,7 +82,7 @@ class SlackReadings:
             f"{source}: {counted}: a slack tendon read through its "
             f"load cell's noise or offset, taken as 0 N (a tendon cannot push; below "
             f"-{SLACK_READING_FLOOR_N:g} N, or {SLACK_READING_SHARE:.0%} of the row's "
-            "largest tension, a tension is refused)"
+            "largest tension, a tension is not a slack tendon's)"
         )
 
 

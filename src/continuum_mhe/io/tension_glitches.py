@@ -239,13 +239,13 @@ def _pair_glitches(
     curve: FloatArray,
 ) -> None:
     """Mark in ``mask`` (n,) the glitches of one tendon's tensions ``v`` (n,) N at ``t``
-    (n,) s that two
-    rows in a row get wrong (a logger that held a sample for two rows; two readings of
-    a link that failed), where no row of the pair is a single-row glitch, and put in
-    ``curve`` (n,) the cubic through the two rows either side at each. ``signed`` and
-    ``departure`` (m,): rows 2 to n - 3's signed and absolute departures from their own
-    cubics, of ``weights`` (4, m). Both rows leave the cubic beyond the limits a single
-    row's glitch leaves it by (their gains, the single-row departures 3 to 6 rows away),
+    (n,) s that two rows in a row get wrong (a logger that held a sample for two rows;
+    two readings of a link that failed), where no row of the pair is a single-row
+    glitch, and put in ``curve`` (n,) the cubic through the two rows either side at
+    each. ``signed`` and ``departure`` (m,): rows 2 to n - 3's signed and absolute
+    departures from their own cubics, of ``weights`` (4, m). Both rows leave the cubic
+    beyond the limits a single row's glitch leaves it by (their gains, the single-row
+    departures 3 to 6 rows away),
     and the departures of rows ``i - 2`` to ``i + 3`` from their own cubics (all six
     judged: pairs from row 4 to row n - 5) are the pair's echo in them within
     :data:`SIGNATURE_TOLERANCE` of its larger error, and the four rows each side lie on

@@ -15,8 +15,9 @@ rows that bring them within these (Savitzky-Golay, at most
 :data:`~.tension_derivatives.MAX_SMOOTHING_S`), and this is said
 (:func:`~.tension_derivatives.tension_derivatives`). A tensions file
 must cover the recording: a measurement before its first row or after its last is an
-error, as are a negative or non-finite tension, a wrong number of tension columns and
-times that do not increase.
+error, as are a non-finite tension, a tension further below zero than a slack tendon's
+load cell reads (:mod:`.slack_readings`; one within that is taken as 0), a wrong
+number of tension columns and times that do not increase.
 
 A tension that one row alone gets wrong (a glitch; in a file, two rows in a row too) is
 replaced by the cubic through its neighbours (:mod:`.tension_glitches`).
