@@ -40,7 +40,7 @@ using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 auto counts_of(const PolicyDiagnostics& d) {
   return std::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.bad_starts,
                          d.reject_resets, d.bound_samples, d.bad_start_chains,
-                         d.untrusted_start_samples, d.glitches, d.drift_resets,
+                         d.untrusted_start_samples, d.glitches, d.drift_resets, d.late_imu_starts,
                          d.first_freezes.size(), d.has_failure, d.max_noise_scale,
                          d.model_error);
 }
@@ -508,6 +508,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
       .def_ro("drift_resets", &PolicyDiagnostics::drift_resets,
               "Restarts from the last ok estimate's sensor states after rows drifted "
               "for drift_reset s.")
+      .def_ro("late_imu_starts", &PolicyDiagnostics::late_imu_starts,
+              "Restarts at the first reading of an IMU that had not read since the last "
+              "(re)start, beside every IMU that had.")
       .def_prop_ro(
           "last_failure",
           [](const PolicyDiagnostics& d) {

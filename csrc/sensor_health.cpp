@@ -94,6 +94,8 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   freeze_count_.assign(nb, 0);
   has_freeze_value_.assign(nb, 0);
   frozen_now_.assign(nb, 0);
+  imu_seen_.assign(nb, 0);
+  reads_now_.assign(nb, 0);
   gate_x_.resize(s_.nx);
   gate_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   gate_z_.resize(s_.nz);
@@ -170,6 +172,7 @@ void SensorHealth::restart(bool keep_sensors) {
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
   changed_until_ = -INFINITY;
   std::fill(held_t_.begin(), held_t_.end(), -INFINITY);  // a start holds no past reading
+  std::fill(imu_seen_.begin(), imu_seen_.end(), 0);
   if (!keep_sensors) has_last_ = false;
   inference_.restart(has_last_ ? last_x_.data() : nullptr, has_last_ ? last_P_.data() : nullptr,
                      last_state_t_);
@@ -267,6 +270,21 @@ bool SensorHealth::note_imus(double t) {
 bool SensorHealth::imu_reading() const {
   return std::any_of(s_.imu_blocks.begin(), s_.imu_blocks.end(),
                      [this](const auto& b) { return mask_[b.first] > 0.0; });
+}
+
+bool SensorHealth::imu_joins() const {
+  bool joins = false;
+  for (size_t k = 0; k < s_.imu_blocks.size(); ++k) {
+    const bool reads = reads_now_[k];
+    if (imu_seen_[k] && !reads) return false;  // a partial sample: wait for a whole one
+    joins = joins || (reads && !imu_seen_[k]);
+  }
+  return joins;
+}
+
+void SensorHealth::note_imus_seen() {
+  for (size_t k = 0; k < s_.imu_blocks.size(); ++k)
+    if (reads_now_[k]) imu_seen_[k] = 1;
 }
 
 bool SensorHealth::observed_now(double t) {
@@ -540,6 +558,8 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   out = SampleResult();
   const double* z = unfreeze(t, z_in, out.frozen);
   measurement_mask(z);
+  for (size_t k = 0; k < s_.imu_blocks.size(); ++k)
+    reads_now_[k] = mask_[s_.imu_blocks[k].first] > 0.0;
   const bool valid = any_positive(mask_);
   if (!valid) {  // a sample without the whole rows, or one without any reading at all
     bool whole_gone = false;
@@ -570,10 +590,16 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   int gated = 0;
   const double* z_read = z;
   const double* z_gated = gate_glitches(t, z, gated);
-  if (gap_reset) {  // restart from this sample instead of a blind prediction
-    ++diagnostics.gap_resets;
+  // an IMU that had not read since the (re)start joins the others (a log whose topics
+  // start apart): its part of the shape was never observed, and the window or filter
+  // would move it at once, a jump that the gyros' biases take up; start again with it
+  const bool late_start = !gap_reset && !std::isnan(s_.gap_reset) && valid && started_ &&
+                          imu_joins();
+  if (gap_reset || late_start) {  // restart from this sample instead of a blind prediction
+    ++(late_start ? diagnostics.late_imu_starts : diagnostics.gap_resets);
     end_chain();
-    restart(true);  // the sensors are those of the estimate before the gap
+    restart(true);  // the sensors are those of the estimate before
+    gap_reset = true;
   } else if (back && s_.checks_start) {
     // their part of the shape was predicted blindly: check it as after a start
     start_reopen(unobserved_window());
@@ -619,6 +645,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     std::copy(gated_mask_.begin(), gated_mask_.end(), mask_.begin());
     diagnostics.glitches += gated;
   }
+  note_imus_seen();  // after this sample's restarts, which forget what was seen
   bool has_state = false, has_cov = false, failed = false;
   int status = infer_once(t, z, x, P, has_state, has_cov, failed);
   bool healthy = !failed && (!has_state || !diverged(x, has_cov ? P : nullptr));
@@ -626,6 +653,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     ++diagnostics.restarts;
     end_chain();
     restart(false);
+    note_imus_seen();
     if (gated > 0) {  // the restart starts from this sample's readings, all of them
       diagnostics.glitches -= gated;
       gated = 0;

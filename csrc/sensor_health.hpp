@@ -209,7 +209,8 @@ struct PolicyDiagnostics {
           bad_start_chains = 0,  // chains in which the check held a restart back
           untrusted_start_samples = 0,  // estimates of a start the inference did not trust
           glitches = 0,  // IMU readings skipped as glitches (glitch_factor)
-          drift_resets = 0;  // restarts after rows drifted for drift_reset
+          drift_resets = 0,  // restarts after rows drifted for drift_reset
+          late_imu_starts = 0;  // restarts at the first reading of an IMU the start lacked
   std::vector<std::pair<int, double>> first_freezes;  // (IMU, t), in order
   bool has_failure = false;
   std::string last_failure;
@@ -262,6 +263,10 @@ class SensorHealth {
   bool note_imus(double t);  // fills back_rows_
   bool observed_now(double t);
   bool imu_reading() const;  // whether an IMU's reading is valid at this sample (mask_)
+  // whether an IMU that has not read since the last (re)start reads at this sample beside
+  // every IMU that has (reads_now_): the start was made without its part of the shape
+  bool imu_joins() const;
+  void note_imus_seen();  // imu_seen_ |= reads_now_
   double unobserved_window() const;
   // the tip position's standard deviation, m, from an estimate's output stds
   double tip_std(const double* ystd) const;
@@ -344,6 +349,9 @@ class SensorHealth {
   // per IMU: its readings of the last sample were a freeze's (set by unfreeze): it
   // observes nothing from the freeze's discovery on (observed_now)
   std::vector<char> frozen_now_;
+  // per IMU: it has read since the last (re)start (imu_joins), and it reads at this
+  // sample (before the glitch gate)
+  std::vector<char> imu_seen_, reads_now_;
   std::vector<double> z_, mask_, zero_mask_, bias_, std_b_;
   // The constant reading errors' term of the standard deviations counts each reading
   // the estimate still holds: a reading missing now (a dropout) at its last value while

@@ -244,6 +244,10 @@ class Diagnostics:
             than ``recovery.reject_reset``.
         drift_resets: restarts from the last ``ok`` estimate's sensor states after the
             estimates drifted for longer than ``recovery.drift_reset`` (a tendon robot).
+        late_imu_starts: restarts at the first reading of an IMU that had not read since
+            the last (re)start, given beside every IMU that had (a log whose IMUs start
+            apart): the start was made without its part of the shape. On with
+            ``recovery.gap_reset``.
         last_failure: the last numerical failure's message, if any.
         bound_samples: estimates of status ``at-bound``: a section's bend on its
             ``theta_max`` (the MHE holds it there) or beyond it (a filter); such an
@@ -279,6 +283,7 @@ class Diagnostics:
     untrusted_start_samples: int = 0
     glitches: int = 0
     drift_resets: int = 0
+    late_imu_starts: int = 0
 
     def copy(self) -> Diagnostics:
         """An independent copy (later steps do not change it)."""

@@ -225,7 +225,9 @@ class RecoverySettings:
         gap_reset: after no valid measurement for longer than this (s), the next valid
             sample restarts the estimator from its own measurement (status ``reset``)
             instead of continuing from a blind prediction; None: never (``--gap-reset``
-            on the command line; default 1 s, as there).
+            on the command line; default 1 s, as there). With it on, the first reading
+            of an IMU that had not read since the last (re)start, beside every IMU that
+            had, restarts the estimator too (the start lacked its part of the shape).
         freeze: a sensor (measurement block) whose reading repeats (every value within
             :data:`FREEZE_TOLERANCE` of its noise standard deviation of the first
             repeated reading) for longer than this (s), over at least

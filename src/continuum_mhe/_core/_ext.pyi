@@ -740,6 +740,12 @@ class PolicyDiagnostics:
         """
 
     @property
+    def late_imu_starts(self) -> int:
+        """
+        Restarts at the first reading of an IMU that had not read since the last (re)start, beside every IMU that had.
+        """
+
+    @property
     def last_failure(self) -> str | None:
         """The last numerical failure's description, or None."""
 

@@ -357,6 +357,11 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             f"; restarted after {diag.gap_resets} gap(s) longer than {args.gap_reset:g} s "
             "without a valid reading (a gap in t, or IMUs silent or stuck on one value)"
         )
+    if diag.late_imu_starts:
+        msg += (
+            f"; restarted {diag.late_imu_starts} time(s) at an IMU's first reading beside "
+            "the others (the start had no reading of it)"
+        )
     if diag.bad_starts:
         msg += (
             f"; restarted {diag.bad_starts} time(s) after readings inconsistent with the "

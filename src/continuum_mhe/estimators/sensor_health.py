@@ -465,7 +465,7 @@ class Estimator(Generic[InferenceT]):
         d.max_noise_scale, d.model_error = got.max_noise_scale, got.model_error
         d.untrusted_start_samples = got.untrusted_start_samples
         d.glitches = got.glitches
-        d.drift_resets = got.drift_resets
+        d.drift_resets, d.late_imu_starts = got.drift_resets, got.late_imu_starts
         for k, t in got.first_freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t
         self.inference.sync_counts()
@@ -480,6 +480,9 @@ class Estimator(Generic[InferenceT]):
           a numerically failed one restarts the inference from this sample's
           measurement;
         - the first valid sample after more than ``recovery.gap_reset`` s without one;
+        - with the gap reset on, the first reading of an IMU that had not read since the
+          last (re)start, given beside every IMU that had (a log whose IMUs start
+          apart; the start was made without its part of the shape);
         - readings inconsistent with the estimate within ``recovery.bad_start`` s of a
           (re)start or of an IMU's return after a silence of more than ``gap_reset``
           (1 s when it is off) (:mod:`.start_check`). Not for a robust MHE, which

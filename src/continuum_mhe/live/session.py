@@ -1139,6 +1139,11 @@ class LiveSession:
                 f"; restarted {resets} time(s) from the last ok estimate's IMU errors after "
                 f"{self.estimator.recovery.drift_reset:g} s of drifted rows"
             )
+        if late := self.estimator.diagnostics.late_imu_starts:
+            msg += (
+                f"; restarted {late} time(s) at an IMU's first reading beside the others "
+                "(the start had no reading of it)"
+            )
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (
                 f"; warning: stopped restarting {chains} time(s) after "
