@@ -570,3 +570,51 @@ def test_rates_on_some_topics_only_are_refused_as_a_table_s_columns(
     )
     assert not out.exists()
     assert main([*argv, "--imu-model", "tilt"]) == 0
+
+
+REST = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2/spatial-tendon_rest.csv"
+
+
+@pytest.mark.parametrize("kind", sorted(WRITERS))
+def test_calibrate_from_topics_equals_the_csv(kind: str, tmp_path: Path, capsys) -> None:
+    """``calibrate --from`` a bag or MCAP file of a rest recording, one ``--topic`` per
+    IMU, reports and writes the calibration of the same readings as a CSV file (the
+    report's lines but the source's name equal, the robot files equal)."""
+    rows = np.loadtxt(REST, delimiter=",", skiprows=1)
+    stamps = T0_NS + np.round(rows[:, 0] * 1e9).astype(np.int64)
+    imus = [{"stamps": stamps, "acc": rows[:, 1 + 6 * k : 4 + 6 * k],
+             "gyr": rows[:, 4 + 6 * k : 7 + 6 * k]} for k in range(2)]  # fmt: skip
+    writer, name = WRITERS[kind]
+    log = writer(tmp_path / name, imus)
+    reports = []
+    for source, topics in ((REST, []), (log, ["--topic", TOPICS[0], "--topic", TOPICS[1]])):
+        robot = tmp_path / f"{Path(source).stem}.toml"
+        argv = ["calibrate", "--from", str(source), "--robot", "two-section", *topics]
+        assert main([*argv, "--write-robot", str(robot)]) == 0
+        out = capsys.readouterr().out.replace(str(source), "SOURCE")
+        reports.append((out, robot.read_text()))
+    assert reports[0] == reports[1]
+    assert main(["calibrate", "--from", str(log), "--robot", "two-section"]) == 2
+    assert "no --topic for a robot with 2 IMUs" in capsys.readouterr().err
+    assert main(["calibrate", "--from", str(REST), "--topic", "/imu1"]) == 2
+    assert "--topic chooses the IMUs of a ROS bag or MCAP file" in capsys.readouterr().err
+
+
+def test_a_bags_metadata_file_names_the_folder(tmp_path: Path, capsys) -> None:
+    """A ROS 2 bag's ``metadata.yaml`` given for the bag (it was read as a CSV file
+    without IMU columns): one line naming the folder, for estimate and calibrate."""
+    rows = np.loadtxt(REST, delimiter=",", skiprows=1)[:50]
+    stamps = T0_NS + np.round(rows[:, 0] * 1e9).astype(np.int64)
+    imus = [{"stamps": stamps, "acc": rows[:, 1 + 6 * k : 4 + 6 * k],
+             "gyr": rows[:, 4 + 6 * k : 7 + 6 * k]} for k in range(2)]  # fmt: skip
+    bag = write_ros2_topics(tmp_path / "bag", imus)
+    meta = str(bag / "metadata.yaml")
+    topics = ["--topic", TOPICS[0], "--topic", TOPICS[1], "--robot", "two-section"]
+    for argv in (
+        ["estimate", meta, *topics, "-o", str(tmp_path / "e.csv")],
+        ["calibrate", "--from", meta, *topics],
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.endswith(f"the metadata file of a ROS 2 bag: give the bag's folder, {bag}")
+    assert not (tmp_path / "e.csv").exists()

@@ -16,6 +16,7 @@ import queue
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,6 +28,7 @@ from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.input_options import MOUNTING_FLIPPED, flipped_mounting
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.raw_imu import csv_input_kind, mount_rotation
+from continuum_mhe.io.robot_logs import is_robot_log
 from continuum_mhe.model.imu import STANDARD_GRAVITY, Mounting
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import FREEZE_MIN_SAMPLES, FREEZE_S
@@ -317,6 +319,58 @@ def calibrate(
     return Calibration(
         fmt, len(t), float(t[-1] - t[0]), float(np.median(steps)), float(steps.max()), imus
     )
+
+
+#: A raw sample at rest that leaves its axis's median by more than this many times the
+#: axis's noise (1.4826 times the median absolute deviation, at least
+#: :data:`KNOCK_NOISE_FLOOR` of the stillness bound) is a knock: Gaussian noise gets
+#: there about once in 1e15 samples.
+KNOCK_SIGMAS = 8.0
+#: The least noise a knock is judged against, as a fraction of the axis's stillness
+#: bound (an axis quantised to one value has no spread to judge by).
+KNOCK_NOISE_FLOOR = 0.02
+#: Knocks on more than this share of an IMU's samples are left in: not a knock but the
+#: readings' own scatter (a vibrating bench), which the stillness bounds judge.
+KNOCK_SHARE_MAX = 0.05
+
+
+def knocks_at_rest(
+    t: FloatArray,
+    values: FloatArray,
+    n_imus: int,
+    acc_std: float = STILL_ACC_STD,
+    gyro_std: float = STILL_GYRO_STD,
+) -> tuple[FloatArray, list[str]]:
+    """The raw samples ``values`` (n, 6 * n_imus) at ``t`` (n,) s with each IMU's
+    knocks left out (NaN), and one line per IMU that had some: a sample with an axis
+    beyond :data:`KNOCK_SIGMAS` times that axis's noise from its median, on at most
+    :data:`KNOCK_SHARE_MAX` of the IMU's samples (a knock that the stillness bounds
+    ``acc_std`` m/s^2 and ``gyro_std`` rad/s let pass would move the means: a gyro's
+    bias most)."""
+    out = values.copy()
+    said = []
+    bounds = np.array([acc_std] * 3 + [gyro_std] * 3)
+    for i in range(n_imus):
+        block = values[:, 6 * i : 6 * (i + 1)]
+        valid = np.all(np.isfinite(block), axis=1)
+        if valid.sum() < MIN_REST_SAMPLES:
+            continue
+        median = np.median(block[valid], axis=0)
+        noise = 1.4826 * np.median(np.abs(block[valid] - median), axis=0)
+        noise = np.maximum(noise, KNOCK_NOISE_FLOOR * bounds)
+        knocked = valid & np.any(np.abs(block - median) > KNOCK_SIGMAS * noise, axis=1)
+        count = int(knocked.sum())
+        if not count or count > KNOCK_SHARE_MAX * valid.sum():
+            continue
+        out[knocked, 6 * i : 6 * (i + 1)] = np.nan
+        at = t[knocked]
+        said.append(
+            f"IMU {i + 1}: {count} of {int(valid.sum())} sample(s) from t = "
+            f"{time_text(float(at[0]))} to {time_text(float(at[-1]))} s left out of its means "
+            f"and noise: a reading more than {KNOCK_SIGMAS:g} times its axis's noise from "
+            "the rest (a knock?)"
+        )
+    return out, said
 
 
 #: A gyro spread this many times its bound, with every accelerometer still, reads as a
@@ -647,13 +701,16 @@ def collect(
     return np.asarray(t), np.asarray(rows)
 
 
-def bend_yaws(path: str, phi_deg: float, cal: Calibration, robot: Robot) -> list[YawCalibration]:
-    """Each IMU's yaw from the raw recording ``path`` of a bend towards ``phi_deg``,
-    with the rest calibration ``cal``'s roll, pitch and gyro bias."""
+def bend_yaws(
+    path: str, phi_deg: float, cal: Calibration, robot: Robot, topics: Sequence[str] = ()
+) -> list[YawCalibration]:
+    """Each IMU's yaw from the raw recording ``path`` (a CSV file, or a robot log's Imu
+    ``topics``) of a bend towards ``phi_deg``, with the rest calibration ``cal``'s roll,
+    pitch and gyro bias."""
     if cal.fmt != "raw":
         raise InputError("--bend needs a raw rest recording (ax, ..., gz columns)")
-    if csv_input_kind(path) != "raw":
+    if not is_robot_log(Path(path)) and csv_input_kind(path) != "raw":
         raise InputError(f"{path}: line 1: --bend needs a raw recording (ax, ..., gz columns)")
-    _, _, values = read_recording(path, robot.n_imus)
+    _, _, values = read_recording(path, robot.n_imus, topics=topics)
     rest = [(imu.mount_rpy, imu.mean[3:], imu.std[3:]) for imu in cal.imus]
     return yaws_from_bend(path, values, rest, phi_deg, robot.mounting)  # type: ignore[arg-type]

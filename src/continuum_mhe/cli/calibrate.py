@@ -20,6 +20,7 @@ from continuum_mhe.calibration.at_rest import (
     collect,
     format_report,
     frozen_at_rest,
+    knocks_at_rest,
     motion_at_rest,
     rest_gravity_problem,
     rest_tilt_warning,
@@ -32,6 +33,7 @@ from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.output_files import atomic_writer, check_output_target, refuse_inputs
 from continuum_mhe.io.robot_file import robot_source_text, with_imu_calibration
+from continuum_mhe.io.robot_logs import is_robot_log, refuse_bag_metadata
 from continuum_mhe.io.sample_rows import DROPOUT_HINT
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX, Robot
@@ -68,11 +70,20 @@ def run(args: argparse.Namespace) -> int:
     for option, name in (("--from", args.source), ("--bend", args.bend)):
         if name is not None and not Path(name).exists() and name != "-":
             raise InputError(f"{name}: no such file")
+        if name is not None:
+            refuse_bag_metadata(name)
+        if name is not None and is_robot_log(Path(name)):
+            continue  # a ROS bag (a folder) or MCAP file, read by its topics
         if name is not None and not Path(name).is_file():  # read twice: the kind, then it
             raise InputError(
-                f"{name}: {option} reads a file (not standard input, a pipe or a folder): "
-                "save the recording first"
+                f"{name}: {option} reads a file (not standard input, a pipe or a folder "
+                "other than a ROS 2 bag's): save the recording first"
             )
+    logs = [n for n in (args.source, args.bend) if n is not None and is_robot_log(Path(n))]
+    if args.topic and not logs:
+        raise InputError(
+            "--topic chooses the IMUs of a ROS bag or MCAP file given to --from or --bend"
+        )
     if args.write_robot:  # before recording or reading
         refuse_inputs(args.write_robot, [("the recording --from", args.source),
                                          ("the bent recording --bend", args.bend),
@@ -88,7 +99,9 @@ def run(args: argparse.Namespace) -> int:
     left_out = ""  # said once the calibration holds
     if args.source:
         try:
-            fmt, t, values = read_recording(args.source, robot.n_imus, args.degrees)
+            fmt, t, values = read_recording(
+                args.source, robot.n_imus, args.degrees, tuple(args.topic or ())
+            )
         except InputError as exc:
             raise _without_skip_bad(exc, "the still robot") from None
         source = args.source
@@ -129,12 +142,17 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: --write-robot needs a raw recording (this one is {fmt})")
     if fmt == "raw" and (flipped := check_rest_mounting(source, values, robot, bool(args.robot))):
         print(f"{PROG}: warning: {source}: {flipped}", file=sys.stderr)
+    knocks: list[str] = []
+    if fmt == "raw":
+        values, knocks = knocks_at_rest(t, values, robot.n_imus, args.still_acc_std, gyro_std)
     try:
         cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
     except InputError as exc:  # name the recording
         raise InputError(f"{source}: {exc}") from None
     if left_out:
         print(left_out, file=sys.stderr)
+    for knock in knocks:
+        print(f"{PROG}: warning: {source}: {knock}", file=sys.stderr)
     fix = "pass --degrees" if args.source else "the board must send radians"
     tilted = rest_tilt_warning(cal, robot.mounting, fix)
     if tilted:
@@ -149,7 +167,8 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         try:
-            bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
+            topics = tuple(args.topic or ()) if is_robot_log(Path(args.bend)) else ()
+            bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot, topics))
         except InputError as exc:
             raise _without_skip_bad(exc, "the bent robot") from None
     yaws = [imu.mount_rpy[2] for imu in robot.imus]
@@ -226,7 +245,20 @@ DESCRIPTION = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--port", help="serial device, e.g. /dev/ttyACM0")
-    src.add_argument("--from", dest="source", metavar="RAW.csv", help="a recording instead")
+    src.add_argument(
+        "--from",
+        dest="source",
+        metavar="RAW.csv",
+        help="a recording instead: a CSV file (raw or tilt), or a ROS bag or MCAP file (--topic)",
+    )
+    p.add_argument(
+        "--topic",
+        action="append",
+        metavar="TOPIC",
+        help="a ROS bag's or MCAP file's sensor_msgs/Imu topic, once per IMU in the robot "
+        "file's order (paired by header stamp as estimate pairs them); not needed for a "
+        "log with one Imu topic and a robot with one IMU",
+    )
     p.add_argument(
         "--bend",
         metavar="BEND.csv",

@@ -86,6 +86,7 @@ from continuum_mhe.io.robot_logs import (
     ImuLog,
     is_robot_log,
     read_imu_log,
+    refuse_bag_metadata,
     tilt_from_quaternion,
 )
 from continuum_mhe.io.sample_rows import RowProblems, SampleBlock, sample_blocks
@@ -430,19 +431,22 @@ def load_input(
 
 
 def read_recording(
-    path: str, n_imus: int, degrees: bool = False
+    path: str, n_imus: int, degrees: bool = False, topics: Sequence[str] = ()
 ) -> tuple[Literal["raw", "tilt"], FloatArray, FloatArray]:
-    """``(format, t, values)`` of a raw or tilt CSV as recorded (``live --record``),
-    unconverted: tilt values in rad (``degrees``: the file's are in degrees), raw ``ax,
-    ay, az, gx, gy, gz`` per IMU (m/s^2, rad/s); the raw form needs every IMU's gyro
-    columns. A ROS bag or MCAP file is refused in one line (no topics to choose its IMUs
-    by), and so is ``degrees`` for a raw recording. Small angles read as degrees are not
-    said to look like radians: a robot at rest, straight, reads them."""
+    """``(format, t, values)`` of a raw or tilt CSV as recorded (``live --record``), or
+    of a ROS bag or MCAP file's Imu ``topics`` (one per IMU, in the robot file's order;
+    none for a log with one Imu topic), unconverted: tilt values in rad (``degrees``:
+    the file's are in degrees), raw ``ax, ay, az, gx, gy, gz`` per IMU (m/s^2, rad/s);
+    the raw form needs every IMU's gyro. ``degrees`` for a raw recording, and
+    ``topics`` for a CSV file, are refused in one line. Small angles read as degrees are
+    not said to look like radians: a robot at rest, straight, reads them."""
     if is_robot_log(Path(path)):
-        raise InputError(
-            f"{path}: a recording to calibrate from is a CSV file (tilt or raw IMU columns, "
-            "as live --record writes; docs/formats.md), not a ROS bag or MCAP file"
-        )
+        if degrees:
+            raise InputError(f"{path}: --degrees is for a tilt CSV recording's roll and pitch")
+        return "raw", *_raw_log_recording(Path(path), n_imus, topics)
+    refuse_bag_metadata(path)
+    if topics:
+        raise InputError(f"{path}: --topic chooses the IMUs of a ROS bag or MCAP file")
     if csv_input_kind(path) == "tilt":
         with warnings.catch_warnings():  # a still, straight robot's angles are small
             warnings.filterwarnings("ignore", r".*: read in degrees \(--degrees", UnitWarning)
@@ -465,6 +469,32 @@ def read_recording(
     return "raw", tables[0].t, values
 
 
+def _raw_log_recording(
+    path: Path, n_imus: int, topics: Sequence[str]
+) -> tuple[FloatArray, FloatArray]:
+    """``(t, values)`` of a robot log's Imu ``topics``, paired as ``estimate`` pairs
+    them: ``ax, ay, az, gx, gy, gz`` per IMU, NaN where a topic has no sample."""
+    if n_imus > 1 or len(topics) > 1:
+        paired = read_imu_topics(path, topics, n_imus)
+        logs, t = paired.logs, paired.t
+    else:
+        log = read_imu_log(path, topics[0] if topics else None)
+        logs, t = (log,), log.t
+    blocks = []
+    for i, log in enumerate(logs, start=1):
+        if log.gyr is None:
+            raise InputError(
+                f"{path}: topic {log.topic} (IMU {i}) has no angular rates "
+                "(angular_velocity_covariance[0] = -1 in every message): calibrate needs "
+                "every IMU's gyro"
+            )
+        name = f"{path}: topic {log.topic}"
+        check_accel_units(name, log.acc)
+        check_gyro_units(name, log.gyr, True, t, log.acc)
+        blocks.append(np.hstack([log.acc, log.gyr]))
+    return t, np.hstack(blocks)
+
+
 def _open_measurements(
     path: str | os.PathLike[str],
     options: InputOptions,
@@ -481,6 +511,7 @@ def _open_measurements(
         )
     if str(path) != "-" and is_robot_log(Path(path)):
         return _log_stream(Path(path), options, formulation, robot_name, python)
+    refuse_bag_metadata(path)
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
         # a ROS 2 recorder killed before it wrote metadata.yaml leaves its storage file:
         # an MCAP (or a ROS 1 bag) reads alone, a SQLite .db3 needs its metadata

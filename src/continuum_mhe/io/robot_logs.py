@@ -92,6 +92,16 @@ def is_robot_log(path: str | os.PathLike[str]) -> bool:
     return p.suffix.lower() in LOG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").exists())
 
 
+def refuse_bag_metadata(path: str | os.PathLike[str]) -> None:
+    """A ROS 2 bag's ``metadata.yaml`` given for the bag: one line naming the folder to
+    give instead."""
+    p = Path(path)
+    if p.name == "metadata.yaml" and is_robot_log(p.parent):
+        raise InputError(
+            f"{p}: the metadata file of a ROS 2 bag: give the bag's folder, {p.parent}"
+        )
+
+
 #: The largest ``header.stamp.sec`` read as seconds (the year 5138): beyond it the
 #: stamp is another unit (nanoseconds in ``sec``), refused.
 MAX_STAMP_SEC = 1e11
