@@ -667,6 +667,42 @@ def test_dropout_rows_past_the_bound_are_not_counted_against_theta_max() -> None
     assert bends.largest == [1.6]
 
 
+def test_bound_rows_while_an_imu_was_missing_are_said_as_its_dropout() -> None:
+    """Rows on the bound whose sample lacked one IMU's reading (another's given): the
+    bends that IMU leaves free drifted there, which says nothing of how far the robot
+    bends; where every such row lacked one, the notice says so instead of advising to
+    raise theta_max, and where some did, it counts them beside that advice. Rows with
+    every reading, or none (a dropout's, not counted), are not such rows."""
+    from continuum_mhe.estimators.run_notices import BendsOnBound
+    from continuum_mhe.io.robot_file import read_robot
+
+    f = make_formulation("bend", read_robot("two-section"))
+    theta_2 = [o.name for o in f.outputs].index("theta_2")
+    bound = f.robot.sections[1].theta_max
+    output = np.zeros((4, f.ny))
+    output[:, theta_2] = bound
+    z = np.zeros((4, f.nz))
+    z[0:2, 2:4] = np.nan  # IMU 2 missing in rows 0 and 1
+    z[3] = np.nan  # no reading at all
+    raise_it = "raise theta_max in the robot file R"
+    bends = BendsOnBound(f)
+    bends.add(output[:2], ["at-bound", "uncertain"], z[:2])
+    assert bends.count == 2 and bends.partial == 2
+    line = bends.notice(4, "mhe", True, raise_it)
+    assert line is not None and raise_it not in line
+    assert line.endswith(
+        "and all of them while an IMU's reading was missing (a dropout): the bends the other "
+        "IMUs leave free drift to the bound, which says nothing of how far the robot bends"
+    )
+    bends.add(output[2:], ["at-bound", "dropout"], z[2:])
+    assert bends.count == 3 and bends.partial == 2
+    line = bends.notice(4, "mhe", True, raise_it)  # a bound of 3 rad: no robot's
+    assert line is not None and (
+        "is one a robot does not reach (2 of them while an IMU's reading was missing, where "
+        "the bends the other IMUs leave free drift): readings that the model" in line
+    )
+
+
 def test_a_tip_imu_bent_past_the_refusal_angle_is_said_not_refused(tmp_path, capsys):
     """The only IMU of a two-section robot at its tip reads a start bent 129 degrees
     from upright (the ``spatial`` scenario bends both sections): the sections before it,

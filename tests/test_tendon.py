@@ -2087,6 +2087,50 @@ def test_tendon_angles_in_radians_are_said(tmp_path: Path) -> None:
         assert bool(radians) == said, (angle, [str(w.message) for w in got])
 
 
+@pytest.mark.parametrize(
+    ("angles", "said"),
+    [
+        (["0", "2", "4", "1", "3", "5"], "section 1's end (angles [0, 2, 4], read in degrees) lie "
+         "within 4 degrees"),
+        (["0", "0", "0", "120", "240", "360"], "section 1's end (angles [0, 0, 0], read in "
+         "degrees) lie within 0 degrees"),
+        (["0", "120", "240", "60", "66", "66"], "section 2's end (angles [60, 66, 66], read in "
+         "degrees) lie within 6 degrees"),
+        (["0", "120", "240", "60", "67", "180"], None),
+        (["357", "359", "2", "60", "180", "300"], "section 1's end (angles [357, 359, 2], read "
+         "in degrees) lie within 5 degrees"),
+        (["350", "355", "0", "60", "180", "300"], None),
+    ],
+)  # fmt: skip
+def test_tendons_of_a_section_huddled_at_one_angle_are_said(
+    tmp_path: Path, angles: list[str], said: str | None
+) -> None:
+    """A section's tendons whose angles all lie within 2 pi degrees of each other around
+    the backbone (whole radians read as degrees, 0, 2, 4, which the not-whole-degrees
+    rule lets pass; or one angle given to every tendon) give one UnitWarning naming the
+    file and the section; the smallest arc that holds them counts (357, 359 and 2 span 5
+    degrees; 350, 355 and 0 span 10, beyond it)."""
+    import re
+    import warnings
+
+    from continuum_mhe.io.csv_files import UnitWarning
+    from continuum_mhe.io.robot_file import read_robot
+
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    given = iter(angles)
+    path = tmp_path / "huddled.toml"
+    path.write_text(re.sub(r"angle = \S+", lambda m: f"angle = {next(given)}", shipped.read_text()))
+    with warnings.catch_warnings(record=True) as got:
+        warnings.simplefilter("always")
+        read_robot(path)
+    lines = [str(w.message) for w in got if issubclass(w.category, UnitWarning)]
+    if said is None:
+        assert lines == []
+    else:
+        assert len(lines) == 1 and lines[0].startswith(f"{path}: the tendons anchored at "), lines
+        assert said in lines[0] and lines[0].endswith("radians? (angle = 90 is a quarter turn)")
+
+
 def test_tensions_in_millinewtons_given_as_arrays_are_refused_by_the_estimator() -> None:
     """The shipped ``force-29`` rows with their tensions 1000 times too large (mN given
     for N), handed to ``run`` as arrays: refused in one UserError naming the time and
@@ -3356,3 +3400,28 @@ def test_evaluate_refuses_a_truths_tip_force_in_mn_and_twist_in_degrees(
     assert "2000 times" in force_unit_against(names, f * 2000, names, f)
     assert force_unit_against(names, f * 20, names, f) == ""
     assert force_unit_against(names, f * 1000, names, f * 0) == ""  # free of load
+
+
+def test_the_drift_and_start_warnings_name_tensions_only_for_a_robot_with_tendons() -> None:
+    """A robot with a backbone and no tendons (a passive rod, estimated on the mechanics
+    model with its tip force) has no tensions to check: the drifted rows' and the
+    untrusted start's lines leave them (and --estimate-tension-gain, which is refused
+    for it) out; a tendon robot's name them."""
+    from dataclasses import replace
+
+    from continuum_mhe.estimators.run_notices import drifted_notice, untrusted_start_notice
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.results import Diagnostics
+
+    tendon = read_robot("tendon-two-section")
+    passive = replace(tendon, tendons=())
+    diag = Diagnostics(untrusted_start_samples=4)
+    for robot, named in ((tendon, True), (passive, False)):
+        f = make_formulation("tendon", robot, imu_model="direct")
+        drift = drifted_notice(118, 151, f)
+        start = untrusted_start_notice(diag, 151, bool(robot.tendons))
+        assert drift is not None and start is not None
+        assert drift.startswith("118 of 151 estimates drifted") and "robot file" in drift
+        assert ("--estimate-tension-gain" in drift) == named
+        assert ("tension" in drift) == named and ("tension" in start) == named

@@ -141,7 +141,7 @@ def _estimate_block(
     if note:
         print(f"{PROG}: note: {note}", file=sys.stderr)
     tally.outliers += int(batch.outlier.sum())
-    tally.bound.add(batch.output, statuses)
+    tally.bound.add(batch.output, statuses, z)
     tally.beyond.add(batch.output)
     tally.force.add(z, batch.output)
     tally.twist.add(batch.output)
@@ -409,7 +409,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         print(f"{PROG}: note: {wide_note}", file=sys.stderr)
     if drift_note := drifted_notice(tally.counts.get("drifted", 0), n, formulation):
         print(f"{PROG}: warning: {drift_note}", file=sys.stderr)
-    if load_note := untrusted_start_notice(diag, n):
+    if load_note := untrusted_start_notice(diag, n, bool(formulation.robot.tendons)):
         print(f"{PROG}: warning: {load_note}", file=sys.stderr)
     inconsistent = tally.counts.get("inconsistent", 0)
     if inconsistent_note := inconsistent_notice(inconsistent, n, formulation):

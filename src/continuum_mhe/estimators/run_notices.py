@@ -68,12 +68,16 @@ class BendsOnBound:
         # a mechanics model does not bound the bend: BendsBeyondBound says those
         self.active = not robot.has_mechanics and all(c >= 0 for c in self._columns)
         self.count = 0
+        #: of them, the rows whose sample lacked an IMU's reading (another IMU's given)
+        self.partial = 0
         self.statuses: Counter[str] = Counter()
         self.largest = [0.0] * len(robot.sections)
+        self._imu_rows = [b.start for b in formulation.measurement_blocks if b.is_imu]
 
-    def add(self, output: FloatArray, statuses: Sequence[str]) -> None:
+    def add(self, output: FloatArray, statuses: Sequence[str], z: FloatArray | None = None) -> None:
         """Count the estimates ``output`` (n, ny; NaN rows without an estimate) and
-        their ``statuses``."""
+        their ``statuses``; ``z`` (n, nz): their samples' measurements (NaN where
+        missing), to count the rows that lacked an IMU's reading."""
         status = np.asarray(statuses, dtype=object)
         on = status == Status.AT_BOUND.value
         if self.active and len(output):
@@ -83,6 +87,9 @@ class BendsOnBound:
             reached &= (status != Status.DROPOUT.value)[:, None]
             on = on | reached.any(axis=1)
             self.largest = _largest_bends(self.largest, theta, reached)
+        if z is not None and len(self._imu_rows) > 1:
+            read = np.isfinite(z[:, self._imu_rows])
+            self.partial += int((on & read.any(axis=1) & ~read.all(axis=1)).sum())
         self.count += int(on.sum())
         self.statuses.update(str(v) for v in status[on])
 
@@ -103,17 +110,29 @@ class BendsOnBound:
         what = f"{self.count} of {n} estimates have a section's bend"
         of = f"its bending bound theta_max ({bounds} rad; by status: {by_status})"
         reached = [s for s, big in zip(sections, self.largest) if big > 0]
+        missing = (
+            f" ({self.partial} of them while an IMU's reading was missing, where the bends "
+            "the other IMUs leave free drift)"
+            if self.partial
+            else ""
+        )
         if not observable:
             further = (
                 "and the robot's IMUs do not determine its shape: the bends they leave "
                 "free drift to the bound (one IMU per section determines them; "
                 "check-robot tells)"
             )
+        elif self.partial == self.count:
+            further = (
+                "and all of them while an IMU's reading was missing (a dropout): the "
+                "bends the other IMUs leave free drift to the bound, which says nothing "
+                "of how far the robot bends"
+            )
         elif reached and all(s.theta_max >= DEFAULT_THETA_MAX for s in reached):
             # a bound no robot reaches: the readings, not the robot, went there
             further = (
                 f"and a bound of {DEFAULT_THETA_MAX:g} rad or more is one a robot does not "
-                "reach: readings that the model of the robot does not explain pushed the "
+                f"reach{missing}: readings that the model of the robot does not explain pushed the "
                 "estimates there; check the robot file against the robot (the IMUs' order, "
                 "section, at and mount_rpy, the sections' lengths and order, the mounting; "
                 "check-robot lists them), or the robot does what the model cannot follow "
@@ -121,7 +140,7 @@ class BendsOnBound:
             )
         else:
             further = (
-                "and the robot may bend further than the bound allows; "
+                f"and the robot may bend further than the bound allows{missing}; "
                 f"{raise_it} if it bends so far"
             )
         if holds:
@@ -455,12 +474,17 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
         if getattr(formulation, "imu_model", None) == "tilt"
         else ""
     )
+    tensions = (
+        "the tensions (their scale, unit, tendon order and timing; --estimate-tension-gain "
+        "estimates a scale) and "
+        if formulation.robot.tendons
+        else ""
+    )
     return (
         f"{drifted} of {n} estimates drifted: the IMUs' error states left their prior or "
         "changed faster than their model allows, so the model follows the readings only "
-        "with IMU errors these IMUs are not taken to have; check the tensions (their "
-        "scale, unit, tendon order and timing; --estimate-tension-gain estimates a scale) "
-        f"and the robot file (the IMUs' places, the backbone){tilt}"
+        f"with IMU errors these IMUs are not taken to have; check {tensions}the robot file "
+        f"(the IMUs' places, the backbone){tilt}"
     )
 
 
@@ -484,20 +508,21 @@ def glitch_clause(diagnostics: Diagnostics) -> str | None:
     )
 
 
-def untrusted_start_notice(diagnostics: Diagnostics, n: int) -> str | None:
+def untrusted_start_notice(diagnostics: Diagnostics, n: int, tendons: bool = True) -> str | None:
     """The line for the estimates, of ``n``, of a start whose first reading showed a
     load it could not tell from the IMUs' errors (a tendon robot's, in any estimator:
     ``Diagnostics.untrusted_start_samples``, every row of such a start: none of them
     ``ok``); None where there are none (``estimate``'s warning and ``live``'s summary)."""
     if not diagnostics.untrusted_start_samples:
         return None
+    shown = "a tip load (or tensions that do not act as given)" if tendons else "a tip load"
+    check = ", and check the tensions (their scale, unit, tendon order and timing)"
     return (
         f"{diagnostics.untrusted_start_samples} of {n} estimates are of a start whose first "
-        "IMU reading showed a tip load (or tensions that do not act as given), which a start "
+        f"IMU reading showed {shown}, which a start "
         "cannot tell from the IMUs' misalignments and accelerometer biases: none of them is "
         "ok (uncertain, or drifted where the IMU errors left their prior, where not a "
         "restart or a dropout), as they may take part of the load for those errors; start "
         "the recording with the robot free of load (the estimates then learn the IMUs' "
-        "errors, and keep them across a gap), and check the tensions (their scale, unit, "
-        "tendon order and timing)"
+        f"errors, and keep them across a gap){check if tendons else ''}"
     )

@@ -380,6 +380,17 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
             UnitWarning,
             stacklevel=3,
         )
+    elif huddled := huddled_tendons(tendons):
+        section, spread = huddled
+        shown = ", ".join(f"{math.degrees(t.angle):g}" for t in tendons if t.section == section)
+        warnings.warn(
+            f"{path}: the tendons anchored at section {section + 1}'s end (angles [{shown}], "
+            f"read in degrees) lie within {spread:.3g} degrees of each other around the "
+            "backbone, where tendons are spread to bend it every way: radians? (angle = 90 "
+            "is a quarter turn)",
+            UnitWarning,
+            stacklevel=3,
+        )
     else:
         for i in angles_among_degrees_like_radians(degrees):
             warnings.warn(
@@ -390,6 +401,28 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
                 stacklevel=3,
             )
     return tendons
+
+
+#: Tendons anchored at one section's end whose angles all lie within this many degrees of
+#: each other (2 pi, the span of whole radians read as degrees) are
+#: :func:`huddled_tendons`.
+HUDDLED_SPREAD_DEG = 2 * math.pi
+
+
+def huddled_tendons(tendons: list[Tendon]) -> tuple[int, float] | None:
+    """The first section (from 0) whose two or more tendons' angles all lie within
+    :data:`HUDDLED_SPREAD_DEG` of each other around the backbone, and that spread in
+    degrees (the smallest arc holding them), or None: angles in radians read as degrees
+    (0, 2, 4), or the same angle given to every tendon."""
+    for section in sorted({t.section for t in tendons}):
+        angles = sorted(math.degrees(t.angle) % 360.0 for t in tendons if t.section == section)
+        if len(angles) < 2:
+            continue
+        gaps = [b - a for a, b in zip(angles, angles[1:])] + [angles[0] + 360.0 - angles[-1]]
+        spread = 360.0 - max(gaps)
+        if spread <= HUDDLED_SPREAD_DEG + 1e-9:
+            return section, spread
+    return None
 
 
 #: Within how many degrees of a multiple of 15 degrees an angle read as radians must lie

@@ -1154,7 +1154,9 @@ class LiveSession:
         drifted = self.status_counts.get("drifted", 0)
         if drift_note := drifted_notice(drifted, c.estimates, self.formulation):
             msg += "; warning: " + drift_note
-        if load_note := untrusted_start_notice(self.estimator.diagnostics, c.estimates):
+        if load_note := untrusted_start_notice(
+            self.estimator.diagnostics, c.estimates, bool(self.formulation.robot.tendons)
+        ):
             msg += "; warning: " + load_note
         inconsistent = self.status_counts.get("inconsistent", 0)
         if inconsistent_note := inconsistent_notice(inconsistent, c.estimates, self.formulation):
