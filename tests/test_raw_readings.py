@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
+from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
@@ -107,3 +108,19 @@ def test_simulate_writes_raw_readings_that_estimate_takes_as_raw(tmp_path: Path,
     assert main(["simulate", "spatial", "--robot", "tendon-two-section", "--imu", "raw",
                  "-o", str(tendon)]) == 2  # fmt: skip
     assert capsys.readouterr().err.count("\n") == 1 and not tendon.exists()
+
+
+def test_each_imus_bias_is_the_same_in_recordings_of_any_length() -> None:
+    """The constant gyro bias of every IMU is drawn from the seed before any noise: a
+    rest recording of another length (the one calibrate takes) carries the same biases
+    as the motion it calibrates (IMU 2's had depended on the samples IMU 1 drew)."""
+    robot = read_robot("two-section")
+    quiet = RawNoise(accel_std=0.0, gyro_std=0.0, gyro_bias_std=0.01)
+    rates = []
+    for duration in (1.0, 3.0):
+        rec = simulate_robot("rest", robot, duration=duration, dt=0.02)
+        values, names = raw_readings(rec, robot, quiet, seed=5)
+        gyros = [i for i, n in enumerate(names) if n.startswith("g")]
+        assert np.ptp(values[:, gyros], axis=0).max() < 1e-12  # still: the bias alone
+        rates.append(values[0, gyros])
+    assert np.array_equal(rates[0], rates[1]) and np.abs(rates[0]).min() > 0

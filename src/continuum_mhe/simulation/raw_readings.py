@@ -101,15 +101,20 @@ def raw_readings(
     bends = _bends(rec, robot.n_sections)
     up = up_vector(robot.mounting)
     t = np.asarray(rec.t, dtype=float)
+    # every IMU's bias first: a recording of another length (a rest to calibrate from)
+    # draws the same biases from the same seed
+    biases = [
+        np.asarray(place.gyro_bias) + rng.normal(0.0, noise.gyro_bias_std, 3)
+        for place in robot.imus
+    ]
     blocks = []
-    for place in robot.imus:
+    for place, bias in zip(robot.imus, biases):
         R, p = pose_at(bends, robot.lengths, place.section, place.at)
         accel = np.gradient(np.gradient(p, t, axis=0), t, axis=0)
         force = np.einsum("nji,nj->ni", R, accel + STANDARD_GRAVITY * up)
         rate = _angular_velocity(t, R)
         mount = Rotation.from_euler("ZYX", place.mount_rpy[::-1], degrees=True).as_matrix()
         force, rate = force @ mount, rate @ mount  # v_sensor = M^T v_backbone, by rows
-        bias = np.asarray(place.gyro_bias) + rng.normal(0.0, noise.gyro_bias_std, 3)
         force = force + rng.normal(0.0, noise.accel_std, force.shape)
         rate = rate + bias + rng.normal(0.0, noise.gyro_std, rate.shape)
         blocks.append(np.hstack([force, rate]))
