@@ -2259,17 +2259,19 @@ def test_plot_refuses_positions_in_mm_without_a_robot(paper3d_pair, tmp_path, ca
 
 def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(paper3d_pair, tmp_path, capsys) -> None:
     """A truth 0.5 s late: evaluate warned, plot and view drew the offset as an error of
-    the estimate without a word; each says it, naming evaluate's --truth-shift."""
+    the estimate without a word; each says it, naming the --truth-shift that compares
+    them (plot's own, evaluate's for view)."""
     e, late = str(paper3d_pair["e"]), str(paper3d_pair["t_late"])
     said = "the truth fits the estimate best +0.5 s later"
     assert main(["evaluate", e, late]) == 0
     assert said in capsys.readouterr().err
     assert main(["plot", e, "--truth", late, "-o", str(tmp_path / "f.png")]) == 0
     err = capsys.readouterr().err
-    assert said in err and "evaluate --truth-shift 0.5 compares them so" in err
+    assert said in err and "; --truth-shift 0.5 compares them so" in err
     pytest.importorskip("rerun")
     assert main(["view", e, "--truth", late, "--save", str(tmp_path / "v.rrd")]) == 0
-    assert said in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert said in err and "evaluate --truth-shift 0.5 compares them so" in err
 
 
 def _truth_with_gaps(src: Path, dst: Path, rows: range, columns: set[str] | None) -> None:

@@ -376,13 +376,21 @@ def run_benchmark(
     loss_horizons: tuple[int, ...] | None = None,
     repeats: int = REPEATS,
     acados_folder: str | None = None,
+    say: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Time every method at every horizon on one recording, and each MHE loss at
     ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); every
     method ``repeats`` times in turn (:func:`_interleaved`); a peer that cannot run here
     is skipped with the line that says what to install (``acados_folder``: where
-    ``comma-deps-acados`` was installed apart, see :mod:`.peers`); see the
+    ``comma-deps-acados`` was installed apart, see :mod:`.peers`); ``say``: called with
+    a line as each part starts and ends (the command line's progress); see the
     module docstring."""
+    import time
+
+    def progress(line: str) -> None:
+        if say is not None:
+            say(line)
+
     from continuum_mhe.benchmark.losses import run_loss_benchmark
     from continuum_mhe.benchmark.peers import acados_version, find_acados, missing_peers
 
@@ -395,13 +403,19 @@ def run_benchmark(
     if acados is not None:
         env["versions"]["comma-deps-acados"] = acados_version(acados)
     results: list[Timing] = []
-    for n in horizons:
+    for k, n in enumerate(horizons, start=1):
         closing: list[Callable[[], None]] = []
+        started = time.perf_counter()
+        progress(
+            f"N = {n} ({k} of {len(horizons)} horizons): {len(methods)} methods, a warm-up "
+            f"and {repeats} interleaved rounds of {len(rec.t)} samples each"
+        )
         try:
             rows = _interleaved(_runs(f, rec, n, methods, acados, closing), repeats)
         finally:
             for close in closing:
                 close()
+        progress(f"N = {n} done in {time.perf_counter() - started:.0f} s")
         ipopt_out = rows["ipopt"][0]
         full = slice(n, None)
         for name in (m for m in METHODS if m in rows):
@@ -422,11 +436,15 @@ def run_benchmark(
             )
     if loss_horizons is None:
         loss_horizons = (30,) if 30 in horizons else tuple(horizons[:1])
-    losses = run_loss_benchmark(f, rec, list(loss_horizons)) if "fast" in methods else []
+    losses = []
+    if loss_horizons and "fast" in methods:
+        progress(f"the MHE's losses at N = {', '.join(map(str, loss_horizons))}")
+        losses = run_loss_benchmark(f, rec, list(loss_horizons))
     # (the memory check is the fast MHE's: none where it is skipped)
-    memory = (
-        memory_profile(f, 30, memory_samples) if memory_samples > 0 and "fast" in methods else None
-    )
+    memory = None
+    if memory_samples > 0 and "fast" in methods:
+        progress(f"the fast MHE's memory over {memory_samples} samples")
+        memory = memory_profile(f, 30, memory_samples)
     return {
         "formulation": "bend",
         "scenario": "paper3d",

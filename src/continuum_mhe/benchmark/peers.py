@@ -1,7 +1,8 @@
 """The strongest peers of the fast MHE, on the very window problems it solves:
-acados (SQP with HPIPM, generated C), CasADi's fatrop, and CasADi's sqpmethod with
-HPIPM as its QP solver (``continuum-mhe benchmark``'s rows ``acados``, ``fatrop``,
-``sqp-hpipm``).
+acados (SQP with HPIPM, generated C), CasADi's fatrop, CasADi's sqpmethod with HPIPM
+as its QP solver, and IPOPT warm-started (``continuum-mhe benchmark``'s rows
+``acados``, ``fatrop``, ``sqp-hpipm``, ``ipopt-warm``; the ``ipopt`` row is the
+estimator's own IPOPT backend, its whole step).
 
 The windows are the MHE's own (:class:`~continuum_mhe.estimators.window_nlp.WindowProblem`,
 recorded from the IPOPT-backend estimator over the recording: the same measurements,
@@ -60,7 +61,7 @@ from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording
 
-PEERS = ("acados", "fatrop", "sqp-hpipm")
+PEERS = ("acados", "fatrop", "sqp-hpipm", "ipopt-warm")
 
 #: What each peer's time covers.
 PEER_NOTES: dict[str, str] = {
@@ -74,6 +75,20 @@ PEER_NOTES: dict[str, str] = {
     "sqp-hpipm": "CasADi's sqpmethod with HPIPM as QP solver (exact Hessian) on the same "
     "windows (noise as control), warm-started from its shifted answer and multipliers: "
     "the nlpsol call",
+    "ipopt-warm": "IPOPT through CasADi on the same windows (noise as control), "
+    "warm-started as an interior point can be: its shifted answer and multipliers, "
+    "warm_start_init_point, mu_init 1e-4, bound pushes 1e-9, adaptive mu: the nlpsol "
+    "call, no covariance (the ipopt row is the whole estimator step)",
+}
+
+#: IPOPT's options as the ipopt-warm peer runs it: a warm start from the previous
+#: window's answer and multipliers, its barrier started small (the answer is near).
+IPOPT_WARM_OPTIONS: dict[str, Any] = {
+    "warm_start_init_point": "yes",
+    "mu_init": 1e-4,
+    "warm_start_bound_push": 1e-9,
+    "warm_start_mult_bound_push": 1e-9,
+    "mu_strategy": "adaptive",
 }
 
 #: Convergence tolerance of every peer (the fast MHE's step and error tolerances and
@@ -252,8 +267,9 @@ def ocp_states(w: FloatArray, nx: int, horizon: int) -> FloatArray:
 
 
 class CasadiPeer:
-    """A CasADi ``nlpsol`` on :class:`OcpNlp`: ``"fatrop"`` (its structure detected) or
-    ``"sqp-hpipm"`` (sqpmethod, exact Hessian, HPIPM with the stage sizes given)."""
+    """A CasADi ``nlpsol`` on :class:`OcpNlp`: ``"fatrop"`` (its structure detected),
+    ``"sqp-hpipm"`` (sqpmethod, exact Hessian, HPIPM with the stage sizes given) or
+    ``"ipopt-warm"`` (IPOPT warm-started: :data:`IPOPT_WARM_OPTIONS`)."""
 
     def __init__(self, formulation: Formulation, horizon: int, name: str) -> None:
         self.formulation, self.horizon = formulation, horizon
@@ -295,6 +311,19 @@ class CasadiPeer:
             }
             with _quiet():
                 self.solver = ca.nlpsol("peer", "sqpmethod", o.nlp, opts)
+        elif name == "ipopt-warm":
+            opts = {
+                **common,
+                "ipopt": {
+                    "tol": PEER_TOL,
+                    "max_iter": PEER_MAX_ITER,
+                    "print_level": 0,
+                    "sb": "yes",
+                    **IPOPT_WARM_OPTIONS,
+                },
+            }
+            with _quiet():
+                self.solver = ca.nlpsol("peer", "ipopt", o.nlp, opts)
         else:
             raise ValueError(f"no CasADi peer named {name!r}")
 

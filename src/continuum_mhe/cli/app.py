@@ -89,6 +89,20 @@ def main(argv: Sequence[str] | None = None) -> int:
                 pass
 
 
+def _late_positionals(
+    command: argparse.ArgumentParser, args: argparse.Namespace, unknown: list[str]
+) -> list[str]:
+    """``unknown`` less the words that fill the command's optional positionals (``nargs
+    "?"``) left empty: argparse gives such a positional its value only next to the ones
+    before it, so ``evaluate EST.csv --json TRUTH.csv`` left the truth over."""
+    for action in command._actions:
+        if not unknown or unknown[0].startswith("-"):
+            break
+        if not action.option_strings and action.nargs == "?" and getattr(args, action.dest) is None:
+            setattr(args, action.dest, unknown.pop(0))
+    return unknown
+
+
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     # the command word (the top-level options take no value): only its module is imported
     words = sys.argv[1:] if argv is None else argv
@@ -97,6 +111,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     args, unknown = parser.parse_known_args(argv)
     (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     command = commands.choices[args.command]
+    unknown = _late_positionals(command, args, unknown)
     if unknown:  # said by the command's parser, so the usage shown is the command's
         command.error(f"unrecognized arguments: {' '.join(unknown)}")
     _refuse_empty_values(command, args)
@@ -106,7 +121,9 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     config = getattr(args, "config", None)
     if config:  # the file's options, then the command line's again
         sources, tables = apply_config(command, args.command, config)
-        args = parser.parse_args(argv)
+        args, unknown = parser.parse_known_args(argv)
+        if _late_positionals(command, args, unknown):  # none: they were said above
+            command.error(f"unrecognized arguments: {' '.join(unknown)}")
         for dest, source in sources.items():  # an empty value from the file: as given
             if isinstance(getattr(args, dest, None), str) and not getattr(args, dest).strip():
                 raise InputError(f"{source}: an empty value: give one, or leave the key out")

@@ -22,8 +22,10 @@ from continuum_mhe.cli.robot_options import (
 from continuum_mhe.cli.truth_checks import (
     WARN_MATCHED,
     clock_offset_warning,
+    comparable_rows,
     refuse_an_estimate_as_truth,
     rows_matched,
+    spans_the_truth,
     truth_frame_warning,
 )
 from continuum_mhe.errors import InputError, time_text
@@ -38,6 +40,7 @@ from continuum_mhe.evaluation.metrics import (
     length_misfit,
     section_numbers,
     srmse_columns,
+    truth_sparser,
 )
 from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.io.position_units import (
@@ -76,8 +79,11 @@ def _align(
     i_est, rows, interpolated = aligned_truth(t_est, t_truth, truth.values, truth.names, warn=False)
     n, k = len(t_est), len(i_est)
     if interpolated:
-        print(f"{PROG}: note: {interpolated_note(path_truth, path_est, k, n)}", file=sys.stderr)
-    problem, warning = rows_matched(path_est, path_truth, k, n, interpolated)
+        note = interpolated_note(path_truth, path_est, k, n, truth_sparser(t_est, t_truth))
+        print(f"{PROG}: note: {note}", file=sys.stderr)
+    spanned = spans_the_truth(t_est, i_est, t_truth)
+    comparable = comparable_rows(t_est, t_truth)
+    problem, warning = rows_matched(path_est, path_truth, k, n, interpolated, spanned, comparable)
     if problem:
         first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
         raise InputError(problem + _offset_hint(first, t_est, t_truth))
@@ -105,15 +111,32 @@ def _offset_hint(first_t: float, t_est: np.ndarray, t_truth: np.ndarray) -> str:
     offset = float(first_t - t_truth[0])
     if not math.isfinite(offset) or offset == 0.0:
         return ""
+    shift = _seconds(-offset)
     shifted = t_truth + offset
     i = np.searchsorted(shifted, t_est).clip(1, len(shifted) - 1)
     near = np.minimum(np.abs(shifted[i] - t_est), np.abs(shifted[i - 1] - t_est))
-    if not np.mean(near <= 1e-6 * max(1.0, abs(offset))) >= WARN_MATCHED:
-        return ""
-    return (
-        f"; the estimate's times are the truth's {offset:+.6g} s (a clock that did not "
-        f"start at 0?): --truth-shift {-offset:.6g} compares them"
-    )
+    # 1 us of the estimate's times, and the rounding of the truth's (epoch seconds)
+    close = 1e-6 * np.maximum(1.0, np.abs(t_est)) + 8 * np.finfo(float).eps * abs(t_truth[0])
+    if np.mean(near <= close) >= WARN_MATCHED:
+        return (
+            f"; the estimate's times are the truth's {_seconds(offset, '+')} s (a clock that "
+            f"did not start at 0?): --truth-shift {shift} compares them"
+        )
+    if t_truth[-1] < t_est[0] or t_truth[0] > t_est[-1]:  # no time in common at all
+        return (
+            f"; the truth's t runs from {time_text(float(t_truth[0]))} to "
+            f"{time_text(float(t_truth[-1]))} s, the estimate's from "
+            f"{time_text(float(t_est[0]))} to {time_text(float(t_est[-1]))} s: if the two "
+            f"recordings started together, --truth-shift {shift} compares them"
+        )
+    return ""
+
+
+def _seconds(value: float, sign: str = "") -> str:
+    """``value`` s to the microsecond, without trailing zeros (an epoch time's offset
+    keeps its digits)."""
+    text = f"{value:{sign}.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "+0", "") else text
 
 
 class Aligned(NamedTuple):

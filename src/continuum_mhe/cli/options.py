@@ -107,7 +107,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
         0.0, 90.0, "deg", above="--model-error-floor-deg is in degrees"
     ),
     "reading_bias_deg": OptionRange(0.0, 90.0, "deg", above="--reading-bias-deg is in degrees"),
-    "truth_shift": OptionRange(-1e6, 1e6, "s"),
+    "truth_shift": OptionRange(-1e10, 1e10, "s"),  # an epoch time's offset
     "skip_start": OptionRange(0.0, 1e6, "s"),
     "pair_tolerance": OptionRange(0.0, 10.0, "s", lo_open=True,
                                   above="milliseconds? --pair-tolerance is in seconds"),

@@ -6,8 +6,11 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from continuum_mhe.cli.input_options import add_tensions_option
 from continuum_mhe.cli.program import PROG
@@ -50,6 +53,10 @@ def _reproduction(args: argparse.Namespace) -> int:
     for flag, given in (("--truth", args.truth), ("--robot", args.robot), ("-o", args.output)):
         if given is not None:
             raise InputError(f"{args.source}: a reproduce folder; {flag} is for an estimate file")
+    if args.truth_shift:
+        raise InputError(
+            f"{args.source}: a reproduce folder; --truth-shift is for an estimate file"
+        )
     # re-rendering a folder's own figures is what plot of a folder is for; figures in
     # another folder are kept unless --overwrite
     overwrite = args.overwrite or args.out is None
@@ -94,7 +101,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         lengths_misfit,
         section_count,
     )
-    from continuum_mhe.evaluation.metrics import interpolated_note
+    from continuum_mhe.evaluation.metrics import interpolated_note, truth_sparser
     from continuum_mhe.evaluation.plotting import save
     from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
     from continuum_mhe.io.position_units import position_unit_against, position_unit_problem
@@ -102,11 +109,15 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.model.robot import MAX_SECTION_LENGTH
 
+    if args.truth_shift and not args.truth:
+        raise InputError("--truth-shift needs --truth TRUTH.csv: it shifts the truth's times")
     est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS)
     require_an_estimate(args.source, est)
     truth = read_state_table(args.truth, gaps=True) if args.truth else None
     if truth is not None:
         refuse_an_estimate_as_truth(args.truth, truth, "plot EST.csv --truth TRUTH.csv")
+        if args.truth_shift:  # the truth read at t + shift, as evaluate reads it
+            truth = replace(truth, t=truth.t - args.truth_shift)
     lengths = None
     robot: Robot | None = None
     if args.robot:
@@ -150,10 +161,18 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
     if truth is not None:
         at_est, warned = truth_beside(
-            args.source, est, args.truth, truth, tuple(lengths or own or (DEFAULT_LENGTH,))
+            args.source,
+            est,
+            args.truth,
+            truth,
+            tuple(lengths or own or (DEFAULT_LENGTH,)),
+            "--truth-shift",
+            args.truth_shift,
         )
         if at_est is not None:
-            note = interpolated_note(args.truth, args.source, len(at_est.t), len(est.t))
+            sparser = truth_sparser(est.t, truth.t)
+            compared = int(np.isfinite(at_est.values).any(axis=1).sum())  # not the gaps
+            note = interpolated_note(args.truth, args.source, compared, len(est.t), sparser)
             print(f"{PROG}: note: {note}", file=sys.stderr)
             truth = at_est
         for line in warned:
@@ -231,6 +250,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="an estimate CSV or MCAP, or a folder written by 'continuum-mhe reproduce'",
     )
     p.add_argument("--truth", metavar="TRUTH.csv", help="truth CSV: the error is drawn too")
+    p.add_argument(
+        "--truth-shift",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="draw each estimate row against the truth SECONDS later (a truth on a clock "
+        "offset from the estimate's, as evaluate --truth-shift compares them)",
+    )
     p.add_argument(
         "--robot",
         metavar="ROBOT.toml",

@@ -272,13 +272,17 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
 def truth_at_rows(
     est: StateTable, truth: StateTable, i_est: IndexArray, rows: FloatArray, interpolated: bool
 ) -> StateTable | None:
-    """``truth`` interpolated at ``est``'s times (the table of its values there), where
+    """``truth`` interpolated at ``est``'s times (the table of its values there, NaN at
+    the rows between that have none: a gap of the truth is drawn as one), where
     ``evaluate`` would compare it so, from their alignment ``(i_est, rows,
     interpolated)`` (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`'s result);
     else None (the truth as it is)."""
     if not interpolated or len(i_est) < 2:
         return None
-    return StateTable(est.t[i_est], truth.names, rows, np.full(len(i_est), "ok"))
+    first, last = int(i_est[0]), int(i_est[-1])
+    values = np.full((last - first + 1, rows.shape[1]), np.nan)
+    values[i_est - first] = rows
+    return StateTable(est.t[first : last + 1], truth.names, values, np.full(len(values), "ok"))
 
 
 def estimate_figure(

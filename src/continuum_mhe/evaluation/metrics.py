@@ -496,17 +496,29 @@ def truth_at(
     linearly at the estimate's times ``t_est`` (n,) s: ``(i_est, rows (len(i_est), k))``
     for the estimate rows inside the truth's time span and not inside a gap of it (a
     step over :data:`INTERPOLATE_GAP` of its median step), ``phi`` columns through their
-    unwrapped values. None where the truth is sparser than :data:`INTERPOLATE_STEP`
-    times the estimate's median step, or its times do not increase: a motion capture
-    recorded on its own clock, at its own rate, is compared so."""
+    unwrapped values; a motion capture recorded on its own clock, at its own rate, is
+    compared so. A truth sparser than :data:`INTERPOLATE_STEP` times the estimate's
+    median step is interpolated only at the estimate row nearest each of its samples
+    (within half the estimate's step: a short way from the sample, where a line through
+    the truth's samples far apart would miss the motion between them). None where its
+    times do not increase."""
     t_est, t_truth = np.asarray(t_est, dtype=float), np.asarray(t_truth, dtype=float)
     values = np.asarray(values, dtype=float)
     if len(t_truth) < 2 or len(t_est) < 2 or np.any(np.diff(t_truth) <= 0):
         return None
     step = float(np.median(np.diff(t_truth)))
-    if step > INTERPOLATE_STEP * float(np.median(np.diff(t_est))):
-        return None
+    est_step = float(np.median(np.diff(t_est)))
     inside = (t_est >= t_truth[0]) & (t_est <= t_truth[-1])
+    if step > INTERPOLATE_STEP * est_step:  # at the rows nearest the truth's samples
+        right = np.clip(np.searchsorted(t_est, t_truth), 1, len(t_est) - 1)
+        left = right - 1
+        near = np.where(
+            np.abs(t_est[left] - t_truth) <= np.abs(t_est[right] - t_truth), left, right
+        )
+        close = np.abs(t_est[near] - t_truth) <= 0.5 * est_step * (1.0 + 1e-9)
+        nearest = np.zeros(len(t_est), dtype=bool)
+        nearest[near[close]] = True
+        inside &= nearest
     after = np.clip(np.searchsorted(t_truth, t_est), 1, len(t_truth) - 1)
     inside &= t_truth[after] - t_truth[after - 1] <= INTERPOLATE_GAP * step
     i_est = np.flatnonzero(inside)
@@ -591,13 +603,28 @@ def aligned_truth(
     return i_est, rows, interpolated
 
 
-def interpolated_note(truth: str, estimate: str, compared: int, rows: int) -> str:
+def truth_sparser(t_est: FloatArray, t_truth: FloatArray) -> bool:
+    """Whether the truth's median step exceeds :data:`INTERPOLATE_STEP` times the
+    estimate's (:func:`truth_at` then compares the rows nearest its samples alone)."""
+    if len(t_est) < 2 or len(t_truth) < 2:
+        return False
+    step = float(np.median(np.diff(t_truth)))
+    return step > INTERPOLATE_STEP * float(np.median(np.diff(t_est)))
+
+
+def interpolated_note(
+    truth: str, estimate: str, compared: int, rows: int, sparser: bool = False
+) -> str:
     """The note that the truth file ``truth`` was interpolated at the times of the
-    estimate file ``estimate`` (:func:`aligned_truth`), ``compared`` of its ``rows``."""
-    return (
-        f"{truth}'s rows are not at {estimate}'s times: the truth is interpolated linearly "
-        f"at them ({compared} of {rows} rows)"
+    estimate file ``estimate`` (:func:`aligned_truth`), ``compared`` of its ``rows``;
+    ``sparser``: at the rows nearest its samples alone (:func:`truth_sparser`)."""
+    at = (
+        f"at the {compared} of its {rows} rows nearest the truth's samples (sampled more "
+        f"than {INTERPOLATE_STEP:g} times as far apart)"
+        if sparser
+        else f"at them ({compared} of {rows} rows)"
     )
+    return f"{truth}'s rows are not at {estimate}'s times: the truth is interpolated linearly {at}"
 
 
 #: :func:`best_time_shift` tries shifts of the truth up to this many seconds either way

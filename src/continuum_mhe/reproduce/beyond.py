@@ -319,9 +319,11 @@ def run_beyond(spec: BeyondSpec) -> dict[str, Any]:
 
 
 def recovery_flags(r: RecoverySettings = RECOVERY_ON) -> str:
-    """``r`` as the command line's options (the recovery groups' ``on``, saved with each
-    of their trials so that a report names what its data were measured with)."""
-    return f"--gap-reset {r.gap_reset:g} --freeze {r.freeze:g} --bad-start {r.bad_start:g}"
+    """``r`` as the command line's options, every one of them (the recovery groups'
+    ``on``, saved with each of their trials so that a report names what its data were
+    measured with; a setting that is off as its option's 0)."""
+    options = ("gap_reset", "freeze", "bad_start", "reject_reset", "glitch", "drift_reset")
+    return " ".join(f"--{name.replace('_', '-')} {getattr(r, name) or 0:g}" for name in options)
 
 
 # --- plan and summary ---------------------------------------------------------------

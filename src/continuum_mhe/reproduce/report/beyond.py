@@ -211,8 +211,8 @@ def claim_bad_start(d: dict[str, Any]) -> Claim:
         paper=f"target: a bad start (here the first {sp.get('bad_s', 0.5):g} s of readings "
         f"{sp.get('bad_deg', 60.0):g} deg off on roll and pitch) is handled, for MHE, EKF "
         "and UKF",
-        measured="mean tip error over the 2 s after the bad readings, bad-start check off "
-        "/ on (`--bad-start 2`): " + "; ".join(parts),
+        measured="mean tip error over the 2 s after the bad readings, recovery off / on "
+        f"(`{_recovery_flags(d)}`): " + "; ".join(parts),
         verdict=_parts(checks),
         rule="holds for an estimator if the paired 95 % interval of on - off of that error "
         "lies below 0 and, on the clean recordings of the same seeds, the check never "
