@@ -96,6 +96,7 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   frozen_now_.assign(nb, 0);
   imu_seen_.assign(nb, 0);
   reads_now_.assign(nb, 0);
+  late_pending_.assign(nb, 0);
   gate_x_.resize(s_.nx);
   gate_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   gate_z_.resize(s_.nz);
@@ -140,6 +141,7 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   std::fill(freeze_last_t_.begin(), freeze_last_t_.end(), -INFINITY);
   std::fill(freeze_count_.begin(), freeze_count_.end(), 0);
   std::fill(imu_last_valid_.begin(), imu_last_valid_.end(), -INFINITY);
+  std::fill(late_pending_.begin(), late_pending_.end(), 0);
   returned_.clear();
   hold_ = 0.0;
   end_chain();
@@ -256,11 +258,13 @@ bool SensorHealth::note_imus(double t) {
     first_valid_t_ = t;
   }
   const double window = unobserved_window();
+  const double silent = std::min(window, s_.silent_after);
   for (size_t k = 0; k < s_.imu_blocks.size(); ++k) {
     const auto [start, size] = s_.imu_blocks[k];
     if (mask_[start] > 0.0) {
       if (t - imu_last_valid_[k] > window && t - first_valid_t_ > window)
         for (int i = start; i < start + size; ++i) back_rows_.push_back(i);
+      if (t - imu_last_valid_[k] > silent) late_pending_[k] = 1;  // first reading too
       imu_last_valid_[k] = t;
     }
   }
@@ -273,18 +277,24 @@ bool SensorHealth::imu_reading() const {
 }
 
 bool SensorHealth::imu_joins() const {
-  bool joins = false;
+  bool joins = false, any_seen = false;
   for (size_t k = 0; k < s_.imu_blocks.size(); ++k) {
     const bool reads = reads_now_[k];
-    if (imu_seen_[k] && !reads) return false;  // a partial sample: wait for a whole one
-    joins = joins || (reads && !imu_seen_[k]);
+    // a partial sample (a seen or waiting IMU without its reading): wait for a whole one
+    if ((imu_seen_[k] || late_pending_[k]) && !reads) return false;
+    joins = joins || (reads && late_pending_[k] && !imu_seen_[k]);
+    any_seen = any_seen || imu_seen_[k];
   }
-  return joins;
+  return joins && any_seen;  // (no IMU seen yet: this sample is the start's first reading)
 }
 
 void SensorHealth::note_imus_seen() {
+  const bool any_seen = std::any_of(imu_seen_.begin(), imu_seen_.end(), [](char c) { return c; });
   for (size_t k = 0; k < s_.imu_blocks.size(); ++k)
-    if (reads_now_[k]) imu_seen_[k] = 1;
+    if (reads_now_[k] && (imu_seen_[k] || !late_pending_[k] || !any_seen)) {
+      imu_seen_[k] = 1;  // in the estimate from here; a late one waits for its restart
+      late_pending_[k] = 0;
+    }
 }
 
 bool SensorHealth::observed_now(double t) {
@@ -590,9 +600,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   int gated = 0;
   const double* z_read = z;
   const double* z_gated = gate_glitches(t, z, gated);
-  // an IMU that had not read since the (re)start joins the others (a log whose topics
-  // start apart): its part of the shape was never observed, and the window or filter
-  // would move it at once, a jump that the gyros' biases take up; start again with it
+  // an IMU that had not read since the (re)start, and not for the silence before it,
+  // joins the others (a log whose topics start apart): its part of the shape was never
+  // observed, and the window or filter would move it at once, a jump that the gyros'
+  // biases take up; start again with it, at the first sample every IMU reads
   const bool late_start = !gap_reset && !std::isnan(s_.gap_reset) && valid && started_ &&
                           imu_joins();
   if (gap_reset || late_start) {  // restart from this sample instead of a blind prediction

@@ -263,10 +263,12 @@ class SensorHealth {
   bool note_imus(double t);  // fills back_rows_
   bool observed_now(double t);
   bool imu_reading() const;  // whether an IMU's reading is valid at this sample (mask_)
-  // whether an IMU that has not read since the last (re)start reads at this sample beside
-  // every IMU that has (reads_now_): the start was made without its part of the shape
+  // whether an IMU whose reading came after a silence (late_pending_) and that has not
+  // read since the last (re)start reads at this sample beside every IMU that has, and
+  // one has: the start was made without its part of the shape
   bool imu_joins() const;
-  void note_imus_seen();  // imu_seen_ |= reads_now_
+  // the IMUs read at this sample enter imu_seen_, but a late one while others were seen
+  void note_imus_seen();
   double unobserved_window() const;
   // the tip position's standard deviation, m, from an estimate's output stds
   double tip_std(const double* ystd) const;
@@ -349,9 +351,10 @@ class SensorHealth {
   // per IMU: its readings of the last sample were a freeze's (set by unfreeze): it
   // observes nothing from the freeze's discovery on (observed_now)
   std::vector<char> frozen_now_;
-  // per IMU: it has read since the last (re)start (imu_joins), and it reads at this
-  // sample (before the glitch gate)
-  std::vector<char> imu_seen_, reads_now_;
+  // per IMU: it has read since the last (re)start (imu_joins), it reads at this sample
+  // (before the glitch gate), and its reading came after a silence longer than the
+  // unobserved window (its first one too) and has not yet entered a start
+  std::vector<char> imu_seen_, reads_now_, late_pending_;
   std::vector<double> z_, mask_, zero_mask_, bias_, std_b_;
   // The constant reading errors' term of the standard deviations counts each reading
   // the estimate still holds: a reading missing now (a dropout) at its last value while

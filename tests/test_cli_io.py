@@ -1120,7 +1120,7 @@ def test_a_truth_on_its_own_clock_is_interpolated_at_the_estimates_times(
     at 120 Hz, 3 ms off the estimate's 20 Hz grid, is interpolated at the estimate's
     times (a note says so) and scores within 0.05 mm of the truth on the same grid, and
     plot draws it; a truth sampled more sparsely than twice the estimate's step is
-    compared at the estimate rows nearest its samples (it was refused), within 0.2 mm of
+    compared at the estimate rows nearest its samples, within 0.2 mm of
     the scores on the same grid."""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--seed", "2"]) == 0
@@ -1537,9 +1537,9 @@ def _evaluate_json(capsys, *argv: str) -> tuple[dict, str]:
 
 
 def test_a_motion_capture_offset_by_tens_of_ms_is_said(mocap_run, capsys) -> None:
-    """A 120 Hz motion capture whose clock runs 40 ms late tripled a 2.5 mm error with no
-    warning (the offset was looked for only from a mean tip error of 5 % of the robot's
-    length); it is looked for from 1 %, and the shift advised brings the error back."""
+    """A 120 Hz motion capture whose clock runs 40 ms late triples a 2.5 mm error: the
+    offset is looked for from a mean tip error of 1 % of the robot's length, said, and
+    the shift advised brings the error back."""
     folder, truth, est = mocap_run
     good = _capture(truth, folder / "mc120.csv", 120.0)
     late = _capture(truth, folder / "mc120_late.csv", 120.0, offset=0.04)
@@ -1557,8 +1557,8 @@ def test_a_motion_capture_offset_by_tens_of_ms_is_said(mocap_run, capsys) -> Non
 def test_a_sparser_motion_capture_is_scored_at_the_rows_nearest_its_samples(
     mocap_run, capsys
 ) -> None:
-    """A 30 Hz capture against 100 Hz estimates (a truth more than twice as sparse) was
-    refused as times that do not match; it is compared at the estimate row nearest each
+    """A 30 Hz capture against 100 Hz estimates (a truth more than twice as sparse) is
+    compared at the estimate row nearest each
     of its samples (within half an estimate step and within its times), said in the note
     and with no warning of rows left out, and its tip error there is the numpy one (the
     capture interpolated linearly at those rows) to 1 um."""
@@ -1576,11 +1576,21 @@ def test_a_sparser_motion_capture_is_scored_at_the_rows_nearest_its_samples(
     mean = np.linalg.norm(tip - true, axis=1).mean() * 1e3
     assert got["n"] == len(near) > 290
     assert got["tip_mean_mm"] == pytest.approx(mean, abs=1e-3)
+    # plot draws that truth and its error: no NaN row between its samples
+    from continuum_mhe.evaluation.estimate_figure import truth_at_rows
+    from continuum_mhe.evaluation.metrics import aligned_truth
+
+    t_sparse = read_state_table(sparse)
+    i_est, rows, interpolated = aligned_truth(
+        e.t, t_sparse.t, t_sparse.values, t_sparse.names, warn=False
+    )
+    at = truth_at_rows(e, t_sparse, i_est, rows, interpolated)
+    assert at is not None and np.isfinite(at.values).all() and len(at.t) == len(near)
 
 
 def test_a_capture_of_part_of_the_run_is_scored_with_a_warning(mocap_run, capsys) -> None:
     """A 1.5 s capture inside the 10 s run (15 % of its rows): scored on those rows with
-    a warning, not refused as times that do not match (a truth of other times still is)."""
+    a warning, not refused as times that do not match (a truth of other times is)."""
     folder, truth, est = mocap_run
     part = _capture(truth, folder / "part.csv", 120.0)
     lines = part.read_text().splitlines()
@@ -1594,9 +1604,8 @@ def test_a_capture_of_part_of_the_run_is_scored_with_a_warning(mocap_run, capsys
 
 
 def test_an_epoch_clock_truth_names_the_whole_shift_and_takes_it(mocap_run, capsys) -> None:
-    """A capture stamped in epoch seconds: the refusal names the shift to the microsecond
-    (it was rounded to 6 digits, 4678 s off, and refused beyond 1e6 s), and that shift
-    scores it as the capture on the estimate's clock."""
+    """A capture stamped in epoch seconds: the refusal names the shift to the
+    microsecond, and that shift scores it as the capture on the estimate's clock."""
     folder, truth, est = mocap_run
     good = _capture(truth, folder / "mc120.csv", 120.0)
     epoch = _capture(truth, folder / "epoch.csv", 120.0, t0=1712345678.123456)
@@ -1606,11 +1615,30 @@ def test_an_epoch_clock_truth_names_the_whole_shift_and_takes_it(mocap_run, caps
     base, _ = _evaluate_json(capsys, str(est), str(good))
     got, _ = _evaluate_json(capsys, str(est), str(epoch), "--truth-shift", "1712345678.123456")
     assert got["tip_mean_mm"] == pytest.approx(base["tip_mean_mm"], abs=1e-4)
+    # a shift given 0.25 s short: the whole shift advised keeps its microseconds
+    _, err = _evaluate_json(capsys, str(est), str(epoch), "--truth-shift", "1712345677.873456")
+    advised = re.search(r"--truth-shift (1712345\d+\.\d+) compares them so", err)
+    assert advised and abs(float(advised[1]) - 1712345678.123456) < 0.02, err[-300:]
+    assert len(advised[1].split(".")[1]) >= 5  # the microseconds kept
+    # a truth whose t is in milliseconds (1000 times as sparse) is refused, not scored
+    ms = epoch.parent / "ms.csv"
+    lines = good.read_text().splitlines()
+    ms.write_text(
+        "\n".join(
+            [
+                lines[0],
+                *(f"{float(r.split(',', 1)[0]) * 1000!r},{r.split(',', 1)[1]}" for r in lines[1:]),
+            ]
+        )
+        + "\n"
+    )
+    assert main(["evaluate", str(est), str(ms)]) == 2
+    assert "the files' times do not match" in capsys.readouterr().err
 
 
 def test_the_truth_may_follow_an_option(mocap_run, capsys) -> None:
-    """``evaluate EST.csv --json TRUTH.csv`` left the truth over as an unrecognised
-    argument (argparse fills an optional positional only beside the ones before it)."""
+    """``evaluate EST.csv --json TRUTH.csv`` takes the truth (argparse fills an optional
+    positional only beside the ones before it); a word more is refused."""
     folder, truth, est = mocap_run
     assert main(["evaluate", str(est), "--json", str(truth)]) == 0
     first = json.loads(capsys.readouterr().out)
@@ -1626,9 +1654,9 @@ def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
     mocap_run, tmp_path, capsys
 ) -> None:
     """A capture with 0.5 s of rows missing: the truth plot compares at the estimate's
-    times holds NaN there (the error curve breaks; it was joined by a straight line),
+    times holds a NaN row there (the error curve breaks, not a straight line across),
     and ``plot --truth-shift`` compares an offset capture as ``evaluate --truth-shift``
-    does (no offset warning; ``plot`` had no such option)."""
+    does (no offset warning)."""
     from continuum_mhe.evaluation.estimate_figure import truth_at_rows
     from continuum_mhe.evaluation.metrics import aligned_truth
 
@@ -1640,10 +1668,11 @@ def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
     e, tr = read_state_table(est), read_state_table(holed, gaps=True)
     i_est, rows, interpolated = aligned_truth(e.t, tr.t, tr.values, tr.names, warn=False)
     at = truth_at_rows(e, tr, i_est, rows, interpolated)
-    assert at is not None and np.array_equal(at.t, e.t[: len(at.t)])  # to the capture's end
+    assert at is not None
     missing = ~np.isfinite(at.values).all(axis=1)
-    gap = (at.t > 4.99) & (at.t < 5.51)
-    assert np.array_equal(missing, gap) and gap.sum() == 51
+    (hole,) = np.flatnonzero(missing)  # one NaN row, inside the gap, none compared there
+    assert 5.0 < at.t[hole] < 5.5 and not ((at.t > 4.995) & (at.t < 5.505) & ~missing).any()
+    assert np.array_equal(at.t[~missing], e.t[i_est])
     late = _capture(truth, tmp_path / "late.csv", 120.0, offset=0.04)
     fig = str(tmp_path / "f.png")
     assert main(["plot", str(est), "--truth", str(late), "-o", fig]) == 0

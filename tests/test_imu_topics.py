@@ -601,8 +601,8 @@ def test_calibrate_from_topics_equals_the_csv(kind: str, tmp_path: Path, capsys)
 
 
 def test_a_bags_metadata_file_names_the_folder(tmp_path: Path, capsys) -> None:
-    """A ROS 2 bag's ``metadata.yaml`` given for the bag (it was read as a CSV file
-    without IMU columns): one line naming the folder, for estimate and calibrate."""
+    """A ROS 2 bag's ``metadata.yaml`` given for the bag (not read as a CSV file without
+    IMU columns): one line naming the folder, for estimate and calibrate."""
     rows = np.loadtxt(REST, delimiter=",", skiprows=1)[:50]
     stamps = T0_NS + np.round(rows[:, 0] * 1e9).astype(np.int64)
     imus = [{"stamps": stamps, "acc": rows[:, 1 + 6 * k : 4 + 6 * k],

@@ -113,7 +113,7 @@ def test_simulate_writes_raw_readings_that_estimate_takes_as_raw(tmp_path: Path,
 def test_each_imus_bias_is_the_same_in_recordings_of_any_length() -> None:
     """The constant gyro bias of every IMU is drawn from the seed before any noise: a
     rest recording of another length (the one calibrate takes) carries the same biases
-    as the motion it calibrates (IMU 2's had depended on the samples IMU 1 drew)."""
+    as the motion it calibrates (IMU 2's does not depend on the samples IMU 1 draws)."""
     robot = read_robot("two-section")
     quiet = RawNoise(accel_std=0.0, gyro_std=0.0, gyro_bias_std=0.01)
     rates = []

@@ -94,7 +94,7 @@ def _late_positionals(
 ) -> list[str]:
     """``unknown`` less the words that fill the command's optional positionals (``nargs
     "?"``) left empty: argparse gives such a positional its value only next to the ones
-    before it, so ``evaluate EST.csv --json TRUTH.csv`` left the truth over."""
+    before it, and would leave the truth of ``evaluate EST.csv --json TRUTH.csv`` over."""
     for action in command._actions:
         if not unknown or unknown[0].startswith("-"):
             break

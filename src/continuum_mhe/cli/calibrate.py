@@ -99,9 +99,8 @@ def run(args: argparse.Namespace) -> int:
     left_out = ""  # said once the calibration holds
     if args.source:
         try:
-            fmt, t, values = read_recording(
-                args.source, robot.n_imus, args.degrees, tuple(args.topic or ())
-            )
+            topics = tuple(args.topic or ()) if is_robot_log(Path(args.source)) else ()
+            fmt, t, values = read_recording(args.source, robot.n_imus, args.degrees, topics)
         except InputError as exc:
             raise _without_skip_bad(exc, "the still robot") from None
         source = args.source

@@ -25,6 +25,7 @@ from continuum_mhe.cli.truth_checks import (
     comparable_rows,
     refuse_an_estimate_as_truth,
     rows_matched,
+    seconds_text,
     spans_the_truth,
     truth_frame_warning,
 )
@@ -111,7 +112,7 @@ def _offset_hint(first_t: float, t_est: np.ndarray, t_truth: np.ndarray) -> str:
     offset = float(first_t - t_truth[0])
     if not math.isfinite(offset) or offset == 0.0:
         return ""
-    shift = _seconds(-offset)
+    shift = seconds_text(-offset)
     shifted = t_truth + offset
     i = np.searchsorted(shifted, t_est).clip(1, len(shifted) - 1)
     near = np.minimum(np.abs(shifted[i] - t_est), np.abs(shifted[i - 1] - t_est))
@@ -119,7 +120,7 @@ def _offset_hint(first_t: float, t_est: np.ndarray, t_truth: np.ndarray) -> str:
     close = 1e-6 * np.maximum(1.0, np.abs(t_est)) + 8 * np.finfo(float).eps * abs(t_truth[0])
     if np.mean(near <= close) >= WARN_MATCHED:
         return (
-            f"; the estimate's times are the truth's {_seconds(offset, '+')} s (a clock that "
+            f"; the estimate's times are the truth's {seconds_text(offset, '+')} s (a clock that "
             f"did not start at 0?): --truth-shift {shift} compares them"
         )
     if t_truth[-1] < t_est[0] or t_truth[0] > t_est[-1]:  # no time in common at all
@@ -130,13 +131,6 @@ def _offset_hint(first_t: float, t_est: np.ndarray, t_truth: np.ndarray) -> str:
             f"recordings started together, --truth-shift {shift} compares them"
         )
     return ""
-
-
-def _seconds(value: float, sign: str = "") -> str:
-    """``value`` s to the microsecond, without trailing zeros (an epoch time's offset
-    keeps its digits)."""
-    text = f"{value:{sign}.6f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "+0", "") else text
 
 
 class Aligned(NamedTuple):

@@ -58,8 +58,9 @@ def clock_offset_warning(
         or not shift.error < SHIFT_GAIN * shift.unshifted
     ):
         return ""
-    as_given = f"at {shift_option} {given_shift:g}" if given_shift else "as the times match"
-    later = f"s later than {shift_option} {given_shift:g} puts it" if given_shift else "s later"
+    given = seconds_text(given_shift)
+    as_given = f"at {shift_option} {given}" if given_shift else "as the times match"
+    later = f"s later than {shift_option} {given} puts it" if given_shift else "s later"
     fits = (
         f"(mean tip error {shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm "
         f"{as_given}): are the two files' clocks offset?"
@@ -70,12 +71,19 @@ def clock_offset_warning(
             f"edge of the +-{SHIFT_MAX_S:g} s searched {fits} The offset may be larger; find "
             f"the shift that fits with {shift_option} (a motion that repeats fits shifted too)"
         )
-    total = round(given_shift + shift.shift_s, 6) + 0.0  # (no -0)
+    total = seconds_text(given_shift + shift.shift_s)
     return (
         f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} {later} {fits} (a "
-        f"motion that repeats can fit shifted too; {shift_option} {total:g} "
+        f"motion that repeats can fit shifted too; {shift_option} {total} "
         "compares them so)"
     )
+
+
+def seconds_text(value: float, sign: str = "") -> str:
+    """``value`` s to the microsecond, without trailing zeros (an epoch time's offset
+    keeps its digits); ``sign`` ``"+"``: with its sign."""
+    text = f"{value:{sign}.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "+0", "") else text
 
 
 #: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
@@ -120,7 +128,8 @@ def rows_matched(
 
 
 #: A truth of part of the run (:func:`rows_matched`'s ``truth_spanned``) is scored from
-#: this many rows compared (fewer: a truth of a few rows, refused as before).
+#: this many rows compared (fewer: a truth of a few rows, refused below
+#: :data:`MIN_MATCHED` of the rows).
 PART_ROWS = 20
 
 
@@ -133,10 +142,12 @@ def comparable_rows(t_est: np.ndarray, t_truth: np.ndarray) -> int:
     """How many of the estimate's rows at ``t_est`` a truth at ``t_truth`` could be
     compared at: each of them, or, for a truth sparser than the estimate
     (:func:`~continuum_mhe.evaluation.metrics.truth_sparser`: compared at the row
-    nearest each of its samples), its samples within the estimate's times."""
+    nearest each of its samples), the samples at its median step over the estimate's
+    times."""
     if not truth_sparser(t_est, t_truth):
         return len(t_est)
-    return int(((t_truth >= t_est[0]) & (t_truth <= t_est[-1])).sum())
+    step = float(np.median(np.diff(t_truth)))
+    return int(round(float(t_est[-1] - t_est[0]) / step)) + 1
 
 
 def spans_the_truth(t_est: np.ndarray, compared: np.ndarray, t_truth: np.ndarray) -> bool:

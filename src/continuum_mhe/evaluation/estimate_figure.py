@@ -15,7 +15,7 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
+from continuum_mhe.evaluation.metrics import INTERPOLATE_GAP, Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.state_tables import SECTION_FIELDS, StateTable, tip_section
 from continuum_mhe.io.tensions import Tensions
@@ -272,17 +272,22 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
 def truth_at_rows(
     est: StateTable, truth: StateTable, i_est: IndexArray, rows: FloatArray, interpolated: bool
 ) -> StateTable | None:
-    """``truth`` interpolated at ``est``'s times (the table of its values there, NaN at
-    the rows between that have none: a gap of the truth is drawn as one), where
+    """``truth`` interpolated at ``est``'s times (the table of its values there, with a
+    NaN row in each gap of those rows wider than
+    :data:`~continuum_mhe.evaluation.metrics.INTERPOLATE_GAP` of their median
+    step: a gap of the truth is drawn as one), where
     ``evaluate`` would compare it so, from their alignment ``(i_est, rows,
     interpolated)`` (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`'s result);
     else None (the truth as it is)."""
     if not interpolated or len(i_est) < 2:
         return None
-    first, last = int(i_est[0]), int(i_est[-1])
-    values = np.full((last - first + 1, rows.shape[1]), np.nan)
-    values[i_est - first] = rows
-    return StateTable(est.t[first : last + 1], truth.names, values, np.full(len(values), "ok"))
+    t = est.t[i_est]
+    steps = np.diff(t)
+    gaps = np.flatnonzero(steps > INTERPOLATE_GAP * float(np.median(steps)))
+    # a NaN row in each gap of the rows compared: the line breaks there
+    t = np.insert(t, gaps + 1, t[gaps] + 0.5 * steps[gaps])
+    values = np.insert(rows, gaps + 1, np.nan, axis=0)
+    return StateTable(t, truth.names, values, np.full(len(values), "ok"))
 
 
 def estimate_figure(

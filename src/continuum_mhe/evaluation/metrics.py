@@ -487,6 +487,9 @@ def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, Inde
 #: median steps.
 INTERPOLATE_STEP = 2.0
 INTERPOLATE_GAP = 3.0
+#: :func:`truth_at` compares no truth sampled more than this many times as far apart as
+#: the estimate (a truth whose ``t`` is in milliseconds, read as seconds, is 1000 times).
+SPARSE_STEP_MAX = 10.0
 
 
 def truth_at(
@@ -500,14 +503,17 @@ def truth_at(
     compared so. A truth sparser than :data:`INTERPOLATE_STEP` times the estimate's
     median step is interpolated only at the estimate row nearest each of its samples
     (within half the estimate's step: a short way from the sample, where a line through
-    the truth's samples far apart would miss the motion between them). None where its
-    times do not increase."""
+    the truth's samples far apart would miss the motion between them); not a truth more
+    than :data:`SPARSE_STEP_MAX` times as sparse. None where its times do not increase
+    or it is that sparse."""
     t_est, t_truth = np.asarray(t_est, dtype=float), np.asarray(t_truth, dtype=float)
     values = np.asarray(values, dtype=float)
     if len(t_truth) < 2 or len(t_est) < 2 or np.any(np.diff(t_truth) <= 0):
         return None
     step = float(np.median(np.diff(t_truth)))
     est_step = float(np.median(np.diff(t_est)))
+    if step > SPARSE_STEP_MAX * est_step:  # another unit of time, or another recording
+        return None
     inside = (t_est >= t_truth[0]) & (t_est <= t_truth[-1])
     if step > INTERPOLATE_STEP * est_step:  # at the rows nearest the truth's samples
         right = np.clip(np.searchsorted(t_est, t_truth), 1, len(t_est) - 1)
@@ -605,11 +611,12 @@ def aligned_truth(
 
 def truth_sparser(t_est: FloatArray, t_truth: FloatArray) -> bool:
     """Whether the truth's median step exceeds :data:`INTERPOLATE_STEP` times the
-    estimate's (:func:`truth_at` then compares the rows nearest its samples alone)."""
+    estimate's, up to :data:`SPARSE_STEP_MAX` times (:func:`truth_at` then compares the
+    rows nearest its samples alone)."""
     if len(t_est) < 2 or len(t_truth) < 2:
         return False
-    step = float(np.median(np.diff(t_truth)))
-    return step > INTERPOLATE_STEP * float(np.median(np.diff(t_est)))
+    ratio = float(np.median(np.diff(t_truth))) / float(np.median(np.diff(t_est)))
+    return INTERPOLATE_STEP < ratio <= SPARSE_STEP_MAX
 
 
 def interpolated_note(
