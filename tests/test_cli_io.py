@@ -1552,6 +1552,13 @@ def test_a_motion_capture_offset_by_tens_of_ms_is_said(mocap_run, capsys) -> Non
     assert 0.02 <= shift <= 0.05
     back, _ = _evaluate_json(capsys, str(est), str(late), "--truth-shift", "0.04")
     assert back["tip_mean_mm"] == pytest.approx(base["tip_mean_mm"], rel=0.05)
+    # the text report says what it compared
+    assert (
+        main(["evaluate", str(est), str(late), "--truth-shift", "0.04", "--skip-start", "1"]) == 0
+    )
+    assert "compared             the truth 0.04 s later, from 1 s after the first row\n" in (
+        capsys.readouterr().out
+    )
 
 
 def test_a_sparser_motion_capture_is_scored_at_the_rows_nearest_its_samples(

@@ -329,6 +329,13 @@ def _evaluate(args: argparse.Namespace) -> int:
         # a coverage without any row to count (a column without std) is null, not NaN
         print(json.dumps(to_jsonable(report), indent=2, allow_nan=False))
     else:
+        compared = []  # what the scores below are of, where an option says
+        if args.truth_shift:
+            compared.append(f"the truth {seconds_text(args.truth_shift)} s later")
+        if args.skip_start:
+            compared.append(f"from {seconds_text(args.skip_start)} s after the first row")
+        if compared:
+            print(f"compared             {', '.join(compared)}")
         print(format_metrics(m, comparable=not hint))
         print(format_calibration(cal, est.std_columns))
         if cal_ok is not None:
