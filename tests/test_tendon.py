@@ -1885,7 +1885,7 @@ def test_an_imu_count_off_for_a_tendon_robot_asks_for_its_robot_file(
 
 def test_gyro_biases_left_out_on_a_tendon_robot_are_warned_of(tmp_path: Path) -> None:
     """``--no-estimate-gyro-bias`` with raw IMUs on a tendon robot is measurably worse
-    (force-29: 109 mm against 0.73 mm, 392 rows drifted), and says so in a warning naming
+    (force-29: 94 mm against 0.73 mm, 352 rows drifted), and says so in a warning naming
     the option (the drifted warning pointed at the tensions and the robot file); with
     the biases estimated, no such warning."""
     import warnings
