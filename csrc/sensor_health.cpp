@@ -606,11 +606,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // biases take up; start again with it, at the first sample every IMU reads
   const bool late_start = !gap_reset && !std::isnan(s_.gap_reset) && valid && started_ &&
                           imu_joins();
-  if (gap_reset || late_start) {  // restart from this sample instead of a blind prediction
+  // a restart the data's timing called for (a gap, a late IMU), not the readings' values
+  const bool data_restart = gap_reset || late_start;
+  if (data_restart) {  // restart from this sample instead of a blind prediction
     ++(late_start ? diagnostics.late_imu_starts : diagnostics.gap_resets);
     end_chain();
     restart(true);  // the sensors are those of the estimate before
-    gap_reset = true;
   } else if (back && s_.checks_start) {
     // their part of the shape was predicted blindly: check it as after a start
     start_reopen(unobserved_window());
@@ -637,7 +638,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // rows drifted since the last ok one for longer than drift_reset: a fault that has
   // passed left the error states off; restart from those of the last ok estimate
   bool drift_reset = false;
-  if (!gap_reset && !bad_start && !reject_reset && valid && has_ok_ && drift_armed_ &&
+  if (!data_restart && !bad_start && !reject_reset && valid && has_ok_ && drift_armed_ &&
       !std::isnan(s_.drift_reset) && !std::isnan(drift_since_) &&
       t - drift_since_ > s_.drift_reset) {
     drift_reset = true;
@@ -650,7 +651,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // restarts the readings force)
   // the restarts this sample's readings forced (its estimate starts from them)
   const bool forced_restart = bad_start || reject_reset || drift_reset;
-  if (gated > 0 && (gap_reset || forced_restart)) gated = 0;
+  if (gated > 0 && (data_restart || forced_restart)) gated = 0;
   if (gated > 0) {
     z = z_gated;
     std::copy(gated_mask_.begin(), gated_mask_.end(), mask_.begin());
@@ -679,7 +680,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     }
     if (has_state) status = ST_RESET;
   }
-  if ((gap_reset || forced_restart) && has_state) status = ST_RESET;
+  if ((data_restart || forced_restart) && has_state) status = ST_RESET;
   const bool forced = (forced_restart || !healthy) && has_state;
   // a sample without any IMU's reading is a dropout, whatever else it carried (a
   // tendon robot's tensions update the estimate, but nothing read the robot)

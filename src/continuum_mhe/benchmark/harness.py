@@ -385,12 +385,7 @@ def run_benchmark(
     ``comma-deps-acados`` was installed apart, see :mod:`.peers`); ``say``: called with
     a line as each part starts and ends (the command line's progress); see the
     module docstring."""
-    import time
-
-    def progress(line: str) -> None:
-        if say is not None:
-            say(line)
-
+    progress = say or (lambda line: None)
     from continuum_mhe.benchmark.losses import run_loss_benchmark
     from continuum_mhe.benchmark.peers import acados_version, find_acados, missing_peers
 
