@@ -405,6 +405,8 @@ def test_evaluate_reads_a_standard_deviation_beyond_the_value_limit(tmp_path, ca
     )
     truth = _write(tmp_path / "truth.csv", "t,x,y,z\n0,0,0,0.2\n0.05,0,0,0.2\n")
     assert main(["evaluate", str(est), str(truth)]) == 0
+    table = read_state_table(est)  # the value itself, not a dropout
+    assert table.std is not None and table.std[:, 3].tolist() == [1e7, 1e7]
 
 
 def test_evaluate_refuses_an_estimate_given_as_the_truth(tmp_path, capsys):

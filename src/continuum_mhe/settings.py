@@ -166,7 +166,7 @@ FREEZE_MIN_SAMPLES = 5
 #: an IMU polled faster than it samples repeats each reading for less than its own
 #: sampling period, under this at 5 Hz or more. Shorter than a second, so that a freeze of
 #: half a second is caught: on a three-section robot at 100 Hz one IMU frozen for 0.5 s
-#: put the estimate 17 to 28 mm off and held it off for seconds at 1 s, not at this.
+#: puts the estimate 17 to 28 mm off and holds it off for seconds at 1 s, not at this.
 FREEZE_S = 0.2
 #: How far, as a fraction of each reading's noise standard deviation (the formulation's
 #: measurement covariance), a reading may move from a freeze's first one and still repeat
@@ -197,12 +197,12 @@ SILENT_AFTER = 0.2
 #: reading before, where the reading's whitened residual alone is beyond the limit. At 3
 #: no reading of the shipped two-section rod and tendon recordings is skipped (a few are
 #: at 1), and a single 1 rad/s spike in one gyro reading of a tendon robot is (taken, it
-#: left ``ok`` rows 20 mm and 3 standard deviations off).
+#: leaves ``ok`` rows 20 mm and 3 standard deviations off).
 GLITCH_FACTOR = 3.0
 #: How long (s) a tendon robot's estimates may drift before the estimator restarts from
 #: the sensor states of the last ``ok`` one (``RecoverySettings.drift_reset``): on the
 #: shipped ``force-29`` with a passing fault (a tip IMU frozen for a second, a tension
-#: 0.05 N off for 0.2 s, a tensions file with a 0.9 s hole) its rows stayed far off for
+#: 0.05 N off for 0.2 s, a tensions file with a 0.9 s hole) its rows stay far off for
 #: the rest of the recording without it (docs/tendon-studies.md).
 DRIFT_RESET_S = 0.5
 #: A tendon robot's samples without tensions for longer than this (s; the gap reset's,
@@ -211,8 +211,8 @@ DRIFT_RESET_S = 0.5
 #: s at 50 Hz, without them: no restart): such samples use no reading (the IMUs' model
 #: needs the tensions),
 #: and the prediction has no tensions to follow; on the shipped ``force-29`` a 0.4 s
-#: hole in them left ``ok`` rows 12 mm off, 4 to 5 standard deviations
-#: (docs/tendon.md, the tensions file).
+#: hole in them leaves ``ok`` rows 12 mm off, 4 to 5 standard deviations, without the
+#: restart and none over 5 mm with it (docs/guide/library.md, "A tendon robot").
 TENSION_GAP_S = 0.15
 
 

@@ -302,8 +302,8 @@ class UnscentedKalmanInference(_KalmanBase):
     from the central point's fails the update with an ``ArithmeticError``: its values
     differ that much only near its singularity, where the reading is about a half turn
     from the sigma points' tilts (from about 130 degrees on), and the transform's mean and
-    covariance mean nothing there (on ``gimbal_flip.csv`` they kept the old estimate,
-    ``ok``, with a standard deviation of 1e-6 m).
+    covariance mean nothing there (unchecked, on ``gimbal_flip.csv`` they keep the previous
+    estimate, ``ok``, with a standard deviation of 1e-6 m).
     :meth:`~continuum_mhe.estimators.sensor_health.Estimator.step` then restarts the
     filter from the reading (status ``reset``), as for a diverged EKF. Not checked in the
     first update of a (re)start, whose prior comes from the reading itself. A covariance
