@@ -1160,7 +1160,8 @@ def test_truth_at_interpolates_inside_its_span_and_not_across_a_gap() -> None:
     """Known answers: a line is interpolated exactly; a wrapped angle crossing pi is
     interpolated through its unwrapped values; rows outside the truth's span or inside
     a gap of it are left out; a truth sparser than twice the estimate's step is
-    interpolated at the estimate rows nearest its samples alone (within half a step)."""
+    interpolated at the estimate rows nearest its samples alone (within half a step),
+    the first sample's nearest row too where it lies before that sample."""
     from continuum_mhe.evaluation.metrics import truth_at
 
     t_truth = np.array([0.0, 0.1, 0.2, 0.3, 1.0, 1.1])  # a gap from 0.3 to 1.0 s
@@ -1176,8 +1177,9 @@ def test_truth_at_interpolates_inside_its_span_and_not_across_a_gap() -> None:
     sparse = np.arange(0, 1, 0.05) + 0.002  # a step of five of the estimate's, 2 ms off
     t_fine = np.arange(0, 1, 0.01)
     near = truth_at(t_fine, sparse, 3.0 * sparse[:, None], ["x"])
-    assert near is not None and list(near[0]) == list(range(5, 96, 5))  # t = 0: before it
-    np.testing.assert_allclose(near[1][:, 0], 3.0 * t_fine[near[0]])
+    assert near is not None and list(near[0]) == list(range(0, 96, 5))
+    np.testing.assert_allclose(near[1][1:, 0], 3.0 * t_fine[near[0][1:]])
+    assert near[1][0, 0] == 3.0 * sparse[0]  # t = 0, 2 ms before the first sample: its value
     column = values[:, 1].copy()  # a NaN row elsewhere does not stop the unwrapping
     column[-1] = np.nan
     _, with_nan = truth_at(t_est, t_truth, np.column_stack([values[:, 0], column]), ["x", "psi_1"])
@@ -1568,7 +1570,8 @@ def test_a_sparser_motion_capture_is_scored_at_the_rows_nearest_its_samples(
 ) -> None:
     """A 30 Hz capture against 100 Hz estimates (a truth more than twice as sparse) is
     compared at the estimate row nearest each
-    of its samples (within half an estimate step and within its times), said in the note
+    of its samples (within half an estimate step; a row just outside its times takes its
+    end sample's values), said in the note
     and with no warning of rows left out, and its tip error there is the numpy one (the
     capture interpolated linearly at those rows) to 1 um."""
     folder, truth, est = mocap_run
@@ -1579,10 +1582,10 @@ def test_a_sparser_motion_capture_is_scored_at_the_rows_nearest_its_samples(
     tr = np.loadtxt(sparse, delimiter=",", skiprows=1)
     near = np.abs(e.t[None, :] - tr[:, :1]).argmin(axis=1)
     near = near[np.abs(e.t[near] - tr[:, 0]) <= 0.005 + 1e-12]
-    near = near[(e.t[near] >= tr[0, 0]) & (e.t[near] <= tr[-1, 0])]  # no extrapolation
     true = np.column_stack([np.interp(e.t[near], tr[:, 0], tr[:, k]) for k in (1, 2, 3)])
     tip = np.column_stack([e.column(c)[near] for c in ("x", "y", "z")])
     mean = np.linalg.norm(tip - true, axis=1).mean() * 1e3
+    assert np.any(e.t[near] > tr[-1, 0])  # the last sample's row lies after it
     assert got["n"] == len(near) > 290
     assert got["tip_mean_mm"] == pytest.approx(mean, abs=1e-3)
     # plot draws that truth and its error: no NaN row between its samples

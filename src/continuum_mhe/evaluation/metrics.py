@@ -503,7 +503,8 @@ def truth_at(
     compared so. A truth sparser than :data:`INTERPOLATE_STEP` times the estimate's
     median step is interpolated only at the estimate row nearest each of its samples
     (within half the estimate's step: a short way from the sample, where a line through
-    the truth's samples far apart would miss the motion between them); not a truth more
+    the truth's samples far apart would miss the motion between them; a row just
+    outside the truth's span takes its end sample's values); not a truth more
     than :data:`SPARSE_STEP_MAX` times as sparse. None where its times do not increase
     or it is that sparse."""
     t_est, t_truth = np.asarray(t_est, dtype=float), np.asarray(t_truth, dtype=float)
@@ -514,7 +515,6 @@ def truth_at(
     est_step = float(np.median(np.diff(t_est)))
     if step > SPARSE_STEP_MAX * est_step:  # another unit of time, or another recording
         return None
-    inside = (t_est >= t_truth[0]) & (t_est <= t_truth[-1])
     if step > INTERPOLATE_STEP * est_step:  # at the rows nearest the truth's samples
         right = np.clip(np.searchsorted(t_est, t_truth), 1, len(t_est) - 1)
         left = right - 1
@@ -522,9 +522,10 @@ def truth_at(
             np.abs(t_est[left] - t_truth) <= np.abs(t_est[right] - t_truth), left, right
         )
         close = np.abs(t_est[near] - t_truth) <= 0.5 * est_step * (1.0 + 1e-9)
-        nearest = np.zeros(len(t_est), dtype=bool)
-        nearest[near[close]] = True
-        inside &= nearest
+        inside = np.zeros(len(t_est), dtype=bool)
+        inside[near[close]] = True  # the span's ends included: such a row takes the end's value
+    else:
+        inside = (t_est >= t_truth[0]) & (t_est <= t_truth[-1])
     after = np.clip(np.searchsorted(t_truth, t_est), 1, len(t_truth) - 1)
     inside &= t_truth[after] - t_truth[after - 1] <= INTERPOLATE_GAP * step
     i_est = np.flatnonzero(inside)
