@@ -3124,3 +3124,110 @@ def test_skip_bad_drops_a_time_that_jumped_ahead_alone_not_the_rows_after_it(
     with pytest.warns(DropoutWarning, match=r"1 tension row\(s\) .*line 20: t=100 jumps ahead"):
         assert main(["estimate", str(raw), "--robot", "tendon-two-section", "--inputs",
                      str(tensions), "--skip-bad", "-o", str(tmp_path / "te.csv")]) == 0  # fmt: skip
+
+
+def test_a_binary_file_with_a_cr_before_any_nul_is_said_to_be_no_text(tmp_path, capsys) -> None:
+    # bytes that are not UTF-8 with a CR among them are a binary file, not a file whose
+    # lines end in CR alone; a text file whose lines do is still said so
+    binary = tmp_path / "capture.csv"
+    binary.write_bytes(b"\x93\xfa\x10\r\xc3\x28\xa0\xff\n" + bytes(range(1, 256)) * 4)
+    classic = tmp_path / "classic.csv"
+    classic.write_bytes(b"t,roll,pitch\r0,0.01,0.02\r0.05,0.01,0.02\r")
+    for path, needle in (
+        (binary, "line 1: not UTF-8 text"),
+        (classic, "line 1: lines end in CR alone"),
+    ):
+        out = tmp_path / f"{path.stem}_est.csv"
+        assert main(["estimate", str(path), "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{path}: {needle}" in err, err
+        assert not out.exists()
+
+
+def test_a_config_of_another_robot_is_named_where_the_recording_does_not_fit(
+    tmp_path, capsys
+) -> None:
+    # the robot comes from --config's options line, not from --robot: the error names
+    # the line that set it
+    two = tmp_path / "two.csv"
+    assert main(["simulate", "s-curve", "--robot", "two-section", "--duration", "1",
+                 "-o", str(two)]) == 0  # fmt: skip
+    est = tmp_path / "two_est.csv"
+    assert main(["estimate", str(two), "--robot", "two-section", "-o", str(est)]) == 0
+    one = tmp_path / "one.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(one)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "one_est.csv"
+    assert main(["estimate", str(one), "--config", str(est), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and not out.exists()
+    assert f"error: {est}: line 2: robot = 'two-section': {one}: line 1:" in err, err
+
+
+def _bag_of(path: Path, stamps: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> Path:
+    """A ROS 1 bag of one Imu topic, each message logged at its header stamp."""
+    from robot_log_helpers import IMU, imu_msg
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Writer(path) as w:
+        conn = w.add_connection("/tip/imu", IMU, typestore=store)
+        for ns, a, g in zip(stamps, acc, gyr):
+            w.write(conn, int(ns), store.serialize_ros1(imu_msg(store, int(ns), a, g, True), IMU))
+    return path
+
+
+def _still_imu(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(0)
+    acc = np.array([0.0, 0.0, 9.81]) + rng.normal(size=(n, 3)) * 0.05
+    gyr = rng.normal(size=(n, 3)) * 0.005
+    stamps = 1_700_000_000_000_000_000 + np.arange(n, dtype=np.int64) * 20_000_000
+    return stamps, acc, gyr
+
+
+def test_a_robot_log_without_a_clock_is_refused(tmp_path, capsys) -> None:
+    pytest.importorskip("rosbags")
+    stamps, acc, gyr = _still_imu(60)
+    # every header stamp zero and every message logged at time 0: no order to estimate
+    # in (not one estimate of the first message, the others dropped)
+    bag = _bag_of(tmp_path / "zero.bag", np.zeros_like(stamps), acc, gyr)
+    out = tmp_path / "est.csv"
+    for extra in ([], ["--skip-bad"]):
+        assert main(["estimate", str(bag), "-o", str(out), *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and not out.exists()
+        assert (
+            f"{bag}: topic /tip/imu: neither the header stamps (all zero) nor the log's times "
+            "advance (59 of 60 messages" in err
+        ), err
+    # a duplicated stamp among advancing ones is still one message left out, counted
+    stamps[21] = stamps[20]
+    assert main(["estimate", str(_bag_of(tmp_path / "dup.bag", stamps, acc, gyr)),
+                 "-o", str(out)]) == 0  # fmt: skip
+    assert "1 sample(s) dropped" in capsys.readouterr().err
+
+
+def test_a_robot_log_reading_beyond_any_imus_range_is_named(tmp_path, capsys) -> None:
+    pytest.importorskip("rosbags")
+    stamps, acc, gyr = _still_imu(60)
+    acc[30, 2] = 1e300  # a corrupt value, as a CSV row's is refused
+    bag = _bag_of(tmp_path / "huge.bag", stamps, acc, gyr)
+    out = tmp_path / "est.csv"
+    assert main(["estimate", str(bag), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and not out.exists()
+    assert (
+        f"{bag}: topic /tip/imu: the message at t = 0.6 s (message 31): a reading beyond "
+        "any IMU's range (|a| 1e+300 m/s^2" in err
+    ), err
+    gyr[30] = [0.0, 0.0, 1e30]
+    acc[30, 2] = 9.81
+    bag = _bag_of(tmp_path / "spin.bag", stamps, acc, gyr)
+    assert main(["estimate", str(bag), "-o", str(out)]) == 2
+    assert "|omega| 1e+30 rad/s, limit 1000" in capsys.readouterr().err
+    # --skip-bad: that message a dropout, the others estimated
+    assert main(["estimate", str(bag), "-o", str(out), "--skip-bad"]) == 0
+    rows = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")][1:]
+    statuses = [ln.rsplit(",", 2)[1] for ln in rows]
+    assert len(statuses) == 60 and statuses[30] == "dropout"

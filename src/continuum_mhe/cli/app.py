@@ -186,7 +186,8 @@ def _from_config(args: argparse.Namespace | None, exc: BaseException) -> str:
     that the options file (``--config``) set, naming it as the command line's flag
     (``--mount-rpy ...``; not another flag that begins alike, ``--loss-scale`` for
     ``--loss``) or, for a file option, a file it names that is not there (``5: no such
-    robot file``); else ``""``."""
+    robot file``); or where the error asks for another ``--robot`` and the options file
+    set the robot (a recording of another robot's IMUs); else ``""``."""
     sources = getattr(args, "config_sources", None)
     if not sources or not isinstance(exc, UserError):
         return ""
@@ -194,8 +195,13 @@ def _from_config(args: argparse.Namespace | None, exc: BaseException) -> str:
     for dest, source in sources.items():
         flag = "--" + dest.replace("_", "-")
         named = re.match(rf"{re.escape(flag)}(?![\w-])", message) is not None
-        missing = f"{getattr(args, dest, None)}: no such "  # the file it names is not there
-        if named or (dest in FILE_OPTIONS and message.startswith(missing)):
+        # the file it names is not there (a file it names that is there and wrong is
+        # that file's own error, which names it)
+        missing = f"{getattr(args, dest, None)}: no such "
+        in_file = dest in FILE_OPTIONS and message.startswith(missing)
+        # a robot that the input does not fit: the fix the error names is this setting
+        robot = dest == "robot" and re.search(r"--robot(?![\w-])", message) is not None
+        if named or in_file or robot:
             return f"{source}: "
     return ""
 

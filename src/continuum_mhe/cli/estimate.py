@@ -252,7 +252,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             (OPTIONS_LINE, args.options_record),
             (MODEL_LINE, model_record(formulation)),
         ]
-        if stream.t0_ns and not str(out).lower().endswith(".mcap"):  # stamped there
+        if stream.t0_ns:  # an MCAP's messages are stamped t0_ns + t, and say it too
             notes.append((T0_LINE, str(stream.t0_ns)))
         interrupted: BaseException | None = None
         # the next block is read and the last one written while the estimator steps this

@@ -63,7 +63,7 @@ class EstimateSink:
         if self.mcap:
             self._cm = atomic_binary_writer(self.path)
             fb: IO[bytes] = self._cm.__enter__()
-            writer = mcap_estimate_writer(fb, self.outputs)
+            writer = mcap_estimate_writer(fb, self.outputs, self.outlier)
             if self.notes:
                 writer.metadata(NOTES_RECORD, dict(self.notes))
 
@@ -75,10 +75,11 @@ class EstimateSink:
             seq = iter(range(sys.maxsize))
 
             def write_mcap(e: Estimate) -> None:
+                flag = e.outlier if self.outlier else None
                 for topic, ns, msg in sample_messages(self.outputs, names, float(e.t), e.output,
                                                       str(e.status), float(e.solve_ms),
                                                       self.lengths, self.t0_ns,
-                                                      e.output_std):  # fmt: skip
+                                                      e.output_std, flag):  # fmt: skip
                     writer.add(topic, ns, msg, next(seq))
 
             self._finish: Callable[[], None] = writer.finish

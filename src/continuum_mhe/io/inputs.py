@@ -917,7 +917,8 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
             raw = imu_settings_for(options.raw, place)  # as a table's (and live's)
             if not options.skip_bad:
                 _refuse_a_missing_value(p, t, log)
-            blocks.append(_convert_log(p, t, log.acc, log.gyr, raw, log.topic))
+            acc, gyr = _readings_in_range(p, t, log, options.skip_bad)
+            blocks.append(_convert_log(p, t, acc, gyr, raw, log.topic))
     clock = " and ".join(sorted({log.clock for log in logs}))
     notes += tuple(
         (
@@ -993,6 +994,35 @@ def _refuse_a_missing_value(path: Path, t: FloatArray, log: ImuLog) -> None:
                 f"({_message_number(log, i)}): {name} is {shown} (a dropout; --skip-bad keeps it, "
                 "skip_bad=True in Python)"
             )
+
+
+def _readings_in_range(
+    path: Path, t: FloatArray, log: ImuLog, skip_bad: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """``log``'s accelerations and rates, a message whose reading lies beyond any IMU's
+    range (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`: a corrupt value) named in
+    one line as a CSV's row is, or with ``skip_bad`` a dropout (NaN), as a message with
+    a NaN is."""
+    acc = np.array(log.acc, dtype=float)
+    gyr = None if log.gyr is None else np.array(log.gyr, dtype=float)
+    with np.errstate(invalid="ignore"):  # a NaN (a dropout) is no reading out of range
+        acc_norm = np.hypot.reduce(acc, axis=1)  # hypot: no overflow of a finite 1e200
+        gyr_norm = np.zeros(len(acc)) if gyr is None else np.hypot.reduce(gyr, axis=1)
+        huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
+    out = np.flatnonzero(huge & ~_unpaired(log))
+    if len(out) and not skip_bad:
+        i = int(out[0])
+        raise InputError(
+            f"{path}: topic {log.topic}: the message at t = {time_text(float(t[i]))} s "
+            f"({_message_number(log, i)}): a reading beyond any IMU's range (|a| "
+            f"{acc_norm[i]:.3g} m/s^2, limit {ACCEL_READING_MAX:g}; |omega| "
+            f"{gyr_norm[i]:.3g} rad/s, limit {GYRO_READING_MAX:g}): a corrupt value "
+            "(a dropout; --skip-bad keeps it, skip_bad=True in Python)"
+        )
+    acc[huge] = np.nan
+    if gyr is not None:
+        gyr[huge] = np.nan
+    return acc, gyr
 
 
 def _convert_log(

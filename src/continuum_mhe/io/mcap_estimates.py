@@ -2,9 +2,9 @@
 
 ``write_estimates_mcap`` writes JSON-encoded channels: ``/continuum/tip``
 (``foxglove.PoseInFrame``, frame ``continuum_base``), ``/continuum/backbone``
-(``foxglove.PosesInFrame``, poses along the arc) and ``/continuum/estimate`` (the
-estimate CSV's fields); ``read_estimates_mcap`` and ``read_estimate_table_mcap`` read
-them back.
+(``foxglove.PosesInFrame``, poses along the backbone: :func:`estimate_poses`) and
+``/continuum/estimate`` (the estimate CSV's fields); ``read_estimates_mcap`` and
+``read_estimate_table_mcap`` read them back.
 """
 
 from __future__ import annotations
@@ -72,16 +72,26 @@ TOPICS = {
 }
 
 
-def estimate_schema(outputs: Sequence[OutputSpec]) -> dict[str, Any]:
+#: the ``/continuum/estimate`` field of a robust MHE's flags, as the estimate CSV's column
+OUTLIER_FIELD = "outlier"
+
+
+def estimate_schema(outputs: Sequence[OutputSpec], outlier: bool = False) -> dict[str, Any]:
     """The JSON schema of ``/continuum/estimate``: the estimate CSV's fields for these
-    ``outputs`` (each with its unit), their ``std_`` fields, ``status`` and
-    ``solve_ms``."""
+    ``outputs`` (each with its unit), their ``std_`` fields, ``outlier`` (with
+    ``outlier``: a robust MHE's flags), ``status`` and ``solve_ms``."""
     number = {"type": ["number", "null"]}
     fields: dict[str, Any] = {"t": {**number, "description": "s"}}
     for o in outputs:
         fields[o.name] = {**number, "description": o.unit}
     for o in outputs:
         fields[STD_PREFIX + o.name] = {**number, "description": f"{o.unit}, one std"}
+    if outlier:
+        fields[OUTLIER_FIELD] = {
+            "type": "integer",
+            "enum": [0, 1],
+            "description": "1 where the robust cost down-weighted the reading",
+        }
     return {
         "title": ESTIMATE_SCHEMA,
         "description": "Estimate CSV row: output fields null without an estimate, std_ "
@@ -113,15 +123,67 @@ def backbone_poses(
     ]
 
 
+def _twist(psi: float) -> FloatArray:
+    """The rotation by ``psi`` rad about the backbone's tangent (the frame's z axis)."""
+    c, s = math.cos(psi), math.sin(psi)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def estimate_poses(
+    outputs: Sequence[OutputSpec],
+    values: Sequence[float] | FloatArray,
+    lengths: Sequence[float],
+    per_section: int = 10,
+) -> list[dict[str, Any]]:
+    """Poses along the backbone of one estimate row, base to tip, Foxglove JSON: the
+    base, then ``per_section`` poses per section, the last the tip.
+
+    A robot of constant-curvature sections: its arcs (:func:`backbone_poses`). A tendon
+    robot (outputs ``psi_k``), whose sections are not arcs: each section's end frame is
+    the one below's turned by the section's bend ``theta_k, phi_k`` and twist ``psi_k``
+    (``R(theta_k, phi_k) Rz(psi_k)``, as its outputs are defined) and its end is the
+    estimated ``x_k, y_k, z_k``, so the tip pose is the estimate's tip; between them the
+    arc of the bend, the twist growing along it, bent by the arc's miss of the
+    estimated end in proportion to the arc length."""
+    bends = section_bends(outputs, values)
+    names = [o.name for o in outputs]
+    if "psi_1" not in names:
+        return backbone_poses(bends, lengths, per_section)
+    from scipy.spatial.transform import Rotation
+
+    rotations, positions = [np.eye(3)], [np.zeros(3)]
+    for k in range(len(bends)):
+        local_r, local_p = backbone_frames(bends[k : k + 1], [lengths[k]], per_section)
+        psi = float(values[names.index(f"psi_{k + 1}")])
+        end = np.array([float(values[names.index(f"{c}_{k + 1}")]) for c in "xyz"])
+        base_r, base_p = rotations[-1], positions[-1]
+        miss = end - (base_p + base_r @ local_p[-1])
+        for j in range(1, per_section + 1):
+            f = j / per_section
+            rotations.append(base_r @ local_r[j] @ _twist(psi * f))
+            positions.append(base_p + base_r @ local_p[j] + f * miss)
+        positions[-1] = end  # exactly the estimate's
+    quats = Rotation.from_matrix(np.array(rotations)).as_quat()  # (x, y, z, w)
+    return [
+        {
+            "position": dict(zip("xyz", map(float, p))),
+            "orientation": dict(zip("xyzw", map(float, q))),
+        }
+        for p, q in zip(positions, quats)
+    ]
+
+
 def estimate_messages(
     series: EstimateSeries, lengths: Sequence[float], t0_ns: int = 0
 ) -> Iterator[tuple[str, int, dict[str, Any]]]:
-    """``(topic, log_time_ns, message)`` for every estimate (no pose without one)."""
+    """``(topic, log_time_ns, message)`` for every estimate (no pose without one); an
+    ``outlier`` field where the series carries a robust MHE's flags."""
     names = [o.name for o in series.outputs]
-    rows = zip(series.t, series.output, series.std, series.status, series.solve_ms)
-    for t, out, sd, st, ms in rows:
+    flags = [None] * len(series.t) if series.outlier is None else list(series.outlier)
+    rows = zip(series.t, series.output, series.std, series.status, series.solve_ms, flags)
+    for t, out, sd, st, ms, flag in rows:
         yield from sample_messages(series.outputs, names, float(t), out, str(st), float(ms),
-                                   lengths, t0_ns, sd)  # fmt: skip
+                                   lengths, t0_ns, sd, flag)  # fmt: skip
 
 
 def sample_messages(
@@ -134,9 +196,11 @@ def sample_messages(
     lengths: Sequence[float],
     t0_ns: int = 0,
     std: Sequence[float] | FloatArray | None = None,
+    outlier: bool | None = None,
 ) -> Iterator[tuple[str, int, dict[str, Any]]]:
     """The messages of one estimate (``out`` None or NaN: no pose; ``std``: one standard
-    deviation per output, NaN or None where unknown)."""
+    deviation per output, NaN or None where unknown; ``outlier``: a robust MHE's flag,
+    written 0 or 1 before the status, None: no such field)."""
     ns = t0_ns + int(round(t * 1e9))
     stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
     has = out is not None and st != "no-estimate" and bool(np.all(np.isfinite(out)))
@@ -146,12 +210,14 @@ def sample_messages(
     sd = [math.nan] * len(names) if std is None else std
     row.update({f"std_{k}": (float(v) if has and math.isfinite(v) else None)
                 for k, v in zip(names, sd)})  # fmt: skip
+    if outlier is not None:
+        row[OUTLIER_FIELD] = int(bool(outlier))
     row.update(status=st, solve_ms=ms)
     yield "/continuum/estimate", ns, row
     if not has:
         return
     assert out is not None
-    poses = backbone_poses(section_bends(outputs, out), lengths)
+    poses = estimate_poses(outputs, out, lengths)
     yield "/continuum/tip", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "pose": poses[-1]}
     yield "/continuum/backbone", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "poses": poses}
 
@@ -187,7 +253,7 @@ def write_estimates_mcap(
             f"of {sections} section(s)"
         )
     with atomic_binary_writer(path) as fh:
-        writer = mcap_estimate_writer(fh, series.outputs)
+        writer = mcap_estimate_writer(fh, series.outputs, series.outlier is not None)
         for seq, (topic, ns, msg) in enumerate(estimate_messages(series, lengths, t0_ns)):
             writer.add(topic, ns, msg, seq)
         writer.finish()
@@ -195,16 +261,16 @@ def write_estimates_mcap(
 
 class McapEstimateWriter:
     """An MCAP writer with the estimate channels registered (see the module doc), the
-    estimate's schema that of ``outputs``."""
+    estimate's schema that of ``outputs`` (with ``outlier``: and a robust MHE's flags)."""
 
-    def __init__(self, fh: IO[bytes], outputs: Sequence[OutputSpec]) -> None:
+    def __init__(self, fh: IO[bytes], outputs: Sequence[OutputSpec], outlier: bool = False) -> None:
         require("mcap", "robot", "writing MCAP")
         from mcap.writer import CompressionType, Writer
 
         self._writer = Writer(fh, compression=CompressionType.NONE)
         self._writer.start(profile="", library="continuum-mhe")
         self._channels: dict[str, int] = {}
-        schemas = {**SCHEMAS, ESTIMATE_SCHEMA: estimate_schema(outputs)}
+        schemas = {**SCHEMAS, ESTIMATE_SCHEMA: estimate_schema(outputs, outlier)}
         for topic, schema in TOPICS.items():
             sid = self._writer.register_schema(
                 name=schema, encoding="jsonschema", data=json.dumps(schemas[schema]).encode()
@@ -227,9 +293,12 @@ class McapEstimateWriter:
         self._writer.finish()
 
 
-def mcap_estimate_writer(fh: IO[bytes], outputs: Sequence[OutputSpec]) -> McapEstimateWriter:
-    """Start an estimate MCAP of estimates with these ``outputs`` on an open binary file."""
-    return McapEstimateWriter(fh, outputs)
+def mcap_estimate_writer(
+    fh: IO[bytes], outputs: Sequence[OutputSpec], outlier: bool = False
+) -> McapEstimateWriter:
+    """Start an estimate MCAP of estimates with these ``outputs`` (with ``outlier``: and
+    a robust MHE's flags) on an open binary file."""
+    return McapEstimateWriter(fh, outputs, outlier)
 
 
 def read_estimates_mcap(
@@ -279,7 +348,7 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
-    t, out, sd, status = [], [], [], []
+    t, out, sd, status, flags = [], [], [], [], []
     names: list[str] = []
     has_std = False
     try:
@@ -290,12 +359,14 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
                     names = [
                         k
                         for k in row
-                        if k not in ("t", "status", "solve_ms") and not k.startswith(STD_PREFIX)
+                        if k not in ("t", "status", "solve_ms", OUTLIER_FIELD)
+                        and not k.startswith(STD_PREFIX)
                     ]
                     has_std = any(k.startswith(STD_PREFIX) for k in row)
                 t.append(row["t"])
                 out.append([math.nan if row[k] is None else row[k] for k in names])
                 sd.append([_number(row.get(STD_PREFIX + k)) for k in names])
+                flags.append(row.get(OUTLIER_FIELD))
                 if row["status"] not in STATUS_MEANINGS:
                     raise InputError(
                         f"{path}: message {len(t)}: status {row['status']!r} is not one of "
@@ -324,10 +395,12 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
         )
     k = len(names)
     std = np.array(sd, dtype=float).reshape(len(t), k)
+    flagged = all(f is not None for f in flags)
     return StateTable(
         t=np.array(t, dtype=float), names=tuple(names),
         values=np.array(out, dtype=float).reshape(len(t), k),
         status=np.array(status, dtype=str), std=std, std_columns=has_std, status_column=True,
+        outlier=np.array(flags, dtype=bool) if flagged else None,
     )  # fmt: skip
 
 

@@ -436,6 +436,7 @@ def read_imu_log(
     stamped = False
     name = topic or ""
     frames: dict[str, int] = {}  # each frame_id and the message (from 1) it came first in
+    late = 0  # messages left out as their time did not pass the one kept before them
 
     def keep(
         i: int, ns: int, row: tuple[list[float], list[float], list[float]], log_ns: int
@@ -449,6 +450,7 @@ def read_imu_log(
                 )
                 for kept in (stamps, numbers, offsets, rows):
                     kept.pop()
+        nonlocal late
         if stamps and ns <= stamps[-1]:
             back = (stamps[-1] - ns) / 1e9
             if back > MAX_STAMP_STEP_BACK_S and not skip_bad:
@@ -461,6 +463,7 @@ def read_imu_log(
             if not by_log_time:
                 stale.append((i, log_ns, row, len(skipped)))
             skipped.append(f"message {i + 1}: time {ns} ns does not increase")
+            late += 1
             return
         stamps.append(ns)
         numbers.append(i + 1)
@@ -533,11 +536,20 @@ def read_imu_log(
         skipped[:] = [line for at, line in enumerate(skipped) if at not in said]
         for kept in (stamps, numbers, offsets, rows):
             kept.clear()
+        late = 0
         for i, log_ns, row in sorted(logged, key=lambda m: m[0]):
             keep(i, log_ns, row, log_ns)
         stamped = False
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
+    if late > len(stamps):  # neither clock orders the messages: no recording to estimate
+        zero = "" if stamped or stale_stamps else " (all zero)"
+        raise InputError(
+            f"{p}: topic {name}: neither the header stamps{zero} nor the log's times "
+            f"advance ({late} of {late + len(stamps)} messages at or before the time of the one "
+            "before): the messages have no times to estimate on; write the log with "
+            "header stamps or log times that advance"
+        )
     offset = float(np.median(offsets)) / 1e9
     if abs(offset) > STAMP_CLOCK_OFFSET_S:
         warnings.warn(

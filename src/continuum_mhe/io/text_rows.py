@@ -273,7 +273,8 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
         if n == 1 and (encoding := _utf16(body)):
             raise InputError(f"{name}: line 1: not UTF-8 text but {UTF16.format(encoding)}")
         raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
-    if b"\r" in body.rstrip(b"\r"):
+    # a binary file's bytes hold CRs too: said as not text, not as its line ends
+    if b"\r" in body.rstrip(b"\r") and _text_like(body):
         raise InputError(
             f"{name}: line {n}: lines end in CR alone (classic Mac OS line ends); save "
             "the file with LF or CRLF line ends"
@@ -285,6 +286,16 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
     except UnicodeDecodeError:
         raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
     return line.rstrip("\r")
+
+
+def _text_like(body: bytes) -> bool:
+    """``body`` holds no control byte but tab and CR: text, in any 8-bit encoding (an
+    old Mac file's MacRoman among them), not the bytes of a binary file."""
+    return _CONTROL_BYTES.search(body) is None
+
+
+#: The control bytes that text holds none of (tab, LF and CR aside).
+_CONTROL_BYTES = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
 
 #: What a file of UTF-16 text is told.
