@@ -62,6 +62,25 @@ def test_check_robot_calls_an_under_instrumented_robot_not_observable(
     assert report["tilt"]["full_rank_fraction"] == 0.0
 
 
+def test_the_not_observable_verdict_says_what_the_gyros_determine() -> None:
+    """The verdict of a robot tilt cannot place speaks of the gyros as the report finds
+    them: a tip IMU alone on three sections leaves the gyros' two-sample Jacobian short
+    of rank too, and the verdict says so instead of a rank the gyros do not reach; two
+    IMUs on section 1 and one on section 3 leave it full with motion, as the verdict
+    says."""
+    three = (Section(0.15),) * 3
+    tip = observability_report(Robot(three, (ImuPlacement(2),)), samples=50)
+    assert tip.gyro_window.full_rank_fraction == 0.0
+    line = verdict(tip)
+    assert "the gyros do not determine it either" in line
+    assert f"at most {tip.gyro_window.max_rank} of the 12 unknowns" in line
+    assert "needs motion" not in line
+    skip = Robot(three, (ImuPlacement(0, 0.5), ImuPlacement(0), ImuPlacement(2)))
+    gap = observability_report(skip, samples=50)
+    assert gap.gyro_window.full_rank_fraction > 0.0
+    assert "the gyros' two-sample rank of the report needs motion" in verdict(gap)
+
+
 def test_check_robot_says_whether_tilt_leaves_readings_to_check_the_model(
     tmp_path: Path, capsys
 ) -> None:

@@ -575,6 +575,24 @@ def test_the_gravity_check_of_gyro_units_judges_still_stretches_alone() -> None:
     assert gyro_gravity_problem(t, np.tile([0.0, 0.0, 9.8], (len(t), 1)), yaw) is None
 
 
+def test_the_gravity_check_of_gyro_units_judges_recordings_under_10_hz() -> None:
+    """At 5 Hz and at 1 Hz, half a second holds too few readings for a stretch: the
+    check judges stretches of five and a half steps, with the mismatch allowed in
+    proportion. A resting gyro in deg/s (bias 0.4 deg/s, or 2) is found; one in rad/s,
+    a cheap MEMS gyro's bias of 0.09 rad/s, is not."""
+    rng = np.random.default_rng(3)
+    for step in (0.2, 1.0):
+        t = np.arange(0.0, 60.0, step)
+        acc = np.array([0.1, -0.2, 9.8]) + rng.normal(0.0, 0.05, (len(t), 3))
+        for bias_deg_s in ((0.3, -0.25, 0.1), (1.2, -1.5, 0.9)):
+            deg_s = np.array(bias_deg_s) + rng.normal(0.0, 0.05, (len(t), 3))
+            problem = gyro_gravity_problem(t, acc, deg_s)
+            assert problem is not None, (step, bias_deg_s)
+            assert f"every {5.5 * step:.3g} s" in problem
+        cheap = np.array([0.06, -0.06, 0.02]) + rng.normal(0.0, 0.003, (len(t), 3))
+        assert gyro_gravity_problem(t, acc, cheap) is None, step
+
+
 def test_the_gravity_check_of_gyro_units_passes_the_shipped_recordings() -> None:
     """No shipped raw recording (rad/s: the rods bend, turn and twist fast, the tendon
     robot works under load, and each IMU also feels its own acceleration) is taken for

@@ -16,6 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from tendon_helpers import DATA
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import open_input
@@ -174,6 +175,25 @@ def test_a_tensions_file_says_its_glitch_and_takes_the_curve() -> None:
     assert np.max(np.abs(table.values - reference.values)) < 1e-4
     assert np.max(np.abs(table.rates - reference.rates)) < 0.01
     assert table.rows[100, 2] == v[100, 2]  # the file as given
+
+
+def test_a_huge_glitch_is_replaced_not_refused_as_tensions_in_mn() -> None:
+    """One tension of 1e9 N on one row of the shipped ``unloaded`` tensions is a glitch,
+    replaced by the curve through its neighbours and said; the scale check (tensions in
+    mN, a modulus far too low) judges the tensions the estimate takes, so it passes
+    (it had refused the file on that row, contradicting the warning). The same
+    tensions a thousand times too large throughout are refused."""
+    robot = read_robot("tendon-two-section")
+    table = read_tensions(DATA / "unloaded_tensions.csv", robot.n_tendons)
+    v = table.values.copy()
+    v[30, 0] = 1e9
+    lines = tuple(range(2, len(table.t) + 2))
+    with pytest.warns(TensionsWarning, match=r"line 32 \(tension_1 1e\+09 N where"):
+        glitched = Tensions.from_rows("f.csv", table.t, v, lines=lines)
+    glitched.check_scale(robot)
+    assert glitched.values[30, 0] < 10.0 and glitched.rows[30, 0] == 1e9
+    with pytest.raises(InputError, match=r"^f.csv: line \d+: .* full turns"):
+        Tensions.from_rows("f.csv", table.t, 1000.0 * table.values, lines=lines).check_scale(robot)
 
 
 def test_live_replaces_a_glitch_before_its_derivatives_are_given_and_a_replay_alike(

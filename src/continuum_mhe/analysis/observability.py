@@ -150,12 +150,18 @@ def verdict(r: ObservabilityReport) -> str:
             f"observable shapes of the report, where the estimate follows its motion model){weak}"
         )
     if t.full_rank_fraction == 0.0:
+        g = r.gyro_window
+        gyros = (
+            "the gyros' two-sample rank of the report needs motion and is ill-conditioned: "
+            "with them the tip is hundreds of mm off, docs/uncertainty.md"
+            if g.full_rank_fraction > 0.0
+            else f"the gyros do not determine it either: with them, at most {g.max_rank} of "
+            f"the {g.cols} unknowns of two samples at every sampled shape"
+        )
         return (
             f"NOT observable: tilt determines at most {t.max_rank} of the {t.cols} bend "
             "coordinates at every sampled shape; estimates of this robot are all marked "
-            "uncertain (put an IMU on every section; the gyros' two-sample rank of the "
-            "report needs motion and is ill-conditioned: with them the tip is hundreds of mm off, "
-            "docs/uncertainty.md)"
+            f"uncertain (put an IMU on every section; {gyros})"
         )
     return (
         f"observable except near some shapes: full rank at {_percent(t.full_rank_fraction)} % "

@@ -30,7 +30,10 @@ UNIT_CHECK_SAMPLES = 100
 UNIT_CHECK_SPAN_S = 1.0
 #: The gravity check of a gyro's units (:func:`gyro_gravity_problem`) compares the
 #: accelerometer's direction with the gyro's turn over stretches of this length (s), of
-#: at least :data:`GRAVITY_TURN_ROWS` readings, ...
+#: at least :data:`GRAVITY_TURN_ROWS` readings (a recording sampled more slowly than
+#: that, under 10 Hz, is judged over stretches of :data:`GRAVITY_TURN_ROWS` and a half
+#: of its median step, the mismatch allowed growing with the stretch:
+#: :func:`gravity_turn_span`), ...
 GRAVITY_TURN_SPAN_S = 0.5
 GRAVITY_TURN_ROWS = 5
 #: ... where the IMU is still: its specific force's magnitude spreads by at most this
@@ -125,8 +128,24 @@ def gyro_units_problem(gyr: FloatArray, names: str = "gx, gy, gz") -> str | None
     )
 
 
-def _turn_errors(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> FloatArray:
-    """Per still stretch of :data:`GRAVITY_TURN_SPAN_S`: the angle (rad) between the
+def gravity_turn_span(t: FloatArray) -> float:
+    """The length (s) of the gravity check's stretches for the times ``t``:
+    :data:`GRAVITY_TURN_SPAN_S`, or, where that holds fewer than
+    :data:`GRAVITY_TURN_ROWS` steps of the median step (a recording under 10 Hz),
+    :data:`GRAVITY_TURN_ROWS` and a half steps, so that each stretch holds
+    :data:`GRAVITY_TURN_ROWS` readings or more."""
+    t = np.asarray(t, float)
+    steps = np.diff(t[np.isfinite(t)])
+    steps = steps[steps > 0]
+    if not len(steps):
+        return GRAVITY_TURN_SPAN_S
+    return max(GRAVITY_TURN_SPAN_S, (GRAVITY_TURN_ROWS + 0.5) * float(np.median(steps)))
+
+
+def _turn_errors(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, span: float = GRAVITY_TURN_SPAN_S
+) -> FloatArray:
+    """Per still stretch of ``span`` s (:func:`gravity_turn_span`): the angle (rad) between the
     accelerometer's last direction and its first one turned by the gyro's summed rates
     (one rotation vector: exact for a rate of constant direction, such as a resting
     gyro's bias), the gyro read as rad/s (column 0) and as deg/s (column 1); (k, 2).
@@ -146,7 +165,7 @@ def _turn_errors(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> FloatArray:
     if len(t) < GRAVITY_TURN_ROWS:
         return np.zeros((0, 2))
     direction = acc / norm[:, None]
-    stretch = np.floor((t - t[0]) / GRAVITY_TURN_SPAN_S).astype(np.int64)
+    stretch = np.floor((t - t[0]) / span).astype(np.int64)
     starts = np.flatnonzero(np.r_[True, np.diff(stretch) != 0])
     stops = np.r_[starts[1:], len(t)]
     count = (stops - starts).astype(float)
@@ -193,20 +212,23 @@ def gyro_gravity_problem(
     of the times ``t`` (n,) s (:func:`_turn_errors`: the specific force ``acc`` (n, 3;
     any unit) steady in magnitude, the rates ``gyr`` (n, 3) steady), the rates read as
     rad/s would turn the gravity direction by more than :data:`GRAVITY_TURN_MISMATCH`
-    rad in the median stretch, while read as deg/s they follow it at least three times
-    as closely: what to say, naming the columns ``names``; else None (also with fewer
-    than two still stretches). A turn about the vertical moves no accelerometer and
-    says nothing."""
-    errors = _turn_errors(np.asarray(t, float), np.asarray(acc, float), np.asarray(gyr, float))
+    rad in the median stretch of :data:`GRAVITY_TURN_SPAN_S` (in proportion over the
+    longer stretches of a recording under 10 Hz: :func:`gravity_turn_span`), while read
+    as deg/s they follow it at least three times as closely: what to say, naming the
+    columns ``names``; else None (also with fewer than two still stretches). A turn
+    about the vertical moves no accelerometer and says nothing."""
+    t = np.asarray(t, float)
+    span = gravity_turn_span(t)
+    errors = _turn_errors(t, np.asarray(acc, float), np.asarray(gyr, float), span)
     if len(errors) < 2:
         return None
     as_rad, as_deg = (float(v) for v in np.median(errors, axis=0))
-    if as_rad <= GRAVITY_TURN_MISMATCH or as_deg * 3.0 > as_rad:
+    if as_rad <= GRAVITY_TURN_MISMATCH * span / GRAVITY_TURN_SPAN_S or as_deg * 3.0 > as_rad:
         return None
     return (
         "the accelerometer's gravity direction turns as the gyro says only with the gyro "
         f"in deg/s (read as rad/s it misses by {math.degrees(as_rad):.0f} deg every "
-        f"{GRAVITY_TURN_SPAN_S:g} s, median; read as deg/s by {math.degrees(as_deg):.1f} "
+        f"{span:.3g} s, median; read as deg/s by {math.degrees(as_deg):.1f} "
         f"deg): give rad/s ({names} times pi/180 = {math.pi / 180:.7f})"
     )
 

@@ -373,8 +373,9 @@ class Tensions:
     def check_scale(self, robot: Robot) -> None:
         """An :class:`InputError` where the tensions would bend a section of ``robot``
         through more than :data:`MAX_TENDON_TURNS` full turns on their own
-        (:func:`tension_scale_problem`: tensions in mN, or a modulus far too low)."""
-        problem = tension_scale_problem(robot, self.t, self.rows, self.name, self.lines)
+        (:func:`tension_scale_problem`: tensions in mN, or a modulus far too low), as
+        the estimate takes them: a glitch replaced (and said) is not judged."""
+        problem = tension_scale_problem(robot, self.t, self.values, self.name, self.lines)
         if problem is not None:
             raise InputError(problem)
 
