@@ -68,6 +68,12 @@ def test_calibrate_from_a_recording_of_two_imus(
     assert "IMU 1: mounting with the robot straight: --mount-rpy 12.00,-7.00,0" in out
     assert "IMU 2: mounting with the robot straight: --mount-rpy -3.00,25.00,0" in out
     assert "IMU 2: gyro bias (rad/s) gx=0.02000 gy=-0.02000 gz=0.00300" in out
+    # the noise at rest as tilt (the x axis' alone), said not to be estimate's --noise-deg
+    tilt_noise = math.degrees(d * math.sqrt(n / (n - 1)) / G)
+    assert (
+        f"accelerometer noise as tilt: {tilt_noise:.2f} deg at rest (not estimate's "
+        "--noise-deg, the scatter in motion: keep its default)" in out
+    )
 
 
 def _calibrate_port(

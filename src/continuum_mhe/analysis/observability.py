@@ -447,7 +447,7 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
     """Human-readable report (a tendon robot's: its mechanics model's first, with the
     verdict, which is that model's, right after it). The loads without an equilibrium
     are counted in it; :func:`unsolved_warning` says so."""
-    lines = [f"robot: {robot.describe()}"]
+    lines = [f"robot: {robot.describe()} (an IMU as section@fraction of its length)"]
     if r.tendon_force is not None:
         s, p = r.tendon_force, r.tendon_force.sigma_min_percentiles
         given = "tensions given" if robot.n_tendons else "no tendons: a rod under its tip force"
@@ -493,7 +493,8 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
     if r.known_case:
         k = r.known_case
         lines.append(
-            "section 1 at 90 deg, section 2 bending in the horizontal plane: relative "
+            "section 1 at 90 deg, section 2 bending in the horizontal plane (a shape "
+            "that tilt alone cannot see): relative "
             f"smallest singular value tilt {k['tilt']:.1e}, tilt window {k['tilt_window']:.1e}, "
             f"with gyros {k['gyro_window']:.1e}"
         )

@@ -515,7 +515,8 @@ def format_report(
             lines.append(
                 f"IMU {i}: mounting with the robot straight: --mount-rpy {r:.2f},{p:.2f},"
                 f"{yaw:g} (robot file: mount_rpy = [{r:.2f}, {p:.2f}, {yaw:g}]); yaw: "
-                f"{yaw_hint}; accelerometer noise as tilt: {tilt_noise:.2f} deg"
+                f"{yaw_hint}; accelerometer noise as tilt: {tilt_noise:.2f} deg at rest "
+                "(not estimate's --noise-deg, the scatter in motion: keep its default)"
             )
             if bend:
                 y = bend[2][i - 1]

@@ -80,7 +80,10 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
         "--noise-deg",
         type=float,
         default=2.0,
-        help="roll/pitch noise standard deviation in degrees (default 2)",
+        help="roll/pitch (gravity direction) noise standard deviation in degrees, the "
+        "readings' scatter while the robot moves (default 2); the noise at rest that "
+        "calibrate prints is far smaller, and given here it makes most rows inconsistent "
+        "(docs/options.md)",
     )
     g.add_argument(
         "--model-error-deg",
