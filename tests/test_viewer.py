@@ -1088,3 +1088,134 @@ def test_view_warns_of_a_mounting_other_than_the_estimates(
     )
     assert main(["view", str(est), "--mounting", "z-up", "--save", str(rrd), "--overwrite"]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+def test_a_tendon_robots_live_tip_is_the_estimates(tendon_view: dict[str, Any]) -> None:
+    """The live hook draws a tendon robot's tip, and its trail, at the estimate's ``x, y,
+    z`` (to float32), as a replay does: not at the end of its drawing, whose finer steps
+    end up to a tenth of a millimetre away."""
+    from continuum_mhe.io.tensions import read_tensions
+    from continuum_mhe.model.tendon import tendon_outputs
+    from continuum_mhe.model.tendon_statics import TendonStatics
+    from continuum_mhe.viewer import TendonShapes
+
+    robot = read_robot("tendon-two-section")
+    outs = tendon_outputs(robot.n_sections)
+    est = read_state_table(tendon_view["est"], ())
+    values = np.column_stack([est.column(o.name) for o in outs])
+    tensions = read_tensions(tendon_view["tensions"], robot.n_tendons)
+    statics = TendonStatics(robot)
+    states = []
+    for tk, row in zip(est.t, values):  # each row's equilibrium at its tip force
+        force, tau = row[-3:], tensions.at(float(tk))[0]
+        states.append(np.concatenate([statics.solve(force, tau)[0], force, tau, np.zeros(4)]))
+    live = tendon_view["tmp"] / "live_tip.rrd"
+    view = BackboneView(robot, outs, ViewerSink("save", live), points_per_section=POINTS,
+                        tendon=TendonShapes(robot, POINTS))  # fmt: skip
+    for tk, row, x in zip(est.t, values, states):
+        view.log_estimate(Estimate(float(tk), x, row, None, "ok", 1.0))  # type: ignore[arg-type]
+    view.close()
+    rows = read_rrd(live)
+    tips = np.array([r["Points3D:positions"][0] for _, r in rows["/world/estimate/tip"]])
+    want = np.column_stack([est.column(c) for c in "xyz"])
+    np.testing.assert_allclose(tips, want, atol=1e-6)
+    trail = np.array([r["LineStrips3D:strips"][0] for _, r in rows["/world/estimate/tip_trail"]])
+    np.testing.assert_allclose(trail[:, 0], want[:-1], atol=1e-6)
+    np.testing.assert_allclose(trail[:, 1], want[1:], atol=1e-6)
+
+
+def test_a_tendon_replay_draws_under_the_estimated_tension_gains(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An estimate made with --estimate-tension-gain on tensions given at 0.7 times the
+    acting ones: the replay draws each section under the given tensions times the
+    estimated gains, so its strips end within a millimetre of the estimate's section
+    ends (under the given tensions alone they end 4.7 mm away), and the gains are
+    outputs (``outputs/1``), as live --view shows them."""
+    from importlib.resources import files
+
+    pytest.importorskip("rerun")
+    data = files("continuum_mhe") / "data" / "tendon"
+    meas, tensions = tmp_path / "m.csv", tmp_path / "tensions.csv"
+    meas.write_text("\n".join((data / "force-29_raw.csv").read_text().splitlines()[:81]) + "\n")
+    lines = (data / "force-29_tensions.csv").read_text().splitlines()
+    scaled = [",".join([f[0], *(f"{0.7 * float(v):.9g}" for v in f[1:])])
+              for f in (line.split(",") for line in lines[1:])]  # fmt: skip
+    tensions.write_text("\n".join([lines[0], *scaled]) + "\n")
+    est, rrd = tmp_path / "e.csv", tmp_path / "v.rrd"
+    assert main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
+                 str(tensions), "--estimate-tension-gain", "-o", str(est)]) == 0  # fmt: skip
+    assert main(["view", str(est), "--save", str(rrd), "--points", str(POINTS)]) == 0
+    capsys.readouterr()
+    table = read_state_table(est, ())
+    assert abs(table.column("tension_gain_2")[-1] - 1) > 0.2  # the gains were estimated
+    rows = read_rrd(rrd)
+    strips = np.array([r["LineStrips3D:strips"] for _, r in rows["/world/estimate/backbone"]])
+    for k in range(2):
+        end = np.column_stack([table.column(f"{c}_{k + 1}") for c in "xyz"])
+        np.testing.assert_allclose(strips[:, k, -1], end, atol=1e-3)
+    (names,) = [r["SeriesLines:names"] for t, r in rows["/outputs/1"] if t is None]
+    assert names == ["tension_gain_1", "tension_gain_2"]
+    gains = np.array([r["Scalars:scalars"] for t, r in rows["/outputs/1"] if t is not None])
+    want = np.column_stack([table.column(n) for n in names])
+    np.testing.assert_allclose(gains, want, rtol=1e-6)
+
+
+def test_a_replay_shows_the_imu_twists_and_the_truths_backbone(tmp_path: Path) -> None:
+    """An estimate made with --imu-twist (the first second of the shipped rod's spatial
+    recording): its IMU twists are outputs of the replay (``outputs/rad``), as live
+    --view shows them, and a truth, which has no twist column, is still drawn with its
+    backbone."""
+    from importlib.resources import files
+
+    pytest.importorskip("rerun")
+    data = files("continuum_mhe") / "data" / "rod2"
+    meas, truth = tmp_path / "m.csv", tmp_path / "t.csv"
+    for name, path in (("spatial_raw.csv", meas), ("spatial_truth.csv", truth)):
+        path.write_text("\n".join((data / name).read_text().splitlines()[:51]) + "\n")
+    est, rrd = tmp_path / "e.csv", tmp_path / "v.rrd"
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf",
+                 "--robot", "two-section", "--imu-twist"]) == 0  # fmt: skip
+    assert main(["view", str(est), "--truth", str(truth),
+                 "--save", str(rrd), "--points", str(POINTS)]) == 0  # fmt: skip
+    rows = read_rrd(rrd)
+    (names,) = [r["SeriesLines:names"] for t, r in rows["/outputs/rad"] if t is None]
+    assert names[-2:] == ["imu_twist_1", "imu_twist_2"]
+    table = read_state_table(est, ())
+    got = np.array([r["Scalars:scalars"] for t, r in rows["/outputs/rad"] if t is not None])
+    np.testing.assert_allclose(got[:, -2:], np.column_stack([table.column(n) for n in names[-2:]]),
+                               rtol=1e-6)  # fmt: skip
+    assert [t for t, _ in rows["/world/truth/backbone"]] == _ns(read_state_table(truth, ()).t)
+
+
+def test_view_takes_the_recorded_tensions_from_a_pipe_without_a_warning(
+    tendon_view: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--inputs from a pipe (<(cat TENSIONS.csv)) with the tensions the estimate's
+    options line names: the same view as with the file, and no warning that other
+    tensions were given (a pipe's text is compared, as a file's is)."""
+    import os
+    import threading
+
+    text = Path(tendon_view["tensions"]).read_bytes()
+    read_end, write_end = os.pipe()
+
+    def write() -> None:
+        with open(write_end, "wb") as fh:
+            fh.write(text)
+
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    rrd = tendon_view["tmp"] / "piped.rrd"
+    try:
+        assert main(["view", str(tendon_view["est"]), "--inputs", f"/dev/fd/{read_end}",
+                     "--save", str(rrd), "--points", str(POINTS)]) == 0  # fmt: skip
+    finally:
+        writer.join(10)
+        os.close(read_end)
+    assert "warning" not in capsys.readouterr().err
+    drawn = read_rrd(rrd)["/world/estimate/backbone"]
+    given = read_rrd(tendon_view["rrd"])["/world/estimate/backbone"]
+    assert [r["LineStrips3D:strips"] for _, r in drawn] == [
+        r["LineStrips3D:strips"] for _, r in given
+    ]

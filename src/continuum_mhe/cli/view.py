@@ -16,7 +16,7 @@ from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
 from continuum_mhe.cli.truth_checks import truth_beside
 from continuum_mhe.errors import InputError, UserError
-from continuum_mhe.io.text_rows import held_for_rereading
+from continuum_mhe.io.text_rows import held_for_rereading, held_text
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.viewer import INSTALL_HINT, replay
@@ -24,7 +24,8 @@ from continuum_mhe.viewer import INSTALL_HINT, replay
 
 def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
-    with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
+    # the estimate is read twice, the tensions again where compared with the recorded ones
+    with held_for_rereading(args.estimates, args.truth, args.inputs):
         checked = _refuse_tendon_estimate_on_another_robot(args)  # before the robot's notes
         robot = estimate_robot(args, args.estimates, "drawn on that robot")
         if not checked:  # a robot from a pipe: checked as it was taken
@@ -134,13 +135,11 @@ def _warn_other_drawing(args: argparse.Namespace, robot: Robot) -> None:
     recorded = recorded_option(args.estimates, "inputs")
     if args.inputs and isinstance(recorded, str):
         here = Path(beside(args.estimates, recorded))
+        given = _text_of(args.inputs)
         same = (
             here.is_file()
-            and Path(args.inputs).is_file()
-            and (
-                here.resolve() == Path(args.inputs).resolve()
-                or here.read_bytes() == Path(args.inputs).read_bytes()
-            )
+            and given is not None
+            and (here.resolve() == Path(args.inputs).resolve() or _text_of(here) == given)
         )
         if not same:
             print(
@@ -150,6 +149,16 @@ def _warn_other_drawing(args: argparse.Namespace, robot: Robot) -> None:
                 "estimated with",
                 file=sys.stderr,
             )
+
+
+def _text_of(path: str | Path) -> str | None:
+    """The text of ``path``: a file's, or a pipe's (``-``, ``<(...)``) held for rereading
+    (:func:`~continuum_mhe.io.text_rows.held_for_rereading`); None for neither."""
+    held = held_text(path)
+    if held is not None:
+        return held
+    p = Path(path)
+    return p.read_bytes().decode("utf-8", errors="replace") if p.is_file() else None
 
 
 DESCRIPTION = (

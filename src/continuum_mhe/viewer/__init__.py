@@ -13,14 +13,16 @@ Entities, on the timeline ``t`` (the sample time in s, as in the estimate CSV):
 - ``world/estimate/backbone``: one line strip per section, base to tip (m).
 - ``world/estimate/imu_<i>``: IMU ``i``'s sensor frame (robot-file order, its ``mount_rpy``
   applied) as ``Transform3D`` and ``TransformAxes3D``.
-- ``world/estimate/tip``: the tip; ``world/estimate/tip_trail``: one segment per estimate,
-  from the previous tip, shown for the last ``trail_s`` seconds (a blueprint override), so
-  the file grows by a constant amount per sample.
+- ``world/estimate/tip``: the tip (a tendon robot's: the estimate's ``x, y, z``);
+  ``world/estimate/tip_trail``: one segment per estimate, from the previous tip, shown for
+  the last ``trail_s`` seconds (a blueprint override), so the file grows by a constant
+  amount per sample.
 - ``world/truth/{tip,tip_trail}``: a truth CSV's ``x, y, z``; ``world/truth/section_ends``
   its section ends; ``world/truth/backbone`` the PCC curve through its bends, where given
   (a tendon robot's: the mechanics model's at its tip force and the tensions).
-- ``outputs/<unit>``: the outputs of that unit (``m``, ``rad``) as one batch of scalars
-  per sample, named by a static ``SeriesLines`` (``x``, ``theta_1``...).
+- ``outputs/<unit>``: the outputs of that unit (``m``, ``rad``; a tendon robot's tip
+  force ``N`` and tension gains ``1``) as one batch of scalars per sample, named by a
+  static ``SeriesLines`` (``x``, ``theta_1``...).
 - ``status``: a text line whenever the status changes (``dropout``, ``reset``...).
 
 A sample without an estimate clears ``world/estimate`` (no stale shape is ever shown) and

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -13,12 +14,32 @@ from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
 from continuum_mhe.io.position_units import position_unit_problem
 from continuum_mhe.io.state_tables import check_estimate_fits, read_state_table, robot_misfit
 from continuum_mhe.io.tensions import read_tensions
-from continuum_mhe.model.descriptions import pcc_outputs
+from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.viewer.geometry import TendonShapes
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import BackboneView
+
+
+def estimated_extras(names: Sequence[str], robot: Robot) -> tuple[OutputSpec, ...]:
+    """The outputs beyond the shape that an estimate's columns ``names`` hold, named and
+    in the order the formulation that made them gives them: a tendon robot's tension gain
+    per section ``tension_gain_s`` (``--estimate-tension-gain``: the backbone is drawn
+    under the given tensions times these), or each IMU's twist ``imu_twist_i``
+    (``--imu-twist``; ``imu_twist`` for one IMU). ``live --view`` draws the same outputs
+    (its formulation's)."""
+    if robot.backbone is not None:
+        return tuple(
+            OutputSpec(f"tension_gain_{s}", "1", section=s)
+            for s in range(1, robot.n_sections + 1)
+            if f"tension_gain_{s}" in names
+        )
+    n_imus = robot.n_imus
+    twists = ["imu_twist"] if n_imus == 1 else [f"imu_twist_{i}" for i in range(1, n_imus + 1)]
+    if all(n in names for n in twists):
+        return tuple(OutputSpec(n, "rad") for n in twists)
+    return ()
 
 
 def replay(
@@ -53,6 +74,7 @@ def replay(
     est = read_estimates(estimates, "view EST.csv")
     require_an_estimate(estimates, est)
     check_estimate_fits(estimates, est.names, robot)
+    outputs = (*outputs, *estimated_extras(est.names, robot))
     if tendon is not None and tendon.tensions is not None and len(est.t):
         tendon.tensions.check_span(float(est.t[0]), float(est.t[-1]))  # milliseconds?
     cols = [est.names.index(o.name) for o in outputs]

@@ -27,9 +27,11 @@ from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
     TIP_FORCE_COLUMNS,
     OutputSpec,
+    pcc_outputs,
     section_bends,
 )
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.results import Estimate, Status
 from continuum_mhe.viewer.geometry import BackboneGeometry, TendonShapes, backbone_geometry
 from continuum_mhe.viewer.sink import ViewerSink, start_web_viewer, stop_web_viewer
@@ -148,6 +150,14 @@ class BackboneView:
         self._status = ""
         self._min_step = 1.0 / max_hz if max_hz else 0.0
         self._drawn_t: float | None = None
+        #: the angles a shape is drawn from (a truth's backbone needs them): the bends,
+        #: and a tendon robot's twists; not an output beyond the shape (``imu_twist``)
+        n_sec = robot.n_sections
+        shape = tendon_outputs(n_sec) if robot.backbone is not None else pcc_outputs(n_sec)
+        self._shape_angles = {o.name for o in shape if o.unit == "rad"}
+        names = [o.name for o in self.outputs]
+        #: the tip's ``x, y, z`` among the outputs
+        self._tip_columns = [names.index(c) for c in TIP_COLUMNS]
         #: output columns by unit, in ``outputs`` order
         self._units = {
             u: [j for j, o in enumerate(self.outputs) if o.unit == u]
@@ -280,7 +290,9 @@ class BackboneView:
             rr.LineStrips3D(list(geom.sections[0]), radii=0.01 * size, colors=colours,
                             labels=labels),
         )  # fmt: skip
-        tip = geom.tip[0]
+        # a tendon robot's tip is the estimate's (its drawing's finer steps end within a
+        # millimetre of it), as a replay draws it
+        tip = geom.tip[0] if self.tendon is None else out[self._tip_columns]
         rec.log("world/estimate/tip", rr.Points3D([tip], radii=0.015 * size))
         prev = self._prev_tip["estimate"]
         if prev is not None:
@@ -395,7 +407,7 @@ class BackboneView:
         """Whether a truth's column ``name`` is one the backbone is drawn from: a bend
         angle of the model's outputs, the tip force or a tension gain (a tendon robot's
         equilibrium)."""
-        angle = any(o.name == name and o.unit == "rad" for o in self.outputs)
+        angle = any(o.name == name and o.name in self._shape_angles for o in self.outputs)
         return angle or name in TIP_FORCE_COLUMNS or name.startswith("tension_gain_")
 
     def log_truth(self, t: FloatArray, values: FloatArray, names: Sequence[str]) -> bool:
@@ -426,7 +438,9 @@ class BackboneView:
         t, values = t[whole], values[whole]
         tips = values[:, [col[c] for c in "xyz"]]
         geom = None
-        if self.tendon is not None or all(o.name in col for o in self.outputs if o.unit == "rad"):
+        if self.tendon is not None or all(
+            o.name in col for o in self.outputs if o.name in self._shape_angles
+        ):
             geom, _ = self._row_shapes(t, values, names)
         self._send_shapes("truth", t, geom, tips, np.arange(len(t)) > 0)
         ends = [k for k in range(1, self.robot.n_sections + 1) if f"x_{k}" in col]
