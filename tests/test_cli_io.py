@@ -1694,3 +1694,46 @@ def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
     assert "clocks offset" not in capsys.readouterr().err
     assert main(["plot", str(est), "--truth-shift", "0.04", "-o", fig, "--overwrite"]) == 2
     assert "--truth-shift needs --truth" in capsys.readouterr().err
+
+
+def test_evaluate_scores_the_calibration_over_the_rows_compared(tmp_path: Path, capsys) -> None:
+    """The calibration is over the rows compared, as the RMSEs are: a no-estimate row and
+    a row whose tip truth has a gap are in neither, so that a row of ``tip_far_worst_row``
+    counts from 0 among the rows compared, and a column's ``n`` leaves out the gap's row
+    even where that column's own truth is there."""
+    t = np.arange(8) * 0.02
+    dx = np.array([0.5, 0.0, 0.5, 0.5, 0.5, 6.0, 0.5, 0.5]) * 0.001  # 1 mm std
+    rows = []
+    for k, (tk, e) in enumerate(zip(t, dx)):
+        if k == 1:  # no estimate
+            rows.append(f"{tk:g}" + "," * 10 + ",no-estimate,0.1")
+        else:
+            rows.append(f"{tk:g},{e},0,0.2,0,0,0.001,0.001,0.001,0.01,0.01,ok,0.1")
+    header = "t,x,y,z,theta,phi,std_x,std_y,std_z,std_theta,std_phi,status,solve_ms"
+    est = _write(tmp_path / "e.csv", "\n".join([header, *rows]) + "\n")
+    truth_rows = [f"{tk:g},{'' if k == 2 else 0},0,0.2,0,0" for k, tk in enumerate(t)]
+    truth = _write(tmp_path / "t.csv", "\n".join(["t,x,y,z,theta,phi", *truth_rows]) + "\n")
+    assert main(["evaluate", str(est), str(truth), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert (report["n"], report["n_without_estimate"], report["n_without_truth"]) == (6, 1, 1)
+    every, ok = report["calibration"], report["calibration_ok"]
+    assert every["n"] == {"x": 6, "y": 6, "z": 6, "theta": 6, "phi": 6}
+    # the row 6 std off is the file's sixth, the fourth of the rows compared
+    assert (every["tip_far"], every["tip_far_of"], every["tip_far_worst_row"]) == (1, 6, 3)
+    assert (ok["tip_far"], ok["tip_far_of"], ok["tip_far_worst_row"]) == (1, 6, 3)
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    assert "(the largest 6.0 std at t = 0.1 s;" in capsys.readouterr().out
+
+
+def test_the_srmse_sums_the_columns_in_m_and_rad_alone() -> None:
+    """A tendon robot's tension gain (unit 1) is not summed into the SRMSE (m + rad),
+    as its tip force (N) is not."""
+    from continuum_mhe.evaluation.metrics import compute_metrics, srmse_columns
+
+    names = ["x", "y", "z", "fx", "tension_gain_1"]
+    est = np.array([[0.001, 0.0, 0.2, 0.1, 1.5]] * 3)
+    truth = np.array([[0.0, 0.0, 0.2, 0.0, 1.0]] * 3)
+    m = compute_metrics(est, truth, 0.2, names)
+    assert m.rmse["tension_gain_1"] == pytest.approx(0.5)
+    assert m.srmse == pytest.approx(0.001)
+    assert srmse_columns(names) == ["x", "y", "z"]

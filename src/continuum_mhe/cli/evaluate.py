@@ -35,6 +35,7 @@ from continuum_mhe.evaluation.metrics import (
     Calibration,
     Metrics,
     aligned_truth,
+    compared_rows,
     compute_calibration,
     compute_metrics,
     interpolated_note,
@@ -259,14 +260,18 @@ def _evaluate(args: argparse.Namespace) -> int:
     n_ok: int | None = None  # None: the file says no status (no column)
     if est.status_column:
         n_ok = int((np.asarray(est.status)[i_e] == Status.OK).sum())
-    if est.has_std and est.std is not None:
-        std = est.std[i_e][:, cols]
-        cal = compute_calibration(est.values[i_e][:, cols], std, truth_rows, out_names, truth.names)
+    # the calibration is over the rows compared (m.n of them), as the RMSEs are: its
+    # rows (tip_far_worst_row) counted among those
+    values = est.values[i_e][:, cols]
+    scored = compared_rows(values, truth_rows, out_names, truth.names)
+    ok = (np.asarray(est.status)[i_e] == Status.OK)[scored]
+    std = None if est.std is None else est.std[i_e][:, cols][scored]
+    if est.has_std and std is not None and np.isfinite(std).any():
+        cal = compute_calibration(values[scored], std, truth_rows[scored], out_names, truth.names)
         # what the status promises: the rows marked ok alone
-        ok = np.asarray(est.status)[i_e] == Status.OK
         if est.status_column and n_ok and np.isfinite(std[ok]).any():
             cal_ok = compute_calibration(
-                est.values[i_e][ok][:, cols], std[ok], truth_rows[ok], out_names,
+                values[scored][ok], std[ok], truth_rows[scored][ok], out_names,
                 truth.names,
             )  # fmt: skip
     unmatched = int(len(est.t) - len(i_e))
@@ -343,7 +348,8 @@ def _evaluate(args: argparse.Namespace) -> int:
             print(f"ok rows              {n_ok} of {len(i_e)}: tip 95% interval coverage {tip}")
             if all(c in cal_ok.coverage for c in "xyz"):
                 row = cal_ok.tip_far_worst_row  # of the ok rows
-                print(format_far(cal_ok, float(est.t[i_e][ok][row]) if row >= 0 else None))
+                t_ok = est.t[i_e][scored][ok]
+                print(format_far(cal_ok, float(t_ok[row]) if row >= 0 else None))
         elif n_ok is None:
             print(f"ok rows              unknown: {args.estimates} has no status column")
         elif not (est.has_std and est.std is not None):

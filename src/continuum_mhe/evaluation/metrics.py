@@ -56,7 +56,8 @@ class Metrics:
         rmse: RMSE per compared column (m, rad or N; phi wrapped).
         srmse: the sum of the RMSEs of the columns in m and rad (:func:`srmse_columns`:
             the last section's end, the tip again, counted once; the paper's SRMSE for
-            one section, mixed units; a tendon robot's tip force left out).
+            one section, mixed units; a tendon robot's tip force and tension gains left
+            out).
         tip_mean_mm, tip_max_mm: Euclidean tip error, mm.
         tip_mean_pct, tip_max_pct: the same in % of the robot's length.
         n: samples compared; n_without_estimate: samples with no estimate;
@@ -137,15 +138,22 @@ def state_errors(
     return err
 
 
+def in_m_or_rad(name: str) -> bool:
+    """Whether the output column ``name`` is in m or rad: not a tendon robot's tip force
+    (N) nor its tension gain ``tension_gain_k`` (1)."""
+    return name not in TIP_FORCE_COLUMNS and not name.startswith("tension_gain")
+
+
 def srmse_columns(names: Sequence[str]) -> list[str]:
-    """The columns of ``names`` whose RMSEs the SRMSE sums: those in m and rad (not a
-    tendon robot's tip force), the last section's end (``x_n, y_n, z_n`` of ``n``
-    sections, the tip again) left out where the tip is there: each point counted once."""
+    """The columns of ``names`` whose RMSEs the SRMSE sums: those in m and rad
+    (:func:`in_m_or_rad`: not a tendon robot's tip force or tension gain), the last
+    section's end (``x_n, y_n, z_n`` of ``n`` sections, the tip again) left out where
+    the tip is there: each point counted once."""
     n = 0
     while f"theta_{n + 1}" in names:
         n += 1
     again = {f"{c}_{n}" for c in TIP_COLUMNS} if n and set(TIP_COLUMNS) <= set(names) else set()
-    return [c for c in names if c not in TIP_FORCE_COLUMNS and c not in again]
+    return [c for c in names if in_m_or_rad(c) and c not in again]
 
 
 def compute_metrics(
@@ -207,8 +215,7 @@ def compute_metrics(
     est = est_all[:, [names.index(c) for c in common]]
     tru = tru_all[:, [tnames.index(c) for c in common]]
     estimated = np.all(np.isfinite(est), axis=1)
-    tip_cols = [common.index(c) for c in TIP_COLUMNS]
-    has = estimated & np.all(np.isfinite(tru[:, tip_cols]), axis=1)
+    has = compared_rows(est_all, tru_all, names, tnames)
     if not has.any():
         raise UserError(
             "no sample has an estimate"
@@ -251,6 +258,22 @@ def compute_metrics(
         tip_force_rms_n=force_rms,
         n_without_truth=int((estimated & ~has).sum()),
     )
+
+
+def compared_rows(
+    estimate: FloatArray,
+    truth: FloatArray,
+    names: Sequence[str],
+    truth_names: Sequence[str],
+) -> NDArray[np.bool_]:
+    """The rows that :func:`compute_metrics` compares (its ``n``): an estimate in every
+    column both sides have, and a finite truth of the tip (``x, y, z``). ``estimate``
+    (n, k) has the columns ``names``, ``truth`` (n, k') the columns ``truth_names``;
+    both have the tip's."""
+    common = [c for c in names if c in truth_names]
+    est = np.asarray(estimate, dtype=float)[:, [list(names).index(c) for c in common]]
+    tip = np.asarray(truth, dtype=float)[:, [list(truth_names).index(c) for c in TIP_COLUMNS]]
+    return np.all(np.isfinite(est), axis=1) & np.all(np.isfinite(tip), axis=1)
 
 
 def section_numbers(columns: Iterable[str], field: str) -> list[int]:
