@@ -844,6 +844,14 @@ def test_a_bend_plane_in_radians_is_said(capsys: pytest.CaptureFixture[str]) -> 
     assert [radians_like_degrees(a) for a in (90.0, 0.0, 45.0, -3.0, 0.7854, -1.5708, 6.3)] == [
         False, False, False, False, True, True, False,
     ]  # fmt: skip
+    for beyond in ("1e300", "nan", "-400"):  # not an angle in degrees: one line, exit 2
+        code, out, err = _calibrate_main(capsys, *args, "--robot", "two-section",
+                                         "--bend-phi", beyond)  # fmt: skip
+        assert code == 2 and not out
+        assert err == (
+            f"continuum-mhe: error: --bend-phi must be an angle in degrees from -360 to 360, "
+            f"got {float(beyond):g}\n"
+        )
 
 
 def test_a_simulated_rest_calibrates_a_robot_of_three_sections(

@@ -163,8 +163,10 @@ def yaws_from_bend(
     """Every IMU's yaw from a raw bend recording's values (n, 6 * n_imus), given each
     IMU's ``(rest mount_rpy, gyro mean, gyro std)`` at rest; a problem is one
     :class:`InputError` naming ``path`` and the IMU."""
-    if not math.isfinite(phi_deg):
-        raise InputError(f"--bend-phi must be a finite angle in degrees, got {phi_deg}")
+    if not (math.isfinite(phi_deg) and abs(phi_deg) <= 360.0):
+        raise InputError(
+            f"--bend-phi must be an angle in degrees from -360 to 360, got {phi_deg:g}"
+        )
     if values.shape[1] != 6 * len(rest):
         raise InputError(f"{path}: {values.shape[1] // 6} IMU(s), the rest recording {len(rest)}")
     out = []
