@@ -861,3 +861,15 @@ def test_an_imu_whose_gyro_columns_are_empty_in_every_row_is_refused(
             r[c] = ""
     meas.write_text("\n".join([shipped[0], *(",".join(r) for r in some)]) + "\n")
     assert main(["estimate", str(meas), "--robot", "two-section", "-o", str(out)]) == 0
+
+
+def test_the_gravity_check_of_gyro_units_finds_a_whole_turn_at_1_hz() -> None:
+    """At 1 Hz a stretch is 5.5 s: a resting gyro in deg/s read as rad/s turns the
+    gravity direction by about a whole turn in it (1.3 to 1.8 deg/s, 2.9 to 3.3 ...),
+    which the angle between two directions (at most pi) would take as following it."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 60.0, 1.0)
+    acc = np.array([0.1, -0.2, 9.8]) + rng.normal(0.0, 0.05, (len(t), 3))
+    for bias in (1.4, 1.6, 3.1, 4.6):
+        deg_s = np.array([bias, 0.0, 0.0]) + rng.normal(0.0, 0.05, (len(t), 3))
+        assert gyro_gravity_problem(t, acc, deg_s) is not None, bias

@@ -180,9 +180,9 @@ def test_a_tensions_file_says_its_glitch_and_takes_the_curve() -> None:
 def test_a_huge_glitch_is_replaced_not_refused_as_tensions_in_mn() -> None:
     """One tension of 1e9 N on one row of the shipped ``unloaded`` tensions is a glitch,
     replaced by the curve through its neighbours and said; the scale check (tensions in
-    mN, a modulus far too low) judges the tensions the estimate takes, so it passes
-    (it had refused the file on that row, contradicting the warning). The same
-    tensions a thousand times too large throughout are refused."""
+    mN, a modulus far too low) judges the tensions the estimate takes, so it passes,
+    as the warning says. The same tensions a thousand times too large throughout are
+    refused."""
     robot = read_robot("tendon-two-section")
     table = read_tensions(DATA / "unloaded_tensions.csv", robot.n_tendons)
     v = table.values.copy()

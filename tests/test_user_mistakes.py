@@ -3231,3 +3231,46 @@ def test_a_robot_log_reading_beyond_any_imus_range_is_named(tmp_path, capsys) ->
     rows = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")][1:]
     statuses = [ln.rsplit(",", 2)[1] for ln in rows]
     assert len(statuses) == 60 and statuses[30] == "dropout"
+
+
+@pytest.mark.parametrize("skip_bad", [[], ["--skip-bad"]])
+def test_a_robot_log_in_another_accelerometer_unit_is_said_so_not_as_corrupt(
+    tmp_path, capsys, skip_bad
+) -> None:
+    # readings in mm/s^2 (some above 1e4) or in raw counts (all above it) are another
+    # unit, as a CSV's are, not a message with a corrupt value (nor, with --skip-bad, a
+    # recording of dropouts alone)
+    pytest.importorskip("rosbags")
+    stamps, acc, gyr = _still_imu(60)
+    out = tmp_path / "est.csv"
+    for name, scale, needle in (
+        ("mm", 1000.0, "the values look like mm/s^2"),
+        ("counts", 1670.0, "beyond any IMU's range in m/s^2 (limit 10000): raw counts?"),
+    ):
+        bag = _bag_of(tmp_path / f"{name}.bag", stamps, acc * scale, gyr)
+        assert main(["estimate", str(bag), "-o", str(out), *skip_bad]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and not out.exists()
+        assert f"{bag}: topic /tip/imu: accelerometer magnitude is about" in err, err
+        assert needle in err, err
+
+
+def test_a_robot_file_given_as_the_recording_is_not_blamed_on_the_configs_robot(
+    tmp_path, capsys
+) -> None:
+    # the hint names --robot (a robot file is given with it), but the options file's
+    # robot is not what is wrong: the message is the recording's own
+    two = tmp_path / "two.csv"
+    assert main(["simulate", "s-curve", "--robot", "two-section", "--duration", "1",
+                 "-o", str(two)]) == 0  # fmt: skip
+    est = tmp_path / "two_est.csv"
+    assert main(["estimate", str(two), "--robot", "two-section", "-o", str(est)]) == 0
+    robot = tmp_path / "robot.toml"
+    robot.write_text('mounting = "z-up"\n')
+    capsys.readouterr()
+    out = tmp_path / "x.csv"
+    assert main(["estimate", str(robot), "--config", str(est), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and not out.exists()
+    assert err.startswith(f"continuum-mhe: error: {robot}: line 1:"), err
+    assert "(a robot file? it is given with --robot ROBOT.toml)" in err

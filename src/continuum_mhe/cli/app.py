@@ -186,8 +186,9 @@ def _from_config(args: argparse.Namespace | None, exc: BaseException) -> str:
     that the options file (``--config``) set, naming it as the command line's flag
     (``--mount-rpy ...``; not another flag that begins alike, ``--loss-scale`` for
     ``--loss``) or, for a file option, a file it names that is not there (``5: no such
-    robot file``); or where the error asks for another ``--robot`` and the options file
-    set the robot (a recording of another robot's IMUs); else ``""``."""
+    robot file``); or where the error's fix is another robot (``pass --robot``) and the
+    options file set the robot (a recording of another robot's IMUs; not a hint that
+    merely names the flag); else ``""``."""
     sources = getattr(args, "config_sources", None)
     if not sources or not isinstance(exc, UserError):
         return ""
@@ -200,7 +201,7 @@ def _from_config(args: argparse.Namespace | None, exc: BaseException) -> str:
         missing = f"{getattr(args, dest, None)}: no such "
         in_file = dest in FILE_OPTIONS and message.startswith(missing)
         # a robot that the input does not fit: the fix the error names is this setting
-        robot = dest == "robot" and re.search(r"--robot(?![\w-])", message) is not None
+        robot = dest == "robot" and re.search(r"pass --robot(?![\w-])", message) is not None
         if named or in_file or robot:
             return f"{source}: "
     return ""

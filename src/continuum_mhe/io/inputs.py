@@ -79,6 +79,7 @@ from continuum_mhe.io.raw_units import (
     ACCEL_READING_MAX,
     GYRO_READING_MAX,
     TimeUnitWatch,
+    check_accel_range,
     check_accel_units,
     check_gyro_units,
 )
@@ -1009,6 +1010,11 @@ def _readings_in_range(
         acc_norm = np.hypot.reduce(acc, axis=1)  # hypot: no overflow of a finite 1e200
         gyr_norm = np.zeros(len(acc)) if gyr is None else np.hypot.reduce(gyr, axis=1)
         huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
+    # an accelerometer in another unit is said as a CSV's is, not as a corrupt message:
+    # raw counts (most readings beyond range), or mm/s^2 (its median about 9810)
+    label = f"{path}: topic {log.topic}"
+    check_accel_range(label, acc_norm)
+    check_accel_units(label, acc)
     out = np.flatnonzero(huge & ~_unpaired(log))
     if len(out) and not skip_bad:
         i = int(out[0])

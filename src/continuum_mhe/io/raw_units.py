@@ -31,11 +31,15 @@ UNIT_CHECK_SPAN_S = 1.0
 #: The gravity check of a gyro's units (:func:`gyro_gravity_problem`) compares the
 #: accelerometer's direction with the gyro's turn over stretches of this length (s), of
 #: at least :data:`GRAVITY_TURN_ROWS` readings (a recording sampled more slowly than
-#: that, under 10 Hz, is judged over stretches of :data:`GRAVITY_TURN_ROWS` and a half
+#: that, under 11 Hz, is judged over stretches of :data:`GRAVITY_TURN_ROWS` and a half
 #: of its median step, the mismatch allowed growing with the stretch:
 #: :func:`gravity_turn_span`), ...
 GRAVITY_TURN_SPAN_S = 0.5
 GRAVITY_TURN_ROWS = 5
+#: ... and not at all where those stretches would be longer than this (s): a recording
+#: sampled below about 1 Hz, or one whose times are in another unit (ms read as s),
+#: which the time checks name
+GRAVITY_TURN_SPAN_MAX_S = 6.0
 #: ... where the IMU is still: its specific force's magnitude spreads by at most this
 #: fraction of its mean over the stretch (the noise of a MEMS accelerometer at rest is
 #: about 0.5 %; a swing's own acceleration is more) ...
@@ -131,7 +135,7 @@ def gyro_units_problem(gyr: FloatArray, names: str = "gx, gy, gz") -> str | None
 def gravity_turn_span(t: FloatArray) -> float:
     """The length (s) of the gravity check's stretches for the times ``t``:
     :data:`GRAVITY_TURN_SPAN_S`, or, where that holds fewer than
-    :data:`GRAVITY_TURN_ROWS` steps of the median step (a recording under 10 Hz),
+    :data:`GRAVITY_TURN_ROWS` steps of the median step (a recording under 11 Hz),
     :data:`GRAVITY_TURN_ROWS` and a half steps, so that each stretch holds
     :data:`GRAVITY_TURN_ROWS` readings or more."""
     t = np.asarray(t, float)
@@ -201,6 +205,14 @@ def _turn_errors(
         # a direction fixed in the world turns in the IMU's frame as dv/dt = -w x v
         turned = Rotation.from_rotvec(-scale * turn).apply(first)
         errors[:, col] = np.arccos(np.clip(np.sum(turned * last, axis=1), -1.0, 1.0))
+        # the angle above wraps: a turn of about a whole turn (deg/s read as rad/s over
+        # the long stretches of a slow recording) would seem to follow gravity. Beyond a
+        # half turn, the turn across the direction less the direction's own move is a
+        # mismatch that does not wrap
+        across = np.linalg.norm(np.cross(scale * turn, first), axis=1)
+        moved = np.arccos(np.clip(np.sum(first * last, axis=1), -1.0, 1.0))
+        beyond = np.linalg.norm(scale * turn, axis=1) > math.pi
+        errors[beyond, col] = np.maximum(errors[beyond, col], (across - moved)[beyond])
     return errors
 
 
@@ -213,12 +225,15 @@ def gyro_gravity_problem(
     any unit) steady in magnitude, the rates ``gyr`` (n, 3) steady), the rates read as
     rad/s would turn the gravity direction by more than :data:`GRAVITY_TURN_MISMATCH`
     rad in the median stretch of :data:`GRAVITY_TURN_SPAN_S` (in proportion over the
-    longer stretches of a recording under 10 Hz: :func:`gravity_turn_span`), while read
+    longer stretches of a recording under 11 Hz: :func:`gravity_turn_span`), while read
     as deg/s they follow it at least three times as closely: what to say, naming the
-    columns ``names``; else None (also with fewer than two still stretches). A turn
-    about the vertical moves no accelerometer and says nothing."""
+    columns ``names``; else None (also with fewer than two still stretches, and where
+    the stretches would be longer than :data:`GRAVITY_TURN_SPAN_MAX_S`). A turn about
+    the vertical moves no accelerometer and says nothing."""
     t = np.asarray(t, float)
     span = gravity_turn_span(t)
+    if span > GRAVITY_TURN_SPAN_MAX_S:
+        return None
     errors = _turn_errors(t, np.asarray(acc, float), np.asarray(gyr, float), span)
     if len(errors) < 2:
         return None

@@ -266,7 +266,8 @@ class Tensions:
     @property
     def rows(self) -> FloatArray:
         """The file's tensions as it gives them (n, k), N: :attr:`values` unless these
-        are smoothed. The checks of the file read these."""
+        are smoothed. The checks of the file's sensors and logger read these; the scale
+        check (:meth:`check_scale`) reads :attr:`values`, as the estimate takes them."""
         return self.values if self.given is None else self.given
 
     def warn_smoothed(self) -> None:
