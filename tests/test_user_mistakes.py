@@ -3144,16 +3144,23 @@ def test_a_binary_file_with_a_cr_before_any_nul_is_said_to_be_no_text(tmp_path, 
         assert not out.exists()
 
 
-def test_a_config_of_another_robot_is_named_where_the_recording_does_not_fit(
-    tmp_path, capsys
-) -> None:
-    # the robot comes from --config's options line, not from --robot: the error names
-    # the line that set it
+def _two_section_estimate(tmp_path: Path) -> Path:
+    """An estimate of a 1 s simulated two-section recording (its options line names the
+    robot ``two-section``)."""
     two = tmp_path / "two.csv"
     assert main(["simulate", "s-curve", "--robot", "two-section", "--duration", "1",
                  "-o", str(two)]) == 0  # fmt: skip
     est = tmp_path / "two_est.csv"
     assert main(["estimate", str(two), "--robot", "two-section", "-o", str(est)]) == 0
+    return est
+
+
+def test_a_config_of_another_robot_is_named_where_the_recording_does_not_fit(
+    tmp_path, capsys
+) -> None:
+    # the robot comes from --config's options line, not from --robot: the error names
+    # the line that set it
+    est = _two_section_estimate(tmp_path)
     one = tmp_path / "one.csv"
     assert main(["simulate", "paper3d", "--duration", "1", "-o", str(one)]) == 0
     capsys.readouterr()
@@ -3260,11 +3267,7 @@ def test_a_robot_file_given_as_the_recording_is_not_blamed_on_the_configs_robot(
 ) -> None:
     # the hint names --robot (a robot file is given with it), but the options file's
     # robot is not what is wrong: the message is the recording's own
-    two = tmp_path / "two.csv"
-    assert main(["simulate", "s-curve", "--robot", "two-section", "--duration", "1",
-                 "-o", str(two)]) == 0  # fmt: skip
-    est = tmp_path / "two_est.csv"
-    assert main(["estimate", str(two), "--robot", "two-section", "-o", str(est)]) == 0
+    est = _two_section_estimate(tmp_path)
     robot = tmp_path / "robot.toml"
     robot.write_text('mounting = "z-up"\n')
     capsys.readouterr()
