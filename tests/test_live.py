@@ -707,3 +707,49 @@ def test_live_warms_its_estimator_up_before_it_opens_the_port(
     monkeypatch.setattr(live_cli, "open_port", open_port)
     assert main(["live", "--port", str(tmp_path / "ttyIMU"), "--method", "ekf"]) == 2
     assert order == ["warm-up", "open"]
+
+
+def test_the_firmware_header_of_a_tendon_robot_names_what_to_change(tmp_path: Path) -> None:
+    """The IMU firmware's ``# fields:`` line, forwarded as it is by a controller that adds
+    the tensions to the lines, names the IMUs' fields alone: live says that the tensions
+    are missing from it (not to check --format and --robot, which are right); a header
+    that names the tensions where --inputs gives them says that instead."""
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import serial_input
+    from continuum_mhe.io.robot_file import read_robot, shipped_robots
+    from continuum_mhe.live.session import LiveSession, LiveSettings
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.settings import MHESettings, NoiseSettings
+
+    base = make_formulation(
+        "bend", read_robot(shipped_robots()["tendon-two-section"]), NoiseSettings()
+    )
+    imus = ",".join(f"{a}_{i}" for i in (1, 2) for a in ("ax", "ay", "az", "gx", "gy", "gz"))
+    board = f"# fields: t_ms,{imus} (ms, m/s^2, rad/s; sensor frames)\r".encode()
+    tensions = ",".join(f"tension_{k}" for k in range(1, 7))
+    merged = f"# fields: t_ms,{imus},{tensions}".encode()
+    inputs = tmp_path / "tensions.csv"
+    inputs.write_text(
+        f"t,{tensions}\n" + "".join(f"{t},0.2,0.3,0.2,0.3,0.2,0.3\n" for t in range(3))
+    )
+
+    def said_to(header: bytes, options: InputOptions) -> str:
+        said: list[str] = []
+        serial = serial_input("/dev/ttyTEN", "raw", options, base)
+        est = make_estimator("ekf", serial.formulation, MHESettings())
+        s = LiveSession(
+            LiveSettings(port="/dev/ttyTEN"), est, serial.converters, None, said.append,
+            None, serial.tensions,
+        )  # fmt: skip
+        s.handle_line(header, time.monotonic())
+        return "\n".join(m for m in said if not m.startswith("device says"))
+
+    on_line, from_file = InputOptions(), InputOptions(tensions=str(inputs))
+    first = said_to(board, on_line)
+    assert "names 13 fields" in first and "expects 19" in first, first
+    assert "it names no tendon tensions" in first and "check --format" not in first, first
+    assert said_to(merged, on_line) == ""  # the controller named its tensions too
+    second = said_to(merged, from_file)
+    assert "which --inputs gives too" in second and "check --format" not in second, second
+    assert said_to(board, from_file) == ""

@@ -7,7 +7,8 @@
 //                first [[imu]] of the robot file (the one nearer the base)
 // Plain Wire.h register access, no external library.
 //
-// Line protocol (ASCII, 115200 baud, one sample per line, '\n' terminated):
+// Line protocol (ASCII, 115200 baud, one sample per line; a data line ends in '\n', a
+// '#' line in "\r\n" as println ends it; the host takes LF, CR and CRLF alike):
 //   t_ms,ax,ay,az,gx,gy,gz                      (one IMU)
 //   t_ms,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,...  (two IMUs)
 //     t_ms      device time, milliseconds since boot (millis())
@@ -15,7 +16,10 @@
 //     gx,gy,gz  angular rate in rad/s, sensor frame, start-up bias removed
 // Lines starting with '#' are comments: a banner with the version, ranges and rate
 // at start-up, a '# fields: ...' line naming the fields, the gyro biases, and any
-// error. The host shows them and counts them.
+// error. The host shows them and counts them. A sensor that fails to answer costs the
+// samples until it answers again (one '# error: I2C read failed' line each); it is then
+// configured again, as is one found with other ranges than these (a power drop resets
+// an MPU9250 to +-2 g and +-250 deg/s, which these scales would read twice too large).
 //
 // Mounting: put the sensor's z axis along the robot's tip tangent (pointing away
 // from the base); see firmware/README.md and docs/hardware.md for other mountings
@@ -54,7 +58,7 @@ static const uint8_t REG_SMPLRT_DIV = 0x19;
 static const uint8_t REG_CONFIG = 0x1A;
 static const uint8_t REG_GYRO_CONFIG = 0x1B;
 static const uint8_t REG_ACCEL_CONFIG = 0x1C;
-static const uint8_t REG_ACCEL_CONFIG2 = 0x1D;
+static const uint8_t REG_ACCEL_CONFIG2 = 0x1D;  // follows REG_ACCEL_CONFIG
 static const uint8_t REG_ACCEL_XOUT_H = 0x3B;
 static const uint8_t REG_PWR_MGMT_1 = 0x6B;
 static const uint8_t REG_WHO_AM_I = 0x75;
@@ -74,8 +78,9 @@ static const uint8_t ADDRESSES[IMU_COUNT] = {0x68, 0x69};
 #endif
 
 static float gyro_bias[IMU_COUNT][3];
+static bool configured[IMU_COUNT];  // false after a failed read: configure before the next
 static unsigned long next_us = 0;
-static unsigned long late_samples = 0;
+static unsigned int until_check = 0;  // samples until the ranges are read back
 
 static bool writeRegister(uint8_t addr, uint8_t reg, uint8_t value) {
   Wire.beginTransmission(addr);
@@ -98,27 +103,50 @@ static bool readRaw(uint8_t addr, int16_t out[6]) {
   uint8_t b[14];
   if (!readRegisters(addr, REG_ACCEL_XOUT_H, b, 14)) return false;
   for (uint8_t i = 0; i < 3; i++) {
-    out[i] = (int16_t)((b[2 * i] << 8) | b[2 * i + 1]);
-    out[3 + i] = (int16_t)((b[8 + 2 * i] << 8) | b[9 + 2 * i]);
+    out[i] = (int16_t)(((uint16_t)b[2 * i] << 8) | b[2 * i + 1]);
+    out[3 + i] = (int16_t)(((uint16_t)b[8 + 2 * i] << 8) | b[9 + 2 * i]);
   }
   return true;
+}
+
+// The sensor's clock, filters, rate and ranges; true where every write was taken.
+static bool configure(uint8_t addr) {
+  return writeRegister(addr, REG_PWR_MGMT_1, 0x01)         // clock: PLL from the gyro
+         && writeRegister(addr, REG_CONFIG, 0x03)          // gyro DLPF 41 Hz, 1 kHz rate
+         && writeRegister(addr, REG_SMPLRT_DIV, 0x00)      // 1 kHz updates; polled at RATE_HZ
+         && writeRegister(addr, REG_GYRO_CONFIG, GYRO_FS_BITS)
+         && writeRegister(addr, REG_ACCEL_CONFIG, ACCEL_FS_BITS)
+         && writeRegister(addr, REG_ACCEL_CONFIG2, 0x03);  // accel DLPF 44.8 Hz
+}
+
+// Whether the sensor answers with the ranges the scales assume.
+static bool rangesKept(uint8_t addr) {
+  uint8_t fs[2];
+  return readRegisters(addr, REG_GYRO_CONFIG, fs, 2) && (fs[0] & 0x18) == GYRO_FS_BITS &&
+         (fs[1] & 0x18) == ACCEL_FS_BITS;
 }
 
 static uint8_t setupSensor(uint8_t addr) {
   writeRegister(addr, REG_PWR_MGMT_1, 0x80);  // reset
   delay(100);
-  writeRegister(addr, REG_PWR_MGMT_1, 0x01);  // clock: PLL from the gyro
+  writeRegister(addr, REG_PWR_MGMT_1, 0x01);
   delay(10);
   uint8_t who = 0;
   if (!readRegisters(addr, REG_WHO_AM_I, &who, 1)) return 0;
-  writeRegister(addr, REG_CONFIG, 0x03);         // gyro DLPF 41 Hz, 1 kHz internal rate
-  writeRegister(addr, REG_SMPLRT_DIV, 0x00);     // 1 kHz register updates; polled at RATE_HZ
-  writeRegister(addr, REG_GYRO_CONFIG, GYRO_FS_BITS);
-  writeRegister(addr, REG_ACCEL_CONFIG, ACCEL_FS_BITS);
-  writeRegister(addr, REG_ACCEL_CONFIG2, 0x03);  // accel DLPF 44.8 Hz
+  configure(addr);
   delay(50);
   return who;
 }
+
+// Wire's timeout where this core's Wire has one (AVR core 1.8.3 and later; some, such as
+// Debian's, do not define WIRE_HAS_TIMEOUT): a stuck bus then fails a read instead of
+// hanging the board.
+template <typename W>
+static auto setTimeout(W &wire, int) -> decltype(wire.setWireTimeout(3000UL, true), void()) {
+  wire.setWireTimeout(3000UL, true);
+}
+template <typename W>
+static void setTimeout(W &, long) {}
 
 static bool isMpu(uint8_t who) { return who == 0x71 || who == 0x73 || who == 0x70; }
 
@@ -133,36 +161,44 @@ static void printField(const __FlashStringHelper *name, uint8_t imu) {
 #endif
 }
 
-static void calibrateGyro(uint8_t imu) {
-  long sum[3] = {0, 0, 0};
-  int n = 0;
+// Every sensor's gyro bias, averaged over the same second (all sensors at once).
+static void calibrateGyros() {
+  long sum[IMU_COUNT][3] = {};
+  int n[IMU_COUNT] = {};
   int16_t raw[6];
   for (int i = 0; i < BIAS_SAMPLES; i++) {
-    if (readRaw(ADDRESSES[imu], raw)) {
-      for (uint8_t k = 0; k < 3; k++) sum[k] += raw[3 + k];
-      n++;
+    for (uint8_t imu = 0; imu < IMU_COUNT; imu++) {
+      if (readRaw(ADDRESSES[imu], raw)) {
+        for (uint8_t k = 0; k < 3; k++) sum[imu][k] += raw[3 + k];
+        n[imu]++;
+      }
     }
     delay(5);
   }
-  for (uint8_t k = 0; k < 3; k++) {
-    gyro_bias[imu][k] = n ? GYRO_SCALE * (float)sum[k] / n : 0.0f;
+  for (uint8_t imu = 0; imu < IMU_COUNT; imu++) {
+    Serial.print(F("# gyro bias rad/s, IMU "));
+    Serial.print(imu + 1);
+    Serial.print(F(": "));
+    for (uint8_t k = 0; k < 3; k++) {
+      gyro_bias[imu][k] = n[imu] ? GYRO_SCALE * (float)sum[imu][k] / n[imu] : 0.0f;
+      Serial.print(gyro_bias[imu][k], 5);
+      Serial.print(k < 2 ? ',' : '\n');
+    }
   }
-  Serial.print(F("# gyro bias rad/s, IMU "));
-  Serial.print(imu + 1);
-  Serial.print(F(": "));
-  for (uint8_t k = 0; k < 3; k++) {
-    Serial.print(gyro_bias[imu][k], 5);
-    Serial.print(k < 2 ? ',' : '\n');
-  }
+}
+
+static void printImu(uint8_t i) {
+  Serial.print(F("IMU "));
+  Serial.print(i + 1);
+  Serial.print(F(" at 0x"));
+  Serial.print(ADDRESSES[i], HEX);
 }
 
 void setup() {
   Serial.begin(BAUD);
   Wire.begin();
   Wire.setClock(400000);
-#if defined(WIRE_HAS_TIMEOUT)
-  Wire.setWireTimeout(3000, true);  // never hang on a stuck bus
-#endif
+  setTimeout(Wire, 0);
   uint8_t who[IMU_COUNT];
   for (uint8_t i = 0; i < IMU_COUNT; i++) {
     who[i] = setupSensor(ADDRESSES[i]);
@@ -197,7 +233,8 @@ void setup() {
   }
   Serial.println(F(" (ms, m/s^2, rad/s; sensor frames)"));
   Serial.println(F("# calibrating gyro bias: keep the robot still"));
-  for (uint8_t i = 0; i < IMU_COUNT; i++) calibrateGyro(i);
+  calibrateGyros();
+  for (uint8_t i = 0; i < IMU_COUNT; i++) configured[i] = true;
   next_us = micros();
 }
 
@@ -206,16 +243,28 @@ void loop() {
   next_us += PERIOD_US;
   if ((long)(micros() - next_us) > (long)PERIOD_US) {  // fell behind: resynchronise
     next_us = micros() + PERIOD_US;
-    late_samples++;
+  }
+  bool check = until_check == 0;  // the ranges, read back once a second
+  until_check = check ? RATE_HZ : until_check - 1;
+  for (uint8_t i = 0; i < IMU_COUNT; i++) {
+    if (configured[i] && !(check && !rangesKept(ADDRESSES[i]))) continue;
+    if (!configure(ADDRESSES[i]) || !rangesKept(ADDRESSES[i])) {
+      configured[i] = false;  // still not answering: the read below says so
+      continue;
+    }
+    Serial.print(F("# error: "));  // answering again (after a power drop?) or reset
+    printImu(i);
+    Serial.println(F(" configured again: its ranges were lost or it did not answer"));
+    configured[i] = true;
   }
   int16_t raw[IMU_COUNT][6];
   unsigned long t = millis();
   for (uint8_t i = 0; i < IMU_COUNT; i++) {
-    if (!readRaw(ADDRESSES[i], raw[i])) {  // one sensor failed: no sample at all
-      Serial.print(F("# error: I2C read failed, IMU "));
-      Serial.print(i + 1);
-      Serial.print(F(" at 0x"));
-      Serial.println(ADDRESSES[i], HEX);
+    if (!configured[i] || !readRaw(ADDRESSES[i], raw[i])) {  // no sample at all
+      configured[i] = false;
+      Serial.print(F("# error: I2C read failed, "));
+      printImu(i);
+      Serial.println();
       return;
     }
   }

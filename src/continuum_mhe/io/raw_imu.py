@@ -441,14 +441,16 @@ def raw_blocks(
         acc[zero] = np.nan
         block[huge] = np.nan
         check_accel_units(name, acc)
+        # the times first: times a thousand times too long would make the gyro's
+        # gravity check below read a rad/s gyro as deg/s
+        if has_gyro and t is not None and time_watch is not None:
+            time_watch.add(label, t, acc, block[:, 3:6])
         judged = first_block or int(np.isfinite(gyr_norm).sum()) >= UNIT_CHECK_SAMPLES
         if has_gyro and judged:
             gravity = t is not None and first_block
             check_gyro_units(
                 label, block[:, 3:6], gyro_used, t if gravity else None, acc if gravity else None
             )
-        if has_gyro and t is not None and time_watch is not None:
-            time_watch.add(label, t, acc, block[:, 3:6])
         out.append((acc, block[:, 3:6] if has_gyro else None))
     return out
 

@@ -53,6 +53,7 @@ from continuum_mhe.stream.protocol import (
     Sample,
     field_count_hint,
     header_fields,
+    header_hint,
     line_fields,
     parse_line,
 )
@@ -617,7 +618,10 @@ class LiveSession:
                 self.say(
                     f"the device names {len(names)} fields ({','.join(names)}) but "
                     f"--format {self.settings.fmt} with {self.n_imus} IMU(s){tensions} "
-                    f"expects {len(want)} ({','.join(want)}); check --format and --robot"
+                    f"expects {len(want)} ({','.join(want)}); "
+                    + header_hint(
+                        names, self.settings.fmt, self.n_imus, self.n_tensions, self._file_tensions
+                    )
                 )
 
     def unended_bytes(self, nbytes: int, arrival: float) -> None:

@@ -244,6 +244,33 @@ def field_count_hint(
     return ""
 
 
+def header_hint(
+    names: tuple[str, ...],
+    fmt: LineFormat,
+    n_imus: int,
+    n_tensions: int = 0,
+    file_tensions: int = 0,
+) -> str:
+    """What to check where a device's ``# fields:`` line names other ``names`` than a line
+    of ``n_tensions`` tensions expects: the tensions left out of the names (a controller
+    that adds its tensions to the IMU board's lines and forwards the board's ``# fields:``
+    line as it is), the tensions named where ``file_tensions`` come from ``--inputs``, else
+    ``--format`` and ``--robot``."""
+    imus = line_fields(fmt, n_imus)
+    if n_tensions and names == imus:
+        return (
+            f"it names no tendon tensions: each line must carry tension_1..tension_{n_tensions} "
+            "(N) after the IMUs' fields, and a controller that adds them to the IMU board's "
+            "lines adds their names to its '# fields:' line too; or give --inputs TENSIONS.csv"
+        )
+    if file_tensions and names == line_fields(fmt, n_imus, file_tensions):
+        return (
+            f"it names the robot's {file_tensions} tendon tensions, which --inputs gives too; "
+            "leave --inputs out (live then reads the line's), or send the IMUs' fields alone"
+        )
+    return "check --format and --robot"
+
+
 def header_fields(comment: str) -> tuple[str, ...] | None:
     """The field names of a ``# fields: t_ms,ax,... (units)`` comment (or ``# format:``,
     ``# columns:``), or None for any other line: the same reading as a file's
