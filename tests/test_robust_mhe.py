@@ -607,7 +607,7 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
     """The SQP's certificate (step, contraction or quadratic-rate estimate) against the
     answer iterated far beyond it, window by window, on the benchmark's 40 s recording
     at N = 30: within ``err_tol`` (1e-8) in the certificate's norm, the rates' errors
-    weighted by 0.1 s (``WindowModel.step_scale``). Huber's kink would let 4.3e-8 through
+    weighted by 0.1 s (``WindowModel.step_scale``). Huber's kink would let 3.3e-7 through
     the quadratic-rate estimate, which Huber therefore does not use."""
     rec = simulate("paper3d", duration=40.0, noise_deg=2.0, seed=0)
     z = rec.z
