@@ -1019,7 +1019,7 @@ def _readings_in_range(
     if len(out) and not skip_bad:
         i = int(out[0])
         raise InputError(
-            f"{path}: topic {log.topic}: the message at t = {time_text(float(t[i]))} s "
+            f"{label}: the message at t = {time_text(float(t[i]))} s "
             f"({_message_number(log, i)}): a reading beyond any IMU's range (|a| "
             f"{acc_norm[i]:.3g} m/s^2, limit {ACCEL_READING_MAX:g}; |omega| "
             f"{gyr_norm[i]:.3g} rad/s, limit {GYRO_READING_MAX:g}): a corrupt value "
@@ -1041,8 +1041,7 @@ def _convert_log(
 ) -> FloatArray:
     if raw.needs_gyro and gyr is None:
         raise InputError(f"{path}: {_gyro_user(raw)} needs gyro columns gx, gy, gz")
-    # the units of the raw vectors, where they are used (not with --orientation)
-    check_accel_units(f"{path}: topic {topic}", acc)
+    # the gyro's units where it is used (the accelerometer's: _readings_in_range)
     if gyr is not None:
         check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro, t, acc)
     return raw_to_measurements(t, acc, gyr, raw)

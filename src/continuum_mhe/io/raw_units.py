@@ -201,6 +201,7 @@ def _turn_errors(
     from scipy.spatial.transform import Rotation  # here: a tilt run imports no SciPy
 
     errors = np.empty((len(first), 2))
+    moved = np.arccos(np.clip(np.sum(first * last, axis=1), -1.0, 1.0))  # the direction's own
     for col, scale in enumerate((1.0, math.pi / 180.0)):
         # a direction fixed in the world turns in the IMU's frame as dv/dt = -w x v
         turned = Rotation.from_rotvec(-scale * turn).apply(first)
@@ -210,7 +211,6 @@ def _turn_errors(
         # half turn, the turn across the direction less the direction's own move is a
         # mismatch that does not wrap
         across = np.linalg.norm(np.cross(scale * turn, first), axis=1)
-        moved = np.arccos(np.clip(np.sum(first * last, axis=1), -1.0, 1.0))
         beyond = np.linalg.norm(scale * turn, axis=1) > math.pi
         errors[beyond, col] = np.maximum(errors[beyond, col], (across - moved)[beyond])
     return errors
