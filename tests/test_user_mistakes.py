@@ -3277,3 +3277,63 @@ def test_a_robot_file_given_as_the_recording_is_not_blamed_on_the_configs_robot(
     assert err.count("\n") == 1 and not out.exists()
     assert err.startswith(f"continuum-mhe: error: {robot}: line 1:"), err
     assert "(a robot file? it is given with --robot ROBOT.toml)" in err
+
+
+def _tip_truth_turned(src: Path, dst: Path, turn: np.ndarray) -> None:
+    """``src``'s truth as a motion capture gives it, ``t, x, y, z`` of the tip alone, each
+    position turned by the matrix ``turn`` (3, 3)."""
+    from continuum_mhe.io.state_tables import read_state_table
+
+    table = read_state_table(src)
+    tip = table.values[:, [table.names.index(c) for c in ("x", "y", "z")]] @ turn.T
+    np.savetxt(dst, np.c_[table.t, tip], delimiter=",", header="t,x,y,z", comments="", fmt="%.9g")
+
+
+def test_evaluate_and_plot_warn_of_a_truth_in_a_y_up_motion_capture_frame(
+    paper3d_pair, tmp_path, capsys
+) -> None:
+    """A motion capture's tip positions in its y-up frame (x, z, -y of the robot's base
+    frame) were scored as they are, hundreds of mm off, without a word: the truth turned
+    about the base fits far better, and the warning names where its axes lie; the same
+    tip positions in the base frame, and turned by 10 degrees only, say nothing."""
+    e = str(paper3d_pair["e"])
+    y_up = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # base frame -> y-up frame
+    cases = {"yup": y_up, "base": np.eye(3)}
+    small = math.radians(10)
+    cases["small"] = np.array(
+        [[math.cos(small), -math.sin(small), 0], [math.sin(small), math.cos(small), 0], [0, 0, 1]]
+    )
+    paths = {k: tmp_path / f"{k}.csv" for k in cases}
+    for k, turn in cases.items():
+        _tip_truth_turned(paper3d_pair["t"], paths[k], turn)
+    said = "the truth's tip fits the estimate far better turned about the base by 90 degrees"
+    assert main(["evaluate", e, str(paths["yup"])]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {paths['yup']}: {said}" in err
+    assert "its x, y and z lie along the estimate's x, z, -y" in err
+    assert main(["plot", e, "--truth", str(paths["yup"]), "-o", str(tmp_path / "f.png")]) == 0
+    assert said in capsys.readouterr().err  # as evaluate
+    for k in ("base", "small"):
+        assert main(["evaluate", e, str(paths[k])]) == 0
+        assert "turned about the base" not in capsys.readouterr().err, k
+
+
+def test_best_rotation_recovers_a_known_turn_of_the_positions() -> None:
+    """The rotation that takes the truth's positions back to the estimate's: a known
+    turn of 40 degrees about a tilted axis is found to 1e-9, with its error 0 against the
+    unturned one; positions as they are give 0 degrees; too few rows give None."""
+    from scipy.spatial.transform import Rotation
+
+    from continuum_mhe.evaluation.metrics import ROTATION_MIN_ROWS, best_rotation
+
+    rng = np.random.default_rng(3)
+    est = rng.normal(size=(50, 3)) * 0.1
+    turn = Rotation.from_rotvec(math.radians(40) * np.array([1.0, 2.0, 2.0]) / 3.0)
+    found = best_rotation(est, turn.inv().apply(est))
+    assert found is not None
+    assert found.angle_deg == pytest.approx(40.0, abs=1e-9)
+    np.testing.assert_allclose(found.matrix, turn.as_matrix(), atol=1e-9)
+    assert found.error < 1e-12 and found.unturned > 0.01
+    same = best_rotation(est, est)
+    assert same is not None and same.angle_deg < 1e-6 and same.unturned == 0.0
+    assert best_rotation(est[: ROTATION_MIN_ROWS - 1], est[: ROTATION_MIN_ROWS - 1]) is None

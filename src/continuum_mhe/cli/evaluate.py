@@ -28,6 +28,7 @@ from continuum_mhe.cli.truth_checks import (
     seconds_text,
     spans_the_truth,
     truth_frame_warning,
+    turned_frame_warning,
 )
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
@@ -304,6 +305,9 @@ def _evaluate(args: argparse.Namespace) -> int:
     # the truth's own positions against its own angles (an estimate's can drift from
     # its angles by design: the paper formulation's positions are states of their own)
     warned.append(truth_frame_warning(args.truth, truth, robot.lengths))
+    warned.append(
+        turned_frame_warning(args.truth, est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], length)
+    )
     warned.append(
         clock_offset_warning(
             args.truth, est, truth, length, m.tip_mean_mm / 1e3,

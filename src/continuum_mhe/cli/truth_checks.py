@@ -1,7 +1,8 @@
 """The checks of a truth against an estimate that ``evaluate``, ``plot`` and ``view``
 share: too few of the estimate's rows with a truth (:func:`rows_matched`), a truth on an
 offset clock (:func:`clock_offset_warning`), a truth whose tip points away from its own
-bend angles (:func:`truth_frame_warning`); ``plot`` and ``view`` take them together
+bend angles (:func:`truth_frame_warning`), a truth in another frame than the estimate's
+(:func:`turned_frame_warning`); ``plot`` and ``view`` take them together
 (:func:`truth_beside`)."""
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from continuum_mhe.errors import InputError
 from continuum_mhe.evaluation.metrics import (
     SHIFT_MAX_S,
     aligned_truth,
+    best_rotation,
     best_time_shift,
     length_misfit,
     truth_sparser,
@@ -76,6 +78,54 @@ def clock_offset_warning(
         f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} {later} {fits} (a "
         f"motion that repeats can fit shifted too; {shift_option} {total} "
         "compares them so)"
+    )
+
+
+#: ``evaluate`` warns where the truth's positions turned about the base by at least
+#: :data:`TURN_MIN_DEG` degrees fit the estimate with a mean tip error below
+#: :data:`TURN_GAIN` of the unturned one, itself at least :data:`SHIFT_MIN_ERROR` of the
+#: robot's length (a truth in a y-up motion capture's frame, beside an estimate in the
+#: robot's z-up base frame).
+TURN_MIN_DEG = 15.0
+TURN_GAIN = 0.5
+#: An axis of the truth within this angle of one of the estimate's (after the best
+#: rotation) is named as lying along it.
+AXIS_NAMED_DEG = 20.0
+
+
+def turned_frame_warning(
+    path: str, tip_est: np.ndarray, tip_truth: np.ndarray, length: float
+) -> str:
+    """A warning where the truth ``path``'s tip positions ``tip_truth`` (n, 3) m fit the
+    estimate's ``tip_est`` (n, 3) m at the same rows far better turned about the base
+    (:func:`~continuum_mhe.evaluation.metrics.best_rotation`; thresholds
+    :data:`TURN_MIN_DEG`, :data:`TURN_GAIN`, and a mean tip error of at least
+    :data:`SHIFT_MIN_ERROR` of the robot's ``length`` m), else ``""``. Where each of the
+    truth's axes lies along one of the estimate's, the warning names them."""
+    turn = best_rotation(tip_est, tip_truth)
+    if (
+        turn is None
+        or turn.unturned < SHIFT_MIN_ERROR * length
+        or turn.angle_deg < TURN_MIN_DEG
+        or not turn.error < TURN_GAIN * turn.unturned
+    ):
+        return ""
+    named = []
+    for column in turn.matrix.T:  # the truth's x, y, z in the estimate's frame
+        k = int(np.argmax(np.abs(column)))
+        if abs(column[k]) < math.cos(math.radians(AXIS_NAMED_DEG)):
+            break
+        named.append(("-" if column[k] < 0 else "") + "xyz"[k])
+    axes = (
+        f"; its x, y and z lie along the estimate's {', '.join(named)}" if len(named) == 3 else ""
+    )
+    return (
+        f"{path}: the truth's tip fits the estimate far better turned about the base by "
+        f"{turn.angle_deg:.0f} degrees (mean tip error {turn.error * 1e3:.3g} mm against "
+        f"{turn.unturned * 1e3:.3g} mm as given){axes}: are its positions in another "
+        "frame than the robot's base frame (a y-up motion capture, axes swapped, a sign "
+        "flipped)? The scores compare them as given: express the truth in the base frame "
+        "(z along the unbent backbone for mounting z-up, x where the bend angle phi is 0)"
     )
 
 
@@ -227,6 +277,11 @@ def truth_beside(
     err = np.linalg.norm(tip - rows[:, [truth.names.index(c) for c in TIP_COLUMNS]], axis=1)
     err = err[np.isfinite(err)]
     mean = float(err.mean()) if len(err) else math.nan  # the mean tip error, m
+    warned.append(
+        turned_frame_warning(
+            path_truth, tip, rows[:, [truth.names.index(c) for c in TIP_COLUMNS]], sum(lengths)
+        )
+    )
     offset = clock_offset_warning(
         path_truth, est, truth, sum(lengths), mean, shift_option, given_shift
     )

@@ -735,3 +735,48 @@ def best_time_shift(
     if abs(best) < 0.5 * period or not found < (1.0 - 1e-6) * unshifted:  # no better: none
         return TimeShift(0.0, unshifted, unshifted)
     return TimeShift(best, found, unshifted)
+
+
+#: :func:`best_rotation` needs this many rows with both tips.
+ROTATION_MIN_ROWS = 10
+
+
+@dataclass(frozen=True)
+class FrameRotation:
+    """The rotation of the truth's positions about the robot's base that fits an
+    estimate best (:func:`best_rotation`): ``matrix`` (3, 3) takes a truth position to the
+    estimate's frame, turning it by ``angle_deg`` degrees; the mean tip error is then
+    ``error`` (m), against ``unturned`` (m) as the positions are."""
+
+    matrix: FloatArray
+    angle_deg: float
+    error: float
+    unturned: float
+
+
+def best_rotation(tip_est: FloatArray, tip_truth: FloatArray) -> FrameRotation | None:
+    """The rotation about the base (the origin) that brings the truth's tip positions
+    ``tip_truth`` (n, 3) m nearest those of the estimate ``tip_est`` (n, 3) m at the same
+    rows, in the least-squares sense (``scipy.spatial.transform.Rotation.align_vectors``);
+    rows with a NaN on either side left out. None with fewer than
+    :data:`ROTATION_MIN_ROWS` rows. A truth in another frame than the robot's base frame
+    (a y-up motion capture, axes swapped) shows as a large angle whose error is far below
+    the unturned one."""
+    from scipy.spatial.transform import Rotation
+
+    est = np.asarray(tip_est, dtype=float)
+    truth = np.asarray(tip_truth, dtype=float)
+    both = np.all(np.isfinite(est), axis=1) & np.all(np.isfinite(truth), axis=1)
+    if both.sum() < ROTATION_MIN_ROWS:
+        return None
+    est, truth = est[both], truth[both]
+    with warnings.catch_warnings():  # a degenerate set (a straight robot): any answer
+        warnings.simplefilter("ignore", UserWarning)
+        rotation, _ = Rotation.align_vectors(est, truth)
+    turned = rotation.apply(truth)
+    return FrameRotation(
+        matrix=rotation.as_matrix(),
+        angle_deg=math.degrees(float(rotation.magnitude())),
+        error=float(np.linalg.norm(turned - est, axis=1).mean()),
+        unturned=float(np.linalg.norm(truth - est, axis=1).mean()),
+    )
