@@ -628,6 +628,40 @@ def test_a_tendon_robot_is_drawn_from_its_mechanics_model(tendon_view: dict[str,
     assert truth.shape[1:] == (robot.n_sections, POINTS + 1, 3)
 
 
+def test_a_tendon_robots_tip_force_is_an_arrow_from_its_tip(tendon_view: dict[str, Any]) -> None:
+    """The estimated tip force, and the truth's, are arrows from their tips along the
+    force, ``force_arrow_scale`` m per N (0.15 of the robot's length per E I / L^2),
+    labelled with the force's magnitude; a robot without a backbone has no scale."""
+    from importlib.resources import files
+
+    from continuum_mhe.viewer.view import FORCE_ARROW_SHARE, force_arrow_scale
+
+    rows, robot = read_rrd(tendon_view["rrd"]), read_robot("tendon-two-section")
+    b = robot.backbone
+    assert b is not None
+    scale = force_arrow_scale(robot)
+    ei = b.youngs_modulus * math.pi * b.radius**4 / 4
+    assert scale == pytest.approx(FORCE_ARROW_SHARE * robot.length**3 / ei, rel=1e-12)
+    assert force_arrow_scale(read_robot("two-section")) is None
+    est = read_state_table(tendon_view["est"], ())
+    arrows = rows["/world/estimate/tip_force"]
+    assert [t for t, _ in arrows] == _ns(est.t)
+    origins = np.array([r["Arrows3D:origins"][0] for _, r in arrows])
+    vectors = np.array([r["Arrows3D:vectors"][0] for _, r in arrows])
+    tip = np.column_stack([est.column(c) for c in "xyz"])
+    force = np.column_stack([est.column(c) for c in ("fx", "fy", "fz")])
+    np.testing.assert_allclose(origins, tip, atol=1e-6)  # float32 in the file
+    np.testing.assert_allclose(vectors, force * scale, rtol=1e-5, atol=1e-6)
+    labels = [r["Arrows3D:labels"][0] for _, r in arrows]
+    assert labels == [f"{np.linalg.norm(f):.3f} N" for f in force]
+    truth = read_state_table(files("continuum_mhe") / "data" / "tendon" / "twist-29_truth.csv", ())
+    drawn = rows["/world/truth/tip_force"]
+    truth_force = np.column_stack([truth.column(c) for c in ("fx", "fy", "fz")])
+    got = np.array([r["Arrows3D:vectors"][0] for _, r in drawn])
+    np.testing.assert_allclose(got, truth_force[: len(got)] * scale, rtol=1e-5, atol=1e-6)
+    assert np.abs(truth_force[: len(got)]).max() > 0.01  # a load that draws an arrow
+
+
 def test_a_tendon_robots_live_shapes_are_its_replayed_ones(tendon_view: dict[str, Any]) -> None:
     """The live hook draws a tendon robot from each estimate's state (base curvature,
     tip force, tensions), a replay from each row's tip force and the tensions file: at

@@ -17,6 +17,9 @@ Entities, on the timeline ``t`` (the sample time in s, as in the estimate CSV):
   ``world/estimate/tip_trail``: one segment per estimate, from the previous tip, shown for
   the last ``trail_s`` seconds (a blueprint override), so the file grows by a constant
   amount per sample.
+- ``world/estimate/tip_force``: a tendon robot's tip force as an arrow from the tip
+  (:func:`~continuum_mhe.viewer.view.force_arrow_scale` m per N), labelled in N;
+  ``world/truth/tip_force`` the truth's, where it has ``fx, fy, fz``.
 - ``world/truth/{tip,tip_trail}``: a truth CSV's ``x, y, z``; ``world/truth/section_ends``
   its section ends; ``world/truth/backbone`` the PCC curve through its bends, where given
   (a tendon robot's: the mechanics model's at its tip force and the tensions).

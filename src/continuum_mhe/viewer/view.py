@@ -42,6 +42,12 @@ APPLICATION_ID = "continuum-mhe"
 SECTION_COLOURS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40))
 TRUTH_COLOUR = (150, 150, 150)
 TRAIL_COLOUR = (227, 119, 194)
+FORCE_COLOUR = (23, 190, 207)
+#: A tip force's arrow is this share of the robot's length per the backbone's force
+#: scale ``E I / L^2`` (N; ``I`` the round backbone's second moment of area, ``L`` the
+#: robot's length): a load that bends the robot visibly draws an arrow of a fraction of
+#: its size (0.27 m for 0.29 N on the shipped 0.4 m tendon robot).
+FORCE_ARROW_SHARE = 0.15
 #: free bytes below which a failed .rrd write is put down to a full disk, and below
 #: which no .rrd is begun (Rerun's file writer can hang on a disk that fills while it
 #: writes a recording's first bytes)
@@ -104,6 +110,23 @@ def nanoseconds(t: Any) -> Any:
     return ns.astype("timedelta64[ns]") if ns.ndim else np.timedelta64(int(ns), "ns")
 
 
+def force_arrow_scale(robot: Robot) -> float | None:
+    """Metres of a tip force's arrow per newton: :data:`FORCE_ARROW_SHARE` of the robot's
+    length ``L`` per ``E I / L^2`` N, the backbone's force scale (``I = pi r^4 / 4``);
+    None for a robot without a backbone (no tip force)."""
+    b = robot.backbone
+    if b is None:
+        return None
+    length = robot.length
+    force_scale = b.youngs_modulus * math.pi * b.radius**4 / 4.0 / length**2
+    return FORCE_ARROW_SHARE * length / force_scale
+
+
+def force_label(force: FloatArray) -> str:
+    """A tip force's arrow label: its magnitude in N."""
+    return f"{float(np.linalg.norm(force)):.3f} N"
+
+
 class BackboneView:
     """A Rerun recording of backbone estimates (see the module doc for its entities).
 
@@ -158,6 +181,15 @@ class BackboneView:
         names = [o.name for o in self.outputs]
         #: the tip's ``x, y, z`` among the outputs
         self._tip_columns = [names.index(c) for c in TIP_COLUMNS]
+        #: the tip force's ``fx, fy, fz`` among the outputs (a tendon robot's), else None
+        self._force_columns = (
+            [names.index(c) for c in TIP_FORCE_COLUMNS]
+            if all(c in names for c in TIP_FORCE_COLUMNS)
+            else None
+        )
+        #: m of arrow per N of tip force (:data:`FORCE_ARROW_SHARE`); None without a
+        #: backbone
+        self._arrow_per_newton = force_arrow_scale(robot)
         #: output columns by unit, in ``outputs`` order
         self._units = {
             u: [j for j, o in enumerate(self.outputs) if o.unit == u]
@@ -301,6 +333,14 @@ class BackboneView:
                 rr.LineStrips3D([[prev, tip]], radii=0.004 * size, colors=[TRAIL_COLOUR]),
             )
         self._prev_tip["estimate"] = tip
+        if self._force_columns is not None and self._arrow_per_newton is not None:
+            force = out[self._force_columns]
+            rec.log(
+                "world/estimate/tip_force",
+                rr.Arrows3D(origins=[tip], vectors=[force * self._arrow_per_newton],
+                            radii=0.006 * size, colors=[FORCE_COLOUR],
+                            labels=[force_label(force)]),
+            )  # fmt: skip
         for i in range(self.robot.n_imus):
             rec.log(
                 f"world/estimate/imu_{i + 1}",
@@ -312,10 +352,12 @@ class BackboneView:
             rec.log(f"outputs/{unit}", rr.Scalars(out[cols]))
 
     def _send_shapes(self, who: str, t: FloatArray, geom: BackboneGeometry | None,
-                     tips: FloatArray, joined: NDArray[np.bool_]) -> None:  # fmt: skip
+                     tips: FloatArray, joined: NDArray[np.bool_],
+                     forces: FloatArray | None = None) -> None:  # fmt: skip
         """Columns of one recording's shapes at times ``t`` (n,): the backbone and IMU
-        frames of ``geom`` (if any), the ``tips`` (n, 3) m and their trail; ``joined[k]``
-        is True where sample ``k`` continues the trail from sample ``k - 1``."""
+        frames of ``geom`` (if any), the ``tips`` (n, 3) m and their trail, and the tip
+        ``forces`` (n, 3) N as arrows from the tips (if any); ``joined[k]`` is True where
+        sample ``k`` continues the trail from sample ``k - 1``."""
         rr, rec, size = self.rr, self.rec, self.robot.length
         n, n_sec = len(t), self.robot.n_sections
         colours, labels = self._style(who)
@@ -346,6 +388,16 @@ class BackboneView:
                     colors=[TRUTH_COLOUR if who == "truth" else TRAIL_COLOUR] * len(k),
                 ),
             )  # fmt: skip
+        if forces is not None and self._arrow_per_newton is not None:
+            send(
+                f"world/{who}/tip_force", t,
+                rr.Arrows3D.columns(
+                    origins=tips, vectors=forces * self._arrow_per_newton,
+                    radii=[0.006 * size] * n,
+                    colors=[TRUTH_COLOUR if who == "truth" else FORCE_COLOUR] * n,
+                    labels=[force_label(f) for f in forces],
+                ),
+            )  # fmt: skip
         if who == "truth" or geom is None:
             return
         for i in range(self.robot.n_imus):
@@ -373,7 +425,8 @@ class BackboneView:
             return
         geom, tips = self._row_shapes(t[has], values[has], [o.name for o in self.outputs])
         joined = (has & np.concatenate([[False], has[:-1]]))[has]
-        self._send_shapes("estimate", t[has], geom, tips, joined)
+        forces = None if self._force_columns is None else values[has][:, self._force_columns]
+        self._send_shapes("estimate", t[has], geom, tips, joined, forces)
         n = int(has.sum())
         for unit, cols in self._units.items():
             self.rec.send_columns(
@@ -442,7 +495,12 @@ class BackboneView:
             o.name in col for o in self.outputs if o.name in self._shape_angles
         ):
             geom, _ = self._row_shapes(t, values, names)
-        self._send_shapes("truth", t, geom, tips, np.arange(len(t)) > 0)
+        forces = (
+            values[:, [col[c] for c in TIP_FORCE_COLUMNS]]
+            if all(c in col for c in TIP_FORCE_COLUMNS)
+            else None
+        )
+        self._send_shapes("truth", t, geom, tips, np.arange(len(t)) > 0, forces)
         ends = [k for k in range(1, self.robot.n_sections + 1) if f"x_{k}" in col]
         if ends:
             pts = np.stack([values[:, [col[f"{c}_{k}"] for c in "xyz"]] for k in ends], axis=1)
