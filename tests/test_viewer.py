@@ -1220,6 +1220,26 @@ def test_a_replay_shows_the_imu_twists_and_the_truths_backbone(tmp_path: Path) -
     np.testing.assert_allclose(got[:, -2:], np.column_stack([table.column(n) for n in names[-2:]]),
                                rtol=1e-6)  # fmt: skip
     assert [t for t, _ in rows["/world/truth/backbone"]] == _ns(read_state_table(truth, ()).t)
+    # each IMU frame is the untwisted one turned about its z axis by the IMU's twist
+    from scipy.spatial.transform import Rotation
+
+    from continuum_mhe.viewer import backbone_geometry
+
+    robot = read_robot("two-section")
+    assert all(np.allclose(imu.mount_rpy, 0) for imu in robot.imus)
+    theta = np.column_stack([table.column(f"theta_{k}") for k in (1, 2)])
+    phi = np.column_stack([table.column(f"phi_{k}") for k in (1, 2)])
+    bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=2)  # bend vectors
+    untwisted = backbone_geometry(robot, bends, POINTS).imu_rotation
+    for i in range(robot.n_imus):
+        frames = rows[f"/world/estimate/imu_{i + 1}"]
+        mat = np.array([r["Transform3D:mat3x3"][0] for _, r in frames]).reshape(-1, 3, 3)
+        relative = np.einsum("nji,njk->nik", untwisted[:, i], mat.transpose(0, 2, 1))
+        rotvec = Rotation.from_matrix(relative).as_rotvec()
+        psi = table.column(f"imu_twist_{i + 1}")
+        assert np.abs(psi).max() > 0.01  # twists that show
+        np.testing.assert_allclose(rotvec[:, :2], 0.0, atol=1e-6)
+        np.testing.assert_allclose(rotvec[:, 2], np.angle(np.exp(1j * psi)), atol=1e-6)
 
 
 def test_view_takes_the_recorded_tensions_from_a_pipe_without_a_warning(

@@ -12,7 +12,8 @@ Entities, on the timeline ``t`` (the sample time in s, as in the estimate CSV):
   the base frame's axes (static).
 - ``world/estimate/backbone``: one line strip per section, base to tip (m).
 - ``world/estimate/imu_<i>``: IMU ``i``'s sensor frame (robot-file order, its ``mount_rpy``
-  applied) as ``Transform3D`` and ``TransformAxes3D``.
+  applied, turned by its estimated twist ``imu_twist_i`` where the estimate has one) as
+  ``Transform3D`` and ``TransformAxes3D``.
 - ``world/estimate/tip``: the tip (a tendon robot's: the estimate's ``x, y, z``);
   ``world/estimate/tip_trail``: one segment per estimate, from the previous tip, shown for
   the last ``trail_s`` seconds (a blueprint override), so the file grows by a constant

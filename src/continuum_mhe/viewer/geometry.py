@@ -94,6 +94,23 @@ def _assembled(
     return BackboneGeometry(sections, rotation, imu_position)
 
 
+def with_imu_twists(robot: Robot, geom: BackboneGeometry, twists: FloatArray) -> BackboneGeometry:
+    """``geom`` with each IMU's frame turned about its disk frame's z axis (the backbone's
+    tangent) by ``twists`` (n, n_imus) rad, as the ``--imu-twist`` model turns it
+    (:mod:`continuum_mhe.model.direct`): the disk frame ``R``, then ``Rz(psi)``, then the
+    IMU's ``mount_rpy`` ``M``, where ``geom`` holds ``R M``."""
+    psi = np.asarray(twists, dtype=float)
+    c, s = np.cos(psi), np.sin(psi)
+    turn = np.zeros((*psi.shape, 3, 3))
+    turn[..., 0, 0], turn[..., 0, 1], turn[..., 1, 0], turn[..., 1, 1] = c, -s, s, c
+    turn[..., 2, 2] = 1.0
+    mounts = np.stack([mount_rotation(imu.mount_rpy) for imu in robot.imus])
+    # R Rz M = (R M) (M^T Rz M)
+    about_mount = np.einsum("kji,nkjl,klm->nkim", mounts, turn, mounts)
+    rotation = np.einsum("nkij,nkjl->nkil", geom.imu_rotation, about_mount)
+    return BackboneGeometry(geom.sections, rotation, geom.imu_position)
+
+
 @dataclass(frozen=True)
 class TendonShapes:
     """A tendon robot's shapes for drawing, from its mechanics model: from estimator

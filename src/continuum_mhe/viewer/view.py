@@ -33,7 +33,12 @@ from continuum_mhe.model.descriptions import (
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.results import Estimate, Status
-from continuum_mhe.viewer.geometry import BackboneGeometry, TendonShapes, backbone_geometry
+from continuum_mhe.viewer.geometry import (
+    BackboneGeometry,
+    TendonShapes,
+    backbone_geometry,
+    with_imu_twists,
+)
 from continuum_mhe.viewer.sink import ViewerSink, start_web_viewer, stop_web_viewer
 
 INSTALL_HINT = install_hint("view")
@@ -187,6 +192,15 @@ class BackboneView:
             if all(c in names for c in TIP_FORCE_COLUMNS)
             else None
         )
+        #: each IMU's twist ``imu_twist_i`` among the outputs (``--imu-twist``), else None
+        twists = (
+            ["imu_twist"]
+            if robot.n_imus == 1
+            else [f"imu_twist_{i}" for i in range(1, robot.n_imus + 1)]
+        )
+        self._twist_columns = (
+            [names.index(c) for c in twists] if all(c in names for c in twists) else None
+        )
         #: m of arrow per N of tip force (:data:`FORCE_ARROW_SHARE`); None without a
         #: backbone
         self._arrow_per_newton = force_arrow_scale(robot)
@@ -316,6 +330,8 @@ class BackboneView:
             geom = self.tendon.from_states(est.state[None, :])
         else:
             geom = backbone_geometry(self.robot, self._bends(out[None, :]), self.points_per_section)
+            if self._twist_columns is not None:
+                geom = with_imu_twists(self.robot, geom, out[None, self._twist_columns])
         colours, labels = self._style("estimate")
         rec.log(
             "world/estimate/backbone",
@@ -449,6 +465,10 @@ class BackboneView:
         if self.tendon is None:
             ordered = values[:, [col.get(o.name, col["x"]) for o in self.outputs]]
             geom = backbone_geometry(self.robot, self._bends(ordered), self.points_per_section)
+            if self._twist_columns is not None and all(
+                self.outputs[j].name in col for j in self._twist_columns
+            ):  # an estimate's IMU twists (a truth has none)
+                geom = with_imu_twists(self.robot, geom, ordered[:, self._twist_columns])
             return geom, geom.tip
         tips = values[:, [col[c] for c in "xyz"]]
         if self.tendon.tensions is None or not all(c in col for c in TIP_FORCE_COLUMNS):
