@@ -7,6 +7,7 @@ import argparse
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -197,14 +198,40 @@ def test_the_errors_and_warnings_the_library_raises_are_public_names():
     from continuum_mhe.estimators.reading_units import ReadingUnitsError
     from continuum_mhe.io.input_options import MountingError
 
-    errors = ("UserError", "InputError", "SampleTimeError", "ReadingUnitsError", "MountingError")
+    errors = ("UserError", "InputError", "SampleTimeError", "ReadingUnitsError", "MountingError",
+              "FieldError", "MissingExtraError")  # fmt: skip
     for name in errors:
         assert issubclass(getattr(continuum_mhe, name), continuum_mhe.UserError), name
+        assert name in continuum_mhe.__all__
     warned = ("RobotWarning", "RobotFileWarning", "MountingWarning", "UnitWarning",
               "DropoutWarning", "OptionWarning", "CutLineWarning",
-              "UnobservableShapeWarning")  # fmt: skip
+              "UnobservableShapeWarning", "TensionsWarning", "TruthCoverageWarning",
+              "BackendFallbackWarning", "FrameWarning", "TopicClockWarning",
+              "TopicOrderWarning", "FigureWarning")  # fmt: skip
     for name in warned:
         assert issubclass(getattr(continuum_mhe, name), UserWarning), name
         assert name in continuum_mhe.__all__
+    guide = (Path(__file__).parents[1] / "docs" / "guide" / "library.md").read_text()
+    for name in (*errors, *warned):
+        assert f"`{name}`" in guide, name  # the guide's list names each
     assert continuum_mhe.MountingError is MountingError
     assert continuum_mhe.ReadingUnitsError is ReadingUnitsError
+
+
+def test_every_warning_class_of_the_library_is_a_public_name():
+    """Each warning class the package defines is importable from ``continuum_mhe``, so
+    that ``warnings.filterwarnings("error", category=...)`` can name it."""
+    import ast
+
+    import continuum_mhe
+
+    src = Path(continuum_mhe.__file__).parent
+    defined = {
+        node.name
+        for path in src.rglob("*.py")
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ClassDef)
+        and any(getattr(b, "id", "").endswith("Warning") for b in node.bases)
+    }
+    assert "TensionsWarning" in defined
+    assert defined - set(continuum_mhe.__all__) == set()

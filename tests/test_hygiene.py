@@ -214,6 +214,27 @@ def test_library_guide_python_examples_run(tmp_path, monkeypatch):
     health = policy["health"]
     assert (health.frozen_samples, health.first_freezes) == (26, {0: 2.0})
     assert (health.restarts, health.gap_resets, health.bad_starts) == (0, 1, 0)
+    # the scoring example: what the text after it says it prints, and with the noise the
+    # simulated recording has
+    (scored,) = [ns for ns in spaces if "calibration" in ns]
+    calibration = scored["calibration"]
+    assert (round(scored["metrics"].tip_mean_mm, 2), round(calibration.coverage["x"], 2)) == (
+        2.43,
+        1.0,
+    )
+    assert round(calibration.tip_nees, 2) == 0.66
+    from continuum_mhe import NoiseSettings, make_estimator, make_formulation
+    from continuum_mhe.evaluation.metrics import compute_calibration
+
+    exact = NoiseSettings(reading_bias_std=0.0, model_error_std=0.0)
+    rec = scored["rec"]
+    series = make_estimator("ekf", make_formulation("bend", noise=exact)).run(rec.t, rec.z)
+    kept = series.rows(series.t >= 1.0)
+    rows, at = scored["rows"], scored["at"]
+    ours = compute_calibration(
+        kept.output[rows], kept.std[rows], at, kept.names, scored["truth"].names
+    )
+    assert (round(ours.coverage["x"], 2), round(ours.tip_nees, 2)) == (0.96, 2.19)
     # the CSV example: read back, estimated within 1 cm, x, y, z written with its header
     (csv_example,) = [ns for ns in spaces if "table" in ns]
     tip = np.loadtxt(tmp_path / "tip.csv", delimiter=",", skiprows=1)

@@ -30,17 +30,26 @@ _EXPORTS: dict[str, str] = {
     "MovingHorizonEstimator": "continuum_mhe.estimators",
     "UnscentedKalmanFilter": "continuum_mhe.estimators",
     "make_estimator": "continuum_mhe.estimators",
+    "FieldError": "continuum_mhe.errors",
     "InputError": "continuum_mhe.errors",
     "SampleTimeError": "continuum_mhe.errors",
     "UnobservableShapeWarning": "continuum_mhe.errors",
     "UserError": "continuum_mhe.errors",
     "ReadingUnitsError": "continuum_mhe.estimators.reading_units",
+    "BackendFallbackWarning": "continuum_mhe.estimators.fast.window_functions",
+    "FigureWarning": "continuum_mhe.evaluation.estimate_figure",
+    "TruthCoverageWarning": "continuum_mhe.evaluation.metrics",
+    "MissingExtraError": "continuum_mhe.extras",
     "DropoutWarning": "continuum_mhe.io.csv_files",
     "UnitWarning": "continuum_mhe.io.csv_files",
+    "TopicClockWarning": "continuum_mhe.io.imu_topics",
+    "TopicOrderWarning": "continuum_mhe.io.imu_topics",
     "MountingError": "continuum_mhe.io.input_options",
     "MountingWarning": "continuum_mhe.io.input_options",
     "OptionWarning": "continuum_mhe.io.input_options",
     "RobotFileWarning": "continuum_mhe.io.robot_file",
+    "FrameWarning": "continuum_mhe.io.robot_logs",
+    "TensionsWarning": "continuum_mhe.io.tensions",
     "CutLineWarning": "continuum_mhe.io.text_rows",
     "RobotWarning": "continuum_mhe.model.robot",
     "Metrics": "continuum_mhe.evaluation.metrics",
@@ -85,6 +94,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
     from continuum_mhe.errors import (
+        FieldError,
         InputError,
         SampleTimeError,
         UnobservableShapeWarning,
@@ -102,11 +112,17 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
         UnscentedKalmanFilter,
         make_estimator,
     )
+    from continuum_mhe.estimators.fast.window_functions import BackendFallbackWarning
     from continuum_mhe.estimators.reading_units import ReadingUnitsError
-    from continuum_mhe.evaluation.metrics import Metrics, compute_metrics
+    from continuum_mhe.evaluation.estimate_figure import FigureWarning
+    from continuum_mhe.evaluation.metrics import Metrics, TruthCoverageWarning, compute_metrics
+    from continuum_mhe.extras import MissingExtraError
     from continuum_mhe.io.csv_files import DropoutWarning, UnitWarning
+    from continuum_mhe.io.imu_topics import TopicClockWarning, TopicOrderWarning
     from continuum_mhe.io.input_options import MountingError, MountingWarning, OptionWarning
     from continuum_mhe.io.robot_file import RobotFileWarning
+    from continuum_mhe.io.robot_logs import FrameWarning
+    from continuum_mhe.io.tensions import TensionsWarning
     from continuum_mhe.io.text_rows import CutLineWarning
     from continuum_mhe.model.bend import BendFormulation
     from continuum_mhe.model.direct import DirectFormulation
