@@ -3279,13 +3279,15 @@ def test_a_robot_file_given_as_the_recording_is_not_blamed_on_the_configs_robot(
     assert "(a robot file? it is given with --robot ROBOT.toml)" in err
 
 
-def _tip_truth_turned(src: Path, dst: Path, turn: np.ndarray) -> None:
+def _tip_truth_turned(
+    src: Path, dst: Path, turn: np.ndarray, move: tuple[float, float, float] = (0.0, 0.0, 0.0)
+) -> None:
     """``src``'s truth as a motion capture gives it, ``t, x, y, z`` of the tip alone, each
-    position turned by the matrix ``turn`` (3, 3)."""
+    position turned by the matrix ``turn`` (3, 3), then moved by ``move`` (m)."""
     from continuum_mhe.io.state_tables import read_state_table
 
     table = read_state_table(src)
-    tip = table.values[:, [table.names.index(c) for c in ("x", "y", "z")]] @ turn.T
+    tip = table.values[:, [table.names.index(c) for c in ("x", "y", "z")]] @ turn.T + move
     np.savetxt(dst, np.c_[table.t, tip], delimiter=",", header="t,x,y,z", comments="", fmt="%.9g")
 
 
@@ -3306,7 +3308,7 @@ def test_evaluate_and_plot_warn_of_a_truth_in_a_y_up_motion_capture_frame(
     paths = {k: tmp_path / f"{k}.csv" for k in cases}
     for k, turn in cases.items():
         _tip_truth_turned(paper3d_pair["t"], paths[k], turn)
-    said = "the truth's tip fits the estimate far better turned about the base by 90 degrees"
+    said = "the truth's tip fits the estimate far better turned by 90 degrees about the base"
     assert main(["evaluate", e, str(paths["yup"])]) == 0
     err = capsys.readouterr().err
     assert f"warning: {paths['yup']}: {said}" in err
@@ -3315,7 +3317,22 @@ def test_evaluate_and_plot_warn_of_a_truth_in_a_y_up_motion_capture_frame(
     assert said in capsys.readouterr().err  # as evaluate
     for k in ("base", "small"):
         assert main(["evaluate", e, str(paths[k])]) == 0
-        assert "turned about the base" not in capsys.readouterr().err, k
+        assert "fits the estimate far better" not in capsys.readouterr().err, k
+    # about a motion capture's origin 1.5 m away: said, with the move, and not taken for
+    # a truth of a longer robot; an offset of 2 cm (as likely the estimate's) is not
+    far, near = tmp_path / "far.csv", tmp_path / "near.csv"
+    _tip_truth_turned(paper3d_pair["t"], far, y_up, (0.9, 1.2, -0.05))
+    _tip_truth_turned(paper3d_pair["t"], near, np.eye(3), (0.02, 0.0, 0.0))
+    assert main(["evaluate", e, str(far)]) == 0
+    err = capsys.readouterr().err
+    moved = re.search(r"far better turned by 90 degrees and moved by \((.*?)\) mm", err)
+    assert moved is not None  # by about the move back, within the estimate's own errors
+    assert_allclose([float(v) for v in moved.group(1).split(",")], [-900, -50, -1200], atol=20)
+    assert "its x, y and z lie along the estimate's x, z, -y" in err
+    assert "longer robot" not in err and "another --length" not in err
+    assert err.count("warning:") == 1
+    assert main(["evaluate", e, str(near)]) == 0
+    assert "fits the estimate far better" not in capsys.readouterr().err
 
 
 def test_best_rotation_recovers_a_known_turn_of_the_positions() -> None:
@@ -3337,3 +3354,11 @@ def test_best_rotation_recovers_a_known_turn_of_the_positions() -> None:
     same = best_rotation(est, est)
     assert same is not None and same.angle_deg < 1e-6 and same.unturned == 0.0
     assert best_rotation(est[: ROTATION_MIN_ROWS - 1], est[: ROTATION_MIN_ROWS - 1]) is None
+    # moved as well: the turn and the move are found
+    move = np.array([0.7, -1.1, 0.4])
+    moved = best_rotation(est, turn.inv().apply(est - move), moved=True)
+    assert moved is not None
+    np.testing.assert_allclose(moved.matrix, turn.as_matrix(), atol=1e-9)
+    np.testing.assert_allclose(moved.offset, move, atol=1e-9)
+    assert moved.error < 1e-12
+    np.testing.assert_allclose(found.offset, 0.0)

@@ -28,7 +28,9 @@ from continuum_mhe.cli.truth_checks import (
     seconds_text,
     spans_the_truth,
     truth_frame_warning,
-    turned_frame_warning,
+    frame_fit,
+    frame_fit_warning,
+    moves_the_base,
 )
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
@@ -277,8 +279,16 @@ def _evaluate(args: argparse.Namespace) -> int:
             )  # fmt: skip
     unmatched = int(len(est.t) - len(i_e))
     xyz = ([est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS])
-    hint = other_robot or _length_hint(
-        est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], m.tip_mean_mm / 1e3, length
+    # a truth in another frame (a motion capture's origin): its distances from the base
+    # say nothing of the robot's length
+    fit = frame_fit(est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], length)
+    about_another_origin = moves_the_base(fit, length)
+    hint = other_robot or (
+        ""
+        if about_another_origin
+        else _length_hint(
+            est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], m.tip_mean_mm / 1e3, length
+        )
     )
     # the robot from the estimate's options line: a truth that misfits it is another
     # robot's (its --length would misfit the estimate instead)
@@ -289,11 +299,12 @@ def _evaluate(args: argparse.Namespace) -> int:
         f"{path}: {misfit}; {other if recorded and path == args.truth else given_length}"
         for path, table in ((args.estimates, est), (args.truth, truth))
         if (misfit := length_misfit(table.names, table.values, robot.lengths))
+        and not (about_another_origin and path == args.truth)
     ]  # tip errors in % of the length are then of another robot's length
     # here, not at the top: estimate_figure loads matplotlib
     from continuum_mhe.evaluation.estimate_figure import lengths_misfit
 
-    if not (misfits or other_robot or other_recorded) and (
+    if not (misfits or other_robot or other_recorded or about_another_origin) and (
         sections := lengths_misfit(truth, robot.lengths)
     ):
         # the same length in all, shared otherwise among the sections (their order)
@@ -305,9 +316,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     # the truth's own positions against its own angles (an estimate's can drift from
     # its angles by design: the paper formulation's positions are states of their own)
     warned.append(truth_frame_warning(args.truth, truth, robot.lengths))
-    warned.append(
-        turned_frame_warning(args.truth, est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], length)
-    )
+    warned.append(frame_fit_warning(args.truth, fit, length))
     warned.append(
         clock_offset_warning(
             args.truth, est, truth, length, m.tip_mean_mm / 1e3,

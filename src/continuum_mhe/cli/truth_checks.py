@@ -2,7 +2,7 @@
 share: too few of the estimate's rows with a truth (:func:`rows_matched`), a truth on an
 offset clock (:func:`clock_offset_warning`), a truth whose tip points away from its own
 bend angles (:func:`truth_frame_warning`), a truth in another frame than the estimate's
-(:func:`turned_frame_warning`); ``plot`` and ``view`` take them together
+(:func:`frame_fit_warning`); ``plot`` and ``view`` take them together
 (:func:`truth_beside`)."""
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import numpy as np
 from continuum_mhe.errors import InputError
 from continuum_mhe.evaluation.metrics import (
     SHIFT_MAX_S,
+    FrameRotation,
     aligned_truth,
     best_rotation,
     best_time_shift,
@@ -88,44 +89,80 @@ def clock_offset_warning(
 #: robot's z-up base frame).
 TURN_MIN_DEG = 15.0
 TURN_GAIN = 0.5
+#: ... or fit it moved by at least this share of the robot's length (a truth about a
+#: motion capture's origin; a smaller steady offset is as likely the estimate's own).
+MOVED_MIN_SHARE = 0.5
+#: ... with its mean tip error then below this share of the one as given (a truth of a
+#: longer robot fits a little better moved too, not this well).
+MOVED_GAIN = 0.1
 #: An axis of the truth within this angle of one of the estimate's (after the best
 #: rotation) is named as lying along it.
 AXIS_NAMED_DEG = 20.0
 
 
-def turned_frame_warning(
-    path: str, tip_est: np.ndarray, tip_truth: np.ndarray, length: float
-) -> str:
-    """A warning where the truth ``path``'s tip positions ``tip_truth`` (n, 3) m fit the
-    estimate's ``tip_est`` (n, 3) m at the same rows far better turned about the base
-    (:func:`~continuum_mhe.evaluation.metrics.best_rotation`; thresholds
-    :data:`TURN_MIN_DEG`, :data:`TURN_GAIN`, and a mean tip error of at least
-    :data:`SHIFT_MIN_ERROR` of the robot's ``length`` m), else ``""``. Where each of the
-    truth's axes lies along one of the estimate's, the warning names them."""
+def frame_fit(tip_est: np.ndarray, tip_truth: np.ndarray, length: float) -> FrameRotation | None:
+    """The rigid motion that makes the truth's tip positions ``tip_truth`` (n, 3) m fit
+    the estimate's ``tip_est`` (n, 3) m at the same rows far better: a turn about the base
+    of at least :data:`TURN_MIN_DEG`, or a move of at least :data:`MOVED_MIN_SHARE` of
+    the robot's ``length`` m (and a turn)
+    (:func:`~continuum_mhe.evaluation.metrics.best_rotation`), whose mean tip error is
+    below :data:`TURN_GAIN` (a move: :data:`MOVED_GAIN`) of the one as given, itself at
+    least :data:`SHIFT_MIN_ERROR` of the length; else None."""
     turn = best_rotation(tip_est, tip_truth)
+    if turn is None or turn.unturned < SHIFT_MIN_ERROR * length:
+        return None
+    if turn.angle_deg >= TURN_MIN_DEG and turn.error < TURN_GAIN * turn.unturned:
+        return turn
+    turn = best_rotation(tip_est, tip_truth, moved=True)
     if (
         turn is None
-        or turn.unturned < SHIFT_MIN_ERROR * length
-        or turn.angle_deg < TURN_MIN_DEG
-        or not turn.error < TURN_GAIN * turn.unturned
+        or float(np.linalg.norm(turn.offset)) < MOVED_MIN_SHARE * length
+        or not turn.error < MOVED_GAIN * turn.unturned
     ):
+        return None
+    return turn
+
+
+def moves_the_base(fit: FrameRotation | None, length: float) -> bool:
+    """Whether ``fit`` (:func:`frame_fit`) moves the truth by :data:`MOVED_MIN_SHARE` of
+    the robot's ``length`` m or more: a truth about another origin, whose distances from
+    the base say nothing of the robot's length."""
+    return fit is not None and float(np.linalg.norm(fit.offset)) >= MOVED_MIN_SHARE * length
+
+
+def frame_fit_warning(path: str, fit: FrameRotation | None, length: float) -> str:
+    """The warning of a truth ``path`` that fits the estimate far better turned or moved
+    (``fit``, :func:`frame_fit`; ``""`` for None), on a robot of ``length`` m. Where each
+    of the truth's axes lies along one of the estimate's, it names them."""
+    if fit is None:
         return ""
     named = []
-    for column in turn.matrix.T:  # the truth's x, y, z in the estimate's frame
+    for column in fit.matrix.T:  # the truth's x, y, z in the estimate's frame
         k = int(np.argmax(np.abs(column)))
         if abs(column[k]) < math.cos(math.radians(AXIS_NAMED_DEG)):
             break
         named.append(("-" if column[k] < 0 else "") + "xyz"[k])
     axes = (
-        f"; its x, y and z lie along the estimate's {', '.join(named)}" if len(named) == 3 else ""
+        f"; its x, y and z lie along the estimate's {', '.join(named)}"
+        if len(named) == 3 and named != ["x", "y", "z"]
+        else ""
     )
+    moved = moves_the_base(fit, length)
+    how = []
+    if fit.angle_deg >= TURN_MIN_DEG:
+        how.append(f"turned by {fit.angle_deg:.0f} degrees")
+    if moved:
+        shown = ", ".join(f"{v * 1e3:.0f}" for v in fit.offset)
+        how.append(f"moved by ({shown}) mm")
+    where = " and ".join(how) if moved else f"{how[0]} about the base"
+    origin = "; about another origin than the robot's base" if moved else ""
     return (
-        f"{path}: the truth's tip fits the estimate far better turned about the base by "
-        f"{turn.angle_deg:.0f} degrees (mean tip error {turn.error * 1e3:.3g} mm against "
-        f"{turn.unturned * 1e3:.3g} mm as given){axes}: are its positions in another "
-        "frame than the robot's base frame (a y-up motion capture, axes swapped, a sign "
-        "flipped)? The scores compare them as given: express the truth in the base frame "
-        "(z along the unbent backbone for mounting z-up, x where the bend angle phi is 0)"
+        f"{path}: the truth's tip fits the estimate far better {where} (mean tip error "
+        f"{fit.error * 1e3:.3g} mm against {fit.unturned * 1e3:.3g} mm as given){axes}: are "
+        "its positions in another frame than the robot's base frame (a motion capture's: "
+        f"y up, axes swapped, a sign flipped{origin})? The scores compare them as given: "
+        "express the truth in the base frame (its origin at the base, z along the unbent "
+        "backbone for mounting z-up, x where the bend angle phi is 0)"
     )
 
 
@@ -263,25 +300,23 @@ def truth_beside(
         if refused:
             raise InputError(refused)
         warned.append(few)
+    tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]
+    truth_tip = rows[:, [truth.names.index(c) for c in TIP_COLUMNS]]
+    fit = frame_fit(tip, truth_tip, sum(lengths))
     # a truth of a robot of other lengths is drawn beside the estimate's backbone as it
-    # is: said, as evaluate says it
+    # is: said, as evaluate says it (not of a truth about another origin: said below)
     other = length_misfit(truth.names, truth.values, lengths) or lengths_misfit(truth, lengths)
-    if other:
+    if other and not moves_the_base(fit, sum(lengths)):
         shown = ", ".join(f"{v:g}" for v in lengths)
         warned.append(
             f"{path_truth}: {other}; it is drawn beside the estimate of a robot of {shown} m "
             "(the truth of another robot?)"
         )
     warned.append(truth_frame_warning(path_truth, truth, lengths))
-    tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]
-    err = np.linalg.norm(tip - rows[:, [truth.names.index(c) for c in TIP_COLUMNS]], axis=1)
+    err = np.linalg.norm(tip - truth_tip, axis=1)
     err = err[np.isfinite(err)]
     mean = float(err.mean()) if len(err) else math.nan  # the mean tip error, m
-    warned.append(
-        turned_frame_warning(
-            path_truth, tip, rows[:, [truth.names.index(c) for c in TIP_COLUMNS]], sum(lengths)
-        )
-    )
+    warned.append(frame_fit_warning(path_truth, fit, sum(lengths)))
     offset = clock_offset_warning(
         path_truth, est, truth, sum(lengths), mean, shift_option, given_shift
     )

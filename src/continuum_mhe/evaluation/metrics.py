@@ -743,25 +743,31 @@ ROTATION_MIN_ROWS = 10
 
 @dataclass(frozen=True)
 class FrameRotation:
-    """The rotation of the truth's positions about the robot's base that fits an
-    estimate best (:func:`best_rotation`): ``matrix`` (3, 3) takes a truth position to the
-    estimate's frame, turning it by ``angle_deg`` degrees; the mean tip error is then
-    ``error`` (m), against ``unturned`` (m) as the positions are."""
+    """The rigid motion of the truth's positions that fits an estimate best
+    (:func:`best_rotation`): ``matrix`` (3, 3) turns a truth position by ``angle_deg``
+    degrees, then ``offset`` (3,) m moves it (zero for a turn about the base alone), into
+    the estimate's frame; the mean tip error is then ``error`` (m), against ``unturned``
+    (m) as the positions are."""
 
     matrix: FloatArray
     angle_deg: float
+    offset: FloatArray
     error: float
     unturned: float
 
 
-def best_rotation(tip_est: FloatArray, tip_truth: FloatArray) -> FrameRotation | None:
-    """The rotation about the base (the origin) that brings the truth's tip positions
-    ``tip_truth`` (n, 3) m nearest those of the estimate ``tip_est`` (n, 3) m at the same
-    rows, in the least-squares sense (``scipy.spatial.transform.Rotation.align_vectors``);
-    rows with a NaN on either side left out. None with fewer than
-    :data:`ROTATION_MIN_ROWS` rows. A truth in another frame than the robot's base frame
-    (a y-up motion capture, axes swapped) shows as a large angle whose error is far below
-    the unturned one."""
+def best_rotation(
+    tip_est: FloatArray, tip_truth: FloatArray, moved: bool = False
+) -> FrameRotation | None:
+    """The rotation about the base (the origin), and with ``moved`` a move as well, that
+    brings the truth's tip positions ``tip_truth`` (n, 3) m nearest those of the estimate
+    ``tip_est`` (n, 3) m at the same rows, in the least-squares sense
+    (``scipy.spatial.transform.Rotation.align_vectors``, on the positions about their
+    means where ``moved``); rows with a NaN on either side left out. None with fewer
+    than :data:`ROTATION_MIN_ROWS` rows. A truth in another frame than the robot's base
+    frame (a y-up motion capture, axes swapped) shows as a large angle whose error is
+    far below the unturned one; a truth about another origin (a motion capture's), as a
+    large offset."""
     from scipy.spatial.transform import Rotation
 
     est = np.asarray(tip_est, dtype=float)
@@ -770,13 +776,18 @@ def best_rotation(tip_est: FloatArray, tip_truth: FloatArray) -> FrameRotation |
     if both.sum() < ROTATION_MIN_ROWS:
         return None
     est, truth = est[both], truth[both]
+    est_mean, truth_mean = (
+        (est.mean(axis=0), truth.mean(axis=0)) if moved else (np.zeros(3), np.zeros(3))
+    )
     with warnings.catch_warnings():  # a degenerate set (a straight robot): any answer
         warnings.simplefilter("ignore", UserWarning)
-        rotation, _ = Rotation.align_vectors(est, truth)
-    turned = rotation.apply(truth)
+        rotation, _ = Rotation.align_vectors(est - est_mean, truth - truth_mean)
+    offset = np.asarray(est_mean - rotation.apply(truth_mean), dtype=float)
+    turned = rotation.apply(truth) + offset
     return FrameRotation(
         matrix=rotation.as_matrix(),
         angle_deg=math.degrees(float(rotation.magnitude())),
+        offset=offset,
         error=float(np.linalg.norm(turned - est, axis=1).mean()),
         unturned=float(np.linalg.norm(truth - est, axis=1).mean()),
     )
