@@ -23,14 +23,14 @@ from continuum_mhe.cli.truth_checks import (
     WARN_MATCHED,
     clock_offset_warning,
     comparable_rows,
+    frame_fit,
+    frame_fit_warning,
+    moves_the_base,
     refuse_an_estimate_as_truth,
     rows_matched,
     seconds_text,
     spans_the_truth,
     truth_frame_warning,
-    frame_fit,
-    frame_fit_warning,
-    moves_the_base,
 )
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
