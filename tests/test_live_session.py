@@ -1180,3 +1180,34 @@ def test_a_glitch_is_skipped_and_said_in_the_summary() -> None:
     assert rows[150][-2] == "inconsistent" and rows[151][-2] == "ok"
     assert s.estimator.diagnostics.glitches == 1
     assert "skipped 1 IMU reading(s) far beyond the prediction" in s.summary()
+
+
+def test_a_live_mhe_builds_its_ipopt_fallback_once_its_window_is_full(monkeypatch) -> None:
+    """A first uncertified window of a live stream waited for its IPOPT NLP to be built
+    (about 8 s for two raw IMUs, the stream held): the session has it built in the
+    background from the second sample on (the sample period sets the objective's scale),
+    once, and a fallback then takes the NLP that build made; an EKF's session builds
+    none."""
+    from continuum_mhe.estimators import mhe as mhe_module
+
+    built: list[int] = []
+    real = mhe_module.build_nlp
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        built.append(args[-1])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(mhe_module, "build_nlp", counted)
+    s, _ = _session("mhe")
+    inference = s.estimator.inference
+    _feed(s, [0])  # one sample: its period not known yet
+    assert not inference._nlp_builds and not inference._nlps
+    _feed(s, [10 + 10 * i for i in range(14)])  # past the full window (10)
+    (scale_exp,) = set(inference._nlp_builds) | set(inference._nlps)  # started (or done)
+    nlp = inference._window_nlp(scale_exp)  # a fallback: waits for that build
+    assert not inference._nlp_builds and inference._nlps[scale_exp] is nlp
+    assert built == [scale_exp]  # once, by the thread
+    assert inference.prepare_fallback() is False  # built: nothing more
+    e, _ = _session("ekf")
+    _feed(e, [10 * i for i in range(20)])
+    assert not hasattr(e.estimator.inference, "_nlp_builds")

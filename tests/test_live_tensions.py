@@ -676,6 +676,29 @@ def test_lines_that_arrive_but_give_no_estimate_are_not_called_no_sample(
     assert f"why): {est} not written" in err and not est.exists()
 
 
+def test_a_sample_beyond_the_tensions_file_is_not_called_no_sample(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A stream whose first samples lie outside the --inputs file's times stops at them:
+    the line on the file names the lines that arrived, not "no sample arrived", which
+    the error naming the sample would contradict."""
+    with_tensions, imus_only = _first_samples_lines()
+    short = tmp_path / "late.csv"
+    rows = [[100.0 + k, *[0.0] * 6] for k in range(2)]
+    write_table(short, ["t", *(f"tension_{i}" for i in range(1, 7))], rows)
+    data = "".join(ln + "\n" for ln in imus_only[:4])
+    monkeypatch.setattr("continuum_mhe.cli.live.open_port", lambda *a: _Port(data.encode()))
+    est = tmp_path / "est.csv"
+    argv = ["live", "--port", "/dev/ttyTEN", "--robot", ROBOT, "--inputs", str(short),
+            "-o", str(est), "--duration", "0.3"]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "the tensions must cover the stream" in err
+    assert "no sample arrived" not in err
+    assert f"the session stopped before a sample was kept (the error below says why): {est}" in err
+    assert not est.exists()
+
+
 def test_the_samples_the_streams_end_releases_do_not_count_in_the_latency(runs: Runs) -> None:
     """The last two samples of a stream with tensions on the line wait for the tensions
     after them, and at the stream's end for the end itself (here the 0.5 s session's,

@@ -219,6 +219,13 @@ def _not_written(session: LiveSession | None, path: object, what: str) -> str:
     sample arrived, or (the session's counts) lines arrived that gave none."""
     counts = None if session is None else session.counts
     if counts is None or not (counts.samples or counts.garbled):
+        data = counts.lines - counts.comments - counts.partial if counts else 0
+        if session is not None and session.fatal is not None and data > 0:
+            # a line that stopped the session (a sample beyond --inputs' times)
+            return (
+                f"{data} line(s) arrived, but the session stopped before a sample was kept "
+                f"(the error below says why): {path} not written"
+            )
         return f"no sample arrived: {path} not written"
     arrived = [
         f"{n} {name}"

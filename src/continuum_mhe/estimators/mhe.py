@@ -46,6 +46,7 @@ to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 from __future__ import annotations
 
 import math
+import threading
 import time
 import warnings
 from collections.abc import Callable
@@ -343,6 +344,8 @@ class MovingHorizonInference(Inference):
         #: needs it: a window whose weights exceed the reference never builds the unscaled
         #: one, and the fast backend builds one only to fall back
         self._nlps: dict[int, Nlp] = {}
+        #: the NLPs being built in the background (:meth:`prepare_fallback`), by exponent
+        self._nlp_builds: dict[int, threading.Thread] = {}
         self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
         #: why the window covariance leaves the constraints out (None when it does not)
@@ -417,7 +420,11 @@ class MovingHorizonInference(Inference):
         return second
 
     def _window_nlp(self, scale_exp: int) -> Nlp:
-        """The IPOPT NLP with the objective divided by ``10**scale_exp``, built on first use."""
+        """The IPOPT NLP with the objective divided by ``10**scale_exp``, built on first use
+        (or by :meth:`prepare_fallback`'s thread, waited for)."""
+        building = self._nlp_builds.pop(scale_exp, None)
+        if building is not None:
+            building.join()
         nlp = self._nlps.get(scale_exp)
         if nlp is None:
             s = self.settings
@@ -426,6 +433,32 @@ class MovingHorizonInference(Inference):
             )
             self._nlps[scale_exp] = nlp
         return nlp
+
+    def prepare_fallback(self) -> bool:
+        """Start building, in a background thread, the IPOPT NLP that an uncertified
+        window of the fast backend falls back to, at the current window's objective scale
+        (:func:`~.window_nlp.objective_scale_exponent`): a first fallback then finds it
+        built (building it takes seconds for a model of several raw IMUs, CasADi working
+        without Python's lock) instead of waiting for it. For a stream estimated in real
+        time (``live``), from its second sample on. Returns whether a build started (not
+        without the fast backend, whose windows IPOPT solves anyway, nor where the NLP
+        is built or being built)."""
+        if self._fast is None:
+            return False
+        scale_exp = objective_scale_exponent(self.window_problem(), self._rinv_max)
+        if scale_exp in self._nlps or scale_exp in self._nlp_builds:
+            return False
+        s = self.settings
+
+        def build() -> None:
+            self._nlps[scale_exp] = build_nlp(
+                self.formulation, s.horizon, s.max_iter, s.tol, s.loss, s.scale, scale_exp
+            )
+
+        thread = threading.Thread(target=build, name="ipopt-fallback-nlp", daemon=True)
+        self._nlp_builds[scale_exp] = thread
+        thread.start()
+        return True
 
     @property
     def _nlp(self) -> Nlp:

@@ -217,6 +217,10 @@ class LiveSession:
         self.settings = settings
         self.estimator = estimator
         self.formulation = estimator.formulation
+        #: whether the fast MHE's IPOPT fallback is being built, or need not be
+        #: (:meth:`_prepare_fallback`), and the estimates it counts towards a full window
+        self._fallback_prepared = False
+        self._estimated = 0
         self.n_imus = self.formulation.robot.n_imus
         f = self.formulation
         #: the tendon formulation that takes the tensions (None: a robot without them)
@@ -975,6 +979,7 @@ class LiveSession:
                 # restarted where the time base broke: the start's row says reset, as
                 # the policy's own restarts' rows do whatever else they would say
                 est = replace(est, status=Status.RESET)
+            self._prepare_fallback()
             return est
         self.counts.estimator_failures += 1
         self._replay_differs(t, "an estimator failure")
@@ -986,6 +991,26 @@ class LiveSession:
         self._restart(t, keep_sensors=False)  # the failure may have come from them
         solve_ms = (time.perf_counter() - start) * 1e3
         return Estimate(t, None, None, None, Status.NO_ESTIMATE, solve_ms)
+
+    def _prepare_fallback(self) -> None:
+        """Have the fast MHE's IPOPT fallback built in the background
+        (:meth:`~continuum_mhe.estimators.mhe.MovingHorizonInference.prepare_fallback`)
+        from the second estimate on, where the window's objective scale (set by the
+        sample period) is known, and again once the window is full (no second build
+        where the scale is the same): a first uncertified window then does not hold the
+        stream for the seconds the build takes."""
+        if self._fallback_prepared:
+            return
+        inference = self.estimator.inference
+        prepare = getattr(inference, "prepare_fallback", None)
+        horizon = getattr(getattr(inference, "settings", None), "horizon", None)
+        if prepare is None or horizon is None:
+            self._fallback_prepared = True
+            return
+        self._estimated += 1
+        if self._estimated in (2, horizon):
+            prepare()
+        self._fallback_prepared = self._estimated >= horizon
 
     def _write(self, est: Estimate) -> None:
         self.counts.estimates += 1
