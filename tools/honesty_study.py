@@ -222,7 +222,8 @@ def main() -> None:
     p.add_argument("--cases", nargs="+", default=["raw", "tilt"], help="recording kinds")
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4], help="paper3d seeds")
     p.add_argument("--estimate-options", default="",
-                   help="(a) options for every estimate, one string: "
+                   help="part (a) only (the other parts run with the defaults): options "
+                   "for each of its estimates, one string: "
                    "--estimate-options='--model-error-floor-deg 0'")  # fmt: skip
     args = p.parse_args()
     warnings.simplefilter("ignore")

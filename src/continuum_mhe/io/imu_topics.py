@@ -282,7 +282,7 @@ def read_imu_topics(
 #: the estimator (readings inconsistent with its estimate, a diverged estimate) warns that
 #: the topics may not be in the robot file's IMU order. Two sections, raw IMUs
 #: (``--imu-model direct``, EKF): the shipped rod recordings in the right order restart on
-#: 0 to 2.5 % of their samples, with IMU 1 and IMU 2 swapped on 9 % (G = 5E rod) and 30 %
+#: 0 to 2.2 % of their samples, with IMU 1 and IMU 2 swapped on 9 % (G = 5E rod) and 30 %
 #: (tendon), but 0 % on the planar S, whose swapped readings fit another shape, as tilt
 #: input's do on every recording (under 1 %: not caught); the rod that twists by 120 deg,
 #: which the model cannot explain, restarts on 28 % and 32 % (warned in either order).
