@@ -1182,6 +1182,45 @@ def test_a_glitch_is_skipped_and_said_in_the_summary() -> None:
     assert "skipped 1 IMU reading(s) far beyond the prediction" in s.summary()
 
 
+def test_the_live_summary_counts_frozen_rows_and_restarts_as_estimate_does(tmp_path) -> None:
+    """A tilt stream whose IMU repeats one reading for 0.5 s, then stops for 2 s: the
+    session's summary said neither the frozen rows nor the restart after the gap, which
+    estimate's summary of the same samples says; both now say them, with the same
+    counts."""
+    from continuum_mhe.cli import main
+
+    s, _ = _session()
+    now = time.monotonic()
+    noise = np.random.default_rng(1).normal(0.0, 0.01, (300, 2))
+    lines = []
+    for i in range(300):
+        t_ms = 10 * i + (2000 if i >= 200 else 0)  # 2 s without a sample after 200
+        k = 100 if 100 <= i < 150 else i  # the reading of sample 100 held for 0.5 s
+        lines.append(f"{t_ms},{0.1 + noise[k, 0]},{0.1 + noise[k, 1]}")
+    for i, line in enumerate(lines):
+        s.handle_line(line.encode(), now + 0.01 * i)
+    s.finish()
+    diag = s.estimator.diagnostics
+    assert diag.frozen_samples > 0 and diag.gap_resets == 1
+    summary = s.summary()
+    frozen = f"{diag.frozen_samples} of the {s.counts.estimates} estimates had a frozen IMU"
+    assert frozen in summary
+    assert "restarted after 1 gap(s) longer than 1 s without a valid reading" in summary
+    # estimate says the same of the same samples
+    csv = tmp_path / "m.csv"
+    csv.write_text("t,roll,pitch\n" + "\n".join(
+        f"{int(ln.split(',')[0]) / 1e3},{','.join(ln.split(',')[1:])}" for ln in lines
+    ) + "\n")  # fmt: skip
+    import contextlib
+    import io as io_module
+
+    err = io_module.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["estimate", str(csv), "-o", str(tmp_path / "e.csv"), "--method", "ekf"]) == 0
+    assert frozen in err.getvalue()
+    assert "restarted after 1 gap(s) longer than 1 s" in err.getvalue()
+
+
 def test_a_live_mhe_builds_its_ipopt_fallback_once_its_window_is_full(monkeypatch) -> None:
     """A first uncertified window of a live stream waited for its IPOPT NLP to be built
     (about 8 s for two raw IMUs, the stream held): the session has it built in the

@@ -1156,8 +1156,31 @@ class LiveSession:
             msg += "; warning: " + force_note
         if wide_note := self.wide.notice(c.estimates):
             msg += "; note: " + wide_note
-        if glitches := glitch_clause(self.estimator.diagnostics):
+        diag, recovery = self.estimator.diagnostics, self.estimator.recovery
+        if diag.frozen_samples:  # as estimate's summary says them
+            msg += (
+                f"; {diag.frozen_samples} of the {c.estimates} estimates had a frozen IMU (the "
+                f"same reading for over {recovery.freeze:g} s, treated as a dropout)"
+            )
+        if glitches := glitch_clause(diag):
             msg += f"; {glitches}"
+        if diag.restarts:
+            msg += (
+                f"; restarted {diag.restarts} time(s) after the estimate diverged, failed or "
+                "its uncertainty outgrew the workspace (status reset, or no-estimate on a "
+                "sample without a valid reading)"
+            )
+        if diag.gap_resets:
+            msg += (
+                f"; restarted after {diag.gap_resets} gap(s) longer than "
+                f"{recovery.gap_reset:g} s without a valid reading (a gap in t, or IMUs silent "
+                "or stuck on one value)"
+            )
+        if diag.bad_starts:
+            msg += (
+                f"; restarted {diag.bad_starts} time(s) after readings inconsistent with the "
+                "start or an IMU's return"
+            )
         if self._tension_stream is not None and self._tension_stream.glitches:
             msg += (
                 f"; replaced {self._tension_stream.glitches} tension glitch(es) (a tension "
