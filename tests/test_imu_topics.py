@@ -257,6 +257,30 @@ def test_a_topic_timed_by_the_log_beside_stamped_ones_is_said(
     assert len(said) == 1 and "/imu2 has no header stamps (every one zero)" in said[0], said
 
 
+def test_a_topic_whose_stamps_do_not_advance_is_said_so_among_stamped_ones(
+    streams: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """IMU 2's driver sets header.stamp once (every stamp the same, non-zero): its topic
+    is timed by the log, and the warning and the note say its stamps do not advance, not
+    that they are zero, as a lone topic's note does."""
+    stale = [dict(streams["imu"][0]), dict(streams["imu"][1])]
+    stale[1]["log"] = stale[1]["stamps"] + 2_000_000
+    stale[1]["stamps"] = np.full_like(stale[1]["stamps"], stale[1]["stamps"][0])
+    path = write_mcap_topics(tmp_path / "s.mcap", stale)
+    with pytest.warns(TopicClockWarning) as seen:
+        paired = read_imu_topics(path, TOPICS, 2)
+    said = [str(w.message) for w in seen]
+    assert len(said) == 1 and "/imu2 has header stamps that do not advance" in said[0], said
+    assert "every one zero" not in said[0]
+    assert paired.logs[1].stale_stamps == len(stale[1]["stamps"]) - 1
+    out = tmp_path / "e.csv"
+    args = ["estimate", str(path), "--robot", "two-section", "--method", "ekf"]
+    with pytest.warns(TopicClockWarning):
+        assert main([*args, "--topic", TOPICS[0], "--topic", TOPICS[1], "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "/imu2: the header stamps do not advance" in err and "stamp is zero" not in err, err
+
+
 def test_zero_of_time_is_imu_1_s_first_stamp_where_a_topic_starts_later(
     streams: dict[str, Any], tmp_path: Path
 ) -> None:

@@ -384,6 +384,31 @@ def test_corrupt_log_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert err.startswith("continuum-mhe: error: ") and "\n" not in err
 
 
+def test_a_log_named_without_its_suffix_is_read_as_the_log_it_is(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An MCAP file saved without ``.mcap`` gives the estimates of the same file named
+    ``.mcap``, and a ROS 1 bag named ``.bag.active`` (a recording that did not finish) is
+    said to be one in one line: both were read as CSV files ("contains a NUL byte")."""
+    named = write_mcap(tmp_path / "run.mcap", recording)
+    bare = tmp_path / "run_mcap"
+    bare.write_bytes(named.read_bytes())
+    _estimate(named, tmp_path / "a.csv")
+    _estimate(bare, tmp_path / "b.csv")
+    np.testing.assert_array_equal(_states(tmp_path / "a.csv")[1], _states(tmp_path / "b.csv")[1])
+    active = tmp_path / "run.bag.active"
+    active.write_bytes(write_ros1_bag(tmp_path / "r.bag", recording).read_bytes())
+    capsys.readouterr()
+    assert main(["estimate", str(active), "--method", "ekf", "-o", str(tmp_path / "c.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"continuum-mhe: error: {active}: a ROS 1 bag whose name does not end in .bag: a "
+        "recording that did not finish (.bag.active)? rosbag reindex it, then give it named "
+        "NAME.bag\n"
+    )
+    assert not (tmp_path / "c.csv").exists()
+
+
 @pytest.mark.parametrize("name", ["empty.mcap", "empty.bag", "empty.db3"])
 def test_an_empty_log_is_named_empty(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str

@@ -211,6 +211,7 @@ def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
         skipped=log.skipped, clock=log.clock, cut=log.cut,
         stamp_offset_s=log.stamp_offset_s, frames=log.frames,
         numbers=None if log.numbers is None else np.where(has, log.numbers[take], 0),
+        stale_stamps=log.stale_stamps,
     )  # fmt: skip
 
 
@@ -362,15 +363,27 @@ def warn_clocks_apart(name: str, logs: Sequence[ImuLog], half_period_s: float) -
     log's times are one clock for every topic, so such a difference is the sensors'
     clocks (or a delivery delay of one topic), and pairing by stamp joins readings that
     far apart in time; and where some topics are timed by their header stamps and others
-    by the log's times (every stamp zero), which pairs a sensor's instant with a
-    message's arrival, its delivery delay unseen."""
+    by the log's times (every stamp zero, or stamps that do not advance), which pairs a
+    sensor's instant with a message's arrival, its delivery delay unseen."""
     clocks = {log.clock for log in logs}
     if len(clocks) > 1:
-        by_log = ", ".join(log.topic for log in logs if log.clock != "header stamps")
+        by_log = [log for log in logs if log.clock != "header stamps"]
+        zero = [log.topic for log in by_log if not log.stale_stamps]
+        stale = [log.topic for log in by_log if log.stale_stamps]
+        what = []
+        if zero:
+            what.append(
+                f"{', '.join(zero)} {'has' if len(zero) == 1 else 'have'} no header stamps "
+                "(every one zero)"
+            )
+        if stale:
+            what.append(
+                f"{', '.join(stale)} {'has' if len(stale) == 1 else 'have'} header stamps "
+                "that do not advance (a driver that does not set header.stamp?)"
+            )
         warnings.warn(
-            f"{name}: {by_log} {'has' if ',' not in by_log else 'have'} no header stamps "
-            f"(every one zero) and {'is' if ',' not in by_log else 'are'} timed by the "
-            "log's own times, the other topics by "
+            f"{name}: {' and '.join(what)} and {'is' if len(by_log) == 1 else 'are'} timed "
+            "by the log's own times, the other topics by "
             "their stamps: each pair joins a sensor's instant with a message's arrival, "
             "later by its delivery delay, which the log cannot show; stamp every IMU on "
             "one clock (readings paired across a motion give estimates that can be far "

@@ -86,10 +86,35 @@ class ImuLog:
     stale_stamps: int = 0
 
 
-def is_robot_log(path: str | os.PathLike[str]) -> bool:
-    """True for ``.bag``, ``.mcap``, ``.db3`` files and ROS 2 bag folders."""
+#: The first bytes of an MCAP file and of a ROS 1 bag: a log named otherwise (a ROS 1
+#: recording that did not finish, ``run.bag.active``; a file saved without its suffix)
+#: is still read as the log it is, not as a CSV file.
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+
+
+def log_kind(path: str | os.PathLike[str]) -> str:
+    """``"mcap"`` or ``"ros1"`` for a regular file that starts as one, else ``""``."""
     p = Path(path)
-    return p.suffix.lower() in LOG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").exists())
+    try:
+        if not p.is_file():
+            return ""
+        with p.open("rb") as fh:
+            head = fh.read(len(ROS1_MAGIC))
+    except OSError:
+        return ""
+    if head.startswith(MCAP_MAGIC):
+        return "mcap"
+    return "ros1" if head == ROS1_MAGIC else ""
+
+
+def is_robot_log(path: str | os.PathLike[str]) -> bool:
+    """True for ``.bag``, ``.mcap``, ``.db3`` files, ROS 2 bag folders, and files that
+    start as an MCAP file or a ROS 1 bag whatever their name."""
+    p = Path(path)
+    if p.suffix.lower() in LOG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").exists()):
+        return True
+    return bool(log_kind(p))
 
 
 def refuse_bag_metadata(path: str | os.PathLike[str]) -> None:
@@ -229,7 +254,7 @@ def _single_mcap(path: Path) -> Path | None:
     file is), where its ``metadata.yaml`` lists that file alone and no compression;
     else None (a ``.bag``, a SQLite bag, a bag split into several files or compressed
     by rosbag2: rosbags reads those)."""
-    if path.suffix.lower() == ".mcap":
+    if path.suffix.lower() == ".mcap" or log_kind(path) == "mcap":
         return path
     meta = path / "metadata.yaml"
     if not (path.is_dir() and meta.is_file()):
@@ -249,6 +274,11 @@ def _bag_folder(path: Path) -> Path:
     files (the folder's ``metadata.yaml`` must list that file: a reader opens the bag
     the metadata describes), else ``path`` itself; a one-line :class:`InputError` for a
     ``.db3`` without its metadata or not listed in it."""
+    if log_kind(path) == "ros1" and path.suffix.lower() != ".bag":
+        raise InputError(
+            f"{path}: a ROS 1 bag whose name does not end in .bag: a recording that did not "
+            "finish (.bag.active)? rosbag reindex it, then give it named NAME.bag"
+        )
     if path.suffix.lower() != ".db3":
         return path
     meta = path.parent / "metadata.yaml"
@@ -281,6 +311,9 @@ def _why_unreadable(exc: BaseException) -> str:
     if cut_short(exc):
         # mcap's: a record runs past the file's end, or its length is garbage
         return "the file ends inside a record, or is damaged: a recording cut short?"
+    if "Bag index looks damaged" in str(exc):  # a ROS 1 bag's index past its end
+        first = str(exc).splitlines()[0]
+        return f"{first}: a recording cut short? rosbag reindex rebuilds its index"
     if isinstance(exc, AttributeError) and "'NoneType'" in str(exc):  # JSON null
         return "a message with a null field"
     if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], int):
