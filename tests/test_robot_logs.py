@@ -1171,3 +1171,26 @@ def test_load_input_checks_the_first_readings_against_the_robots_mounting(
         assert message.endswith('make the Robot with mounting="z-down"'), message
         down = make_formulation("bend", Robot(sections, imus, mounting="z-down"))
         assert len(load_input(path, InputOptions(), down).t) == len(recording["stamps"])
+
+
+def test_a_tendon_robots_log_without_tensions_is_told_to_give_them_with_inputs(
+    recording: dict[str, Any], tmp_path: Path
+) -> None:
+    """A robot log of a tendon robot without --inputs: the one line said to give the
+    tensions as the recording's columns, which a log's Imu topics do not carry; it names
+    --inputs alone (a CSV recording keeps the columns' hint)."""
+    from continuum_mhe.errors import InputError
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import _tensions
+    from continuum_mhe.io.robot_file import read_robot
+
+    robot = read_robot("tendon-two-section")
+    log = write_mcap(tmp_path / "run.mcap", recording)
+    with pytest.raises(InputError) as caught:
+        _tensions(InputOptions(), robot, "tendon-two-section", log)
+    said = str(caught.value)
+    assert "--inputs TENSIONS.csv" in said and "a robot log's topics do not carry them" in said
+    assert "recording's columns" not in said
+    csv_path = write_raw_csv(tmp_path / "run.csv", recording)
+    with pytest.raises(InputError, match="or as the recording's columns tension_1"):
+        _tensions(InputOptions(), robot, "tendon-two-section", csv_path)

@@ -595,8 +595,10 @@ def _tensions(
             "with --inputs TENSIONS.csv)"
         )
     where = (
-        f"or as the recording's columns tension_1..tension_{k}"
-        if recording is None or os.path.isfile(recording) or is_robot_log(Path(recording))
+        "a robot log's topics do not carry them"
+        if recording is not None and is_robot_log(Path(recording))
+        else f"or as the recording's columns tension_1..tension_{k}"
+        if recording is None or os.path.isfile(recording)
         else f"or as the columns tension_1..tension_{k} of a recording read from a file: "
         "from standard input or a pipe they are not read (the tensions are read ahead of "
         "the samples)"
