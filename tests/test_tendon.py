@@ -3261,15 +3261,17 @@ def test_the_ukf_spread_as_for_a_pcc_robot_restarts_on_tilt_readings_and_says_wh
 
 
 def test_the_ukf_follows_a_loaded_tendon_robot_with_its_sigma_points_close() -> None:
-    """``force-29`` (tip force up to 0.29 N), raw IMUs, the UKF with its defaults: the
-    tendon model's sigma points lie close about the mean (alpha 0.01), and the tip is
-    within 3 mm of the truth on average and the tip force within 0.02 N rms (the EKF:
-    0.70 mm, 0.003 N; spread as for a PCC robot, alpha 0.5, the shooting's curvature
-    moves every update: 19 mm and 0.30 N, 303 rows ``inconsistent``). With tilt IMUs it
-    restarts at most once in the first 40 samples."""
+    """The first 4 s of ``force-29`` (tip force up to 0.22 N there), raw IMUs, the UKF
+    with its defaults: the tendon model's sigma points lie close about the mean (alpha
+    0.01), and the tip is within 3 mm of the truth on average and the tip force within
+    0.02 N rms (2.3 mm and 0.008 N; the EKF on the whole recording: 0.70 mm, 0.003 N).
+    Spread as for a PCC robot, alpha 0.5, the shooting's curvature moves every update:
+    16 mm and 0.25 N, 94 rows of 201 ``ok`` (19 mm, 0.30 N and 303 rows ``inconsistent``
+    on the whole recording). With tilt IMUs it restarts at most once in the first 40
+    samples."""
     from continuum_mhe.estimators.kalman import UnscentedKalmanFilter
 
-    f, t, z = _raw_shipped(401, "force-29")
+    f, t, z = _raw_shipped(201, "force-29")
     est = UnscentedKalmanFilter(f)
     assert est.inference.alpha == TendonFormulation.unscented_alpha == 0.01
     series = est.run(t, z)
@@ -3281,7 +3283,7 @@ def test_the_ukf_follows_a_loaded_tendon_robot_with_its_sigma_points_close() -> 
     force = np.asarray(series.output, float)[:, [cols.index(c) for c in ("fx", "fy", "fz")]]
     true_force = np.column_stack([truth.column(c)[rows] for c in ("fx", "fy", "fz")])
     assert np.sqrt(np.mean(np.sum((force - true_force)[later] ** 2, axis=1))) < 0.02
-    assert np.sum(series.status == "ok") > 390
+    assert np.sum(series.status == "ok") > 190
     f, t, z = _raw_shipped(40, "force-29", kind="tilt")
     tilt = UnscentedKalmanFilter(f)
     tilt.run(t, z)
