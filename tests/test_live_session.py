@@ -9,6 +9,7 @@ import io
 import math
 import os
 import re
+import threading
 import time
 from pathlib import Path
 
@@ -1184,9 +1185,8 @@ def test_a_glitch_is_skipped_and_said_in_the_summary() -> None:
 
 def test_the_live_summary_counts_frozen_rows_and_restarts_as_estimate_does(tmp_path) -> None:
     """A tilt stream whose IMU repeats one reading for 0.5 s, then stops for 2 s: the
-    session's summary said neither the frozen rows nor the restart after the gap, which
-    estimate's summary of the same samples says; both now say them, with the same
-    counts."""
+    session's summary counts the frozen rows and the restart after the gap, as
+    estimate's summary of the same samples does, with the same counts."""
     from continuum_mhe.cli import main
 
     s, _ = _session()
@@ -1222,11 +1222,11 @@ def test_the_live_summary_counts_frozen_rows_and_restarts_as_estimate_does(tmp_p
 
 
 def test_a_live_mhe_builds_its_ipopt_fallback_once_its_window_is_full(monkeypatch) -> None:
-    """A first uncertified window of a live stream waited for its IPOPT NLP to be built
-    (about 8 s for two raw IMUs, the stream held): the session has it built in the
-    background from the second sample on (the sample period sets the objective's scale),
-    once, and a fallback then takes the NLP that build made; an EKF's session builds
-    none."""
+    """A live session has the fast MHE's IPOPT fallback built in the background from
+    the second sample on (the sample period sets the objective's scale), once, so that a
+    first uncertified window does not hold the stream while it is built (about 8 s for
+    two raw IMUs); a fallback takes the NLP that build made; the stream's end waits for a
+    build still running; an EKF's session builds none."""
     from continuum_mhe.estimators import mhe as mhe_module
 
     built: list[int] = []
@@ -1249,4 +1249,14 @@ def test_a_live_mhe_builds_its_ipopt_fallback_once_its_window_is_full(monkeypatc
     assert inference.prepare_fallback() is False  # built: nothing more
     e, _ = _session("ekf")
     _feed(e, [10 * i for i in range(20)])
-    assert not hasattr(e.estimator.inference, "_nlp_builds")
+    assert e._fallback_prepared and "ipopt-fallback-nlp" not in {
+        t.name for t in threading.enumerate()
+    }
+    # a stream's end waits for a build still running (a process torn down under it
+    # crashes)
+    s2, _ = _session("mhe")
+    _feed(s2, [10 * i for i in range(3)])
+    assert s2.estimator.inference._nlp_builds
+    s2.finish()
+    assert not any(t.is_alive() for t in s2.estimator.inference._nlp_builds.values())
+    assert not any(t.daemon for t in s2.estimator.inference._nlp_builds.values())

@@ -389,7 +389,7 @@ def test_a_log_named_without_its_suffix_is_read_as_the_log_it_is(
 ) -> None:
     """An MCAP file saved without ``.mcap`` gives the estimates of the same file named
     ``.mcap``, and a ROS 1 bag named ``.bag.active`` (a recording that did not finish) is
-    said to be one in one line: both were read as CSV files ("contains a NUL byte")."""
+    said to be one in one line; neither is read as a CSV file ("contains a NUL byte")."""
     named = write_mcap(tmp_path / "run.mcap", recording)
     bare = tmp_path / "run_mcap"
     bare.write_bytes(named.read_bytes())
@@ -1176,9 +1176,9 @@ def test_load_input_checks_the_first_readings_against_the_robots_mounting(
 def test_a_tendon_robots_log_without_tensions_is_told_to_give_them_with_inputs(
     recording: dict[str, Any], tmp_path: Path
 ) -> None:
-    """A robot log of a tendon robot without --inputs: the one line said to give the
-    tensions as the recording's columns, which a log's Imu topics do not carry; it names
-    --inputs alone (a CSV recording keeps the columns' hint)."""
+    """A robot log of a tendon robot without --inputs: the one line names --inputs alone,
+    not the recording's tension columns, which a log's Imu topics do not carry (a CSV
+    recording keeps the columns' hint)."""
     from continuum_mhe.errors import InputError
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import _tensions

@@ -3295,9 +3295,9 @@ def test_evaluate_and_plot_warn_of_a_truth_in_a_y_up_motion_capture_frame(
     paper3d_pair, tmp_path, capsys
 ) -> None:
     """A motion capture's tip positions in its y-up frame (x, z, -y of the robot's base
-    frame) were scored as they are, hundreds of mm off, without a word: the truth turned
-    about the base fits far better, and the warning names where its axes lie; the same
-    tip positions in the base frame, and turned by 10 degrees only, say nothing."""
+    frame), hundreds of mm off as given, are warned of: the truth turned about the base
+    fits far better, and the warning names where its axes lie; the same tip positions in
+    the base frame, and turned by 10 degrees only, say nothing."""
     e = str(paper3d_pair["e"])
     y_up = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # base frame -> y-up frame
     cases = {"yup": y_up, "base": np.eye(3)}
@@ -3362,3 +3362,31 @@ def test_best_rotation_recovers_a_known_turn_of_the_positions() -> None:
     np.testing.assert_allclose(moved.offset, move, atol=1e-9)
     assert moved.error < 1e-12
     np.testing.assert_allclose(found.offset, 0.0)
+
+
+def test_no_frame_is_claimed_for_a_truth_along_a_line() -> None:
+    """A truth whose tip stays along a line (a still or straight robot, a motion along
+    one axis) leaves the turn about that line undetermined: a still truth 5 to 50 mm off
+    the estimate fits turned by 50 to 175 degrees about it, and a wobble along x
+    mirrored by 180; no frame is claimed for them (a bent, moving truth turned by 90
+    degrees is)."""
+    from scipy.spatial.transform import Rotation
+
+    from continuum_mhe.cli.truth_checks import frame_fit
+
+    rng = np.random.default_rng(0)
+    n, length = 500, 0.35
+    for offset in (0.005, 0.01, 0.05):  # the estimate off the still truth in x
+        still_truth = np.array([0.0, 0.0, length]) + rng.normal(0.0, 5e-4, (n, 3))
+        still_est = np.array([offset, 0.0, length - 5e-4]) + rng.normal(0.0, 5e-5, (n, 3))
+        assert frame_fit(still_est, still_truth, length) is None, offset
+    wobble = np.column_stack(
+        [0.01 * np.sin(np.linspace(0, 20, n)), np.zeros(n), np.full(n, length)]
+    ) + rng.normal(0.0, 3e-4, (n, 3))
+    assert frame_fit(wobble * [-1.0, 1.0, 1.0], wobble, length) is None  # mirrored in x
+    theta = np.linspace(0.0, 1.2, n)
+    bent = np.column_stack([length * np.sin(theta) * np.cos(3 * theta), length * np.sin(theta)
+                            * np.sin(3 * theta), length * np.cos(theta)])  # fmt: skip
+    turned = Rotation.from_euler("x", 90, degrees=True).apply(bent)
+    fit = frame_fit(bent, turned, length)
+    assert fit is not None and abs(fit.angle_deg - 90.0) < 1e-6

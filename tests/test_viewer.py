@@ -1273,3 +1273,32 @@ def test_view_takes_the_recorded_tensions_from_a_pipe_without_a_warning(
     assert [r["LineStrips3D:strips"] for _, r in drawn] == [
         r["LineStrips3D:strips"] for _, r in given
     ]
+
+
+def test_imu_twists_turn_a_mounted_imus_frame_about_the_backbone_before_its_mounting() -> None:
+    """``with_imu_twists`` on an IMU with a ``mount_rpy``: the disk frame ``R``, then the
+    twist about the backbone's tangent ``Rz(psi)``, then the mounting ``M`` (the model's
+    order), against ``R`` from the same robot unmounted composed by hand."""
+    from dataclasses import replace
+
+    from scipy.spatial.transform import Rotation
+
+    from continuum_mhe.io.raw_imu import mount_rotation
+    from continuum_mhe.viewer import backbone_geometry
+    from continuum_mhe.viewer.geometry import with_imu_twists
+
+    plain = read_robot("two-section")
+    rpy = ((10.0, -20.0, 35.0), (0.0, 90.0, -45.0))
+    mounted = replace(
+        plain, imus=tuple(replace(imu, mount_rpy=m) for imu, m in zip(plain.imus, rpy))
+    )
+    rng = np.random.default_rng(2)
+    bends = rng.uniform(-1.0, 1.0, (6, 2, 2))
+    psi = rng.uniform(-np.pi, np.pi, (6, 2))
+    drawn = with_imu_twists(mounted, backbone_geometry(mounted, bends, POINTS), psi)
+    disk = backbone_geometry(plain, bends, POINTS).imu_rotation
+    for i, m in enumerate(rpy):
+        turn = Rotation.from_rotvec(np.outer(psi[:, i], [0.0, 0.0, 1.0])).as_matrix()
+        want = disk[:, i] @ turn @ mount_rotation(m)
+        np.testing.assert_allclose(drawn.imu_rotation[:, i], want, atol=1e-12)
+    assert not np.allclose(mount_rotation(rpy[0]) @ turn[0], turn[0] @ mount_rotation(rpy[0]))

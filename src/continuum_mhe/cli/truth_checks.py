@@ -100,6 +100,27 @@ MOVED_GAIN = 0.1
 AXIS_NAMED_DEG = 20.0
 
 
+#: A turn or move of the truth is looked for only where its tip positions spread over
+#: two directions by at least this share of the robot's length (rms, the second singular
+#: value): about a line (a still or straight robot, a motion along one axis) the turn
+#: about that line is not determined, and any angle fits.
+ROTATION_MIN_SPREAD = 0.05
+
+
+def _spans_a_plane(tip_truth: np.ndarray, length: float, about_mean: bool) -> bool:
+    """Whether the finite rows of ``tip_truth`` (n, 3) m spread over two directions by
+    :data:`ROTATION_MIN_SPREAD` of ``length`` m, from the base (``about_mean`` False: a
+    turn about the base) or about their mean (a turn and a move)."""
+    rows = np.asarray(tip_truth, dtype=float)
+    rows = rows[np.all(np.isfinite(rows), axis=1)]
+    if len(rows) < 3:
+        return False
+    if about_mean:
+        rows = rows - rows.mean(axis=0)
+    spread = np.linalg.svd(rows, compute_uv=False) / math.sqrt(len(rows))
+    return bool(spread[1] >= ROTATION_MIN_SPREAD * length)
+
+
 def frame_fit(tip_est: np.ndarray, tip_truth: np.ndarray, length: float) -> FrameRotation | None:
     """The rigid motion that makes the truth's tip positions ``tip_truth`` (n, 3) m fit
     the estimate's ``tip_est`` (n, 3) m at the same rows far better: a turn about the base
@@ -107,12 +128,19 @@ def frame_fit(tip_est: np.ndarray, tip_truth: np.ndarray, length: float) -> Fram
     the robot's ``length`` m (and a turn)
     (:func:`~continuum_mhe.evaluation.metrics.best_rotation`), whose mean tip error is
     below :data:`TURN_GAIN` (a move: :data:`MOVED_GAIN`) of the one as given, itself at
-    least :data:`SHIFT_MIN_ERROR` of the length; else None."""
+    least :data:`SHIFT_MIN_ERROR` of the length, and the truth's positions spread over
+    two directions (:data:`ROTATION_MIN_SPREAD`); else None."""
     turn = best_rotation(tip_est, tip_truth)
     if turn is None or turn.unturned < SHIFT_MIN_ERROR * length:
         return None
-    if turn.angle_deg >= TURN_MIN_DEG and turn.error < TURN_GAIN * turn.unturned:
+    if (
+        turn.angle_deg >= TURN_MIN_DEG
+        and turn.error < TURN_GAIN * turn.unturned
+        and _spans_a_plane(tip_truth, length, about_mean=False)
+    ):
         return turn
+    if not _spans_a_plane(tip_truth, length, about_mean=True):
+        return None
     turn = best_rotation(tip_est, tip_truth, moved=True)
     if (
         turn is None

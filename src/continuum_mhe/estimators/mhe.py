@@ -455,10 +455,17 @@ class MovingHorizonInference(Inference):
                 self.formulation, s.horizon, s.max_iter, s.tol, s.loss, s.scale, scale_exp
             )
 
-        thread = threading.Thread(target=build, name="ipopt-fallback-nlp", daemon=True)
+        # not a daemon: a process that ends while CasADi builds it waits for the build
+        # (its interpreter torn down under a running build crashes it)
+        thread = threading.Thread(target=build, name="ipopt-fallback-nlp")
         self._nlp_builds[scale_exp] = thread
         thread.start()
         return True
+
+    def join_fallback(self) -> None:
+        """Wait for the builds :meth:`prepare_fallback` started (the end of a stream)."""
+        for thread in list(self._nlp_builds.values()):
+            thread.join()
 
     @property
     def _nlp(self) -> Nlp:

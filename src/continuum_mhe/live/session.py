@@ -582,8 +582,9 @@ class LiveSession:
             self.counts.partial += 1
 
     def finish(self) -> None:
-        """The stream ended: a first sample still waiting for the next is kept, and the
-        samples waiting for the tensions of the ones after them are estimated."""
+        """The stream ended: a first sample still waiting for the next is kept, the
+        samples waiting for the tensions of the ones after them are estimated, and a
+        background build of the fast MHE's IPOPT fallback is waited for."""
         if self._held is not None and self.fatal is None:
             self._release_held(None)
         if self._jumped is not None:
@@ -603,6 +604,10 @@ class LiveSession:
             and self._garbage_lines >= GARBAGE_STOP_LINES
         ):
             self._stop_on_garbage()
+        # the fast MHE's IPOPT fallback still being built (_prepare_fallback): waited for
+        join = getattr(self.estimator.inference, "join_fallback", None)
+        if join is not None:
+            join()
 
     def _comment(self, text: str, arrival: float) -> None:
         c = self.counts
