@@ -593,6 +593,23 @@ def test_log_stamps_in_another_unit_warn_as_a_csv_t_does(
         read_imu_log(write_mcap(tmp_path / "ok.mcap", recording))  # 50 Hz: no warning
 
 
+def test_stamps_in_bursts_are_said_as_bursts_not_as_a_unit(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """A driver that stamps readings in batches of four (0.1 ms apart, then 80 ms): the
+    median step is that of 10 kHz, but the mean step 20 ms; the warning says the samples
+    come stamped in bursts, not that the stamps are in microseconds (a unit to fix that
+    would make the times wrong)."""
+    n = len(recording["stamps"])
+    k = np.arange(n)
+    stamps = T0_NS + (k // 4) * 80_000_000 + (k % 4) * 100_000
+    log = write_mcap(tmp_path / "burst.mcap", {**recording, "stamps": stamps})
+    with pytest.warns(UnitWarning) as seen:
+        read_imu_log(log)
+    (said,) = [str(w.message) for w in seen]
+    assert "come stamped in bursts" in said and "microseconds" not in said
+
+
 @pytest.mark.parametrize("model", ["tilt", "direct"])
 def test_a_one_imu_log_takes_the_robot_file_s_mounting_and_gyro_bias(
     tmp_path: Path, recording: dict[str, Any], model: str

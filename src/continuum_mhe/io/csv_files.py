@@ -246,17 +246,34 @@ TIME_STEP_WARNING = "by a median of"
 #: Times whose median step is below this (s: over 10 kHz, faster than any IMU stream
 #: read here) are in a unit too small (microseconds stamped as nanoseconds).
 TOO_FAST_STEP_S = 1e-4
+#: ... unless their mean step is this many times longer: most steps tiny and a usual rate
+#: on average are samples stamped in bursts (:func:`check_time_steps`).
+BURST_MEAN_STEPS = 10
 
 
 def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fix: str) -> None:
     """Warn once (:class:`UnitWarning`) when times ``t`` (s, increasing) step like another
     unit: a median step over :data:`MS_LIKE_STEP_S` (milliseconds read as seconds) or
-    under :data:`TOO_FAST_STEP_S`; ``name: what by a median of ... s per sample; fix``."""
+    under :data:`TOO_FAST_STEP_S`; ``name: what by a median of ... s per sample; fix``;
+    or, a median step under :data:`TOO_FAST_STEP_S` but a mean step :data:`BURST_MEAN_STEPS`
+    times over it, that the samples come stamped in bursts (not a unit to fix)."""
     if len(t) < 3:
         return
     step = float(np.median(np.diff(t)))
+    mean = float(t[-1] - t[0]) / (len(t) - 1)
     if step > MS_LIKE_STEP_S:
         rate, fix = "", slow_fix
+    elif 0 <= step < TOO_FAST_STEP_S and mean >= BURST_MEAN_STEPS * TOO_FAST_STEP_S:
+        # most steps tiny, a usual rate on average: samples stamped in bursts
+        warnings.warn(
+            f"{name}: {what} {TIME_STEP_WARNING} {step:g} s per sample but {mean:g} s on "
+            "average: the samples come stamped in bursts (a driver that stamps a batch of "
+            "readings when it arrives?), and each is estimated at the time it is given: "
+            "stamp each reading when it is taken",
+            UnitWarning,
+            stacklevel=3,
+        )
+        return
     elif 0 < step < TOO_FAST_STEP_S:
         rate, fix = f" ({1 / step:.3g} samples per second)", fast_fix
     else:
