@@ -233,13 +233,21 @@ def test_an_unloaded_robot_is_estimated_free_of_load_by_the_mhe() -> None:
 
 
 def test_a_smooth_slack_clip_lets_ipopt_converge_on_a_start_with_slack_tendons() -> None:
-    """``slack_smoothing``: the clip of a tension at zero, exact by default, smooth over
-    the width given (a slack tendon pulls half of it); with 1 mN the MHE on IPOPT's
+    """``slack_smoothing``: the clip of a tension at zero, exact by default with two IMUs
+    (1 mN wide with one), smooth over the width given (a slack tendon pulls half of it);
+    with 1 mN the MHE on IPOPT's
     first windows of ``unloaded`` (every tendon slack: with the exact clip their optimum
     sits on its kink, and the first five stop at IPOPT's iteration limit,
     ``not-converged``) converge: every row after the first is ``ok``."""
     f, t, z = _shipped("unloaded", "tilt")
+    from continuum_mhe.model.tendon import SINGLE_IMU_SLACK_SMOOTHING
+
     exact, smooth = f.statics, replace(f, slack_smoothing=1e-3).statics
+    assert (f.slack_smoothing, f.slack_width) == (None, 0.0)
+    one = replace(f, robot=replace(f.robot, imus=f.robot.imus[1:]))
+    assert one.slack_width == SINGLE_IMU_SLACK_SMOOTHING == 1e-3
+    assert one.statics.slack_smoothing == 1e-3
+    assert replace(one, slack_smoothing=0.0).slack_width == 0.0
     assert float(exact.acting(0.0)) == 0.0 and float(exact.acting(-0.2)) == 0.0
     assert float(smooth.acting(0.0)) == pytest.approx(0.5e-3, rel=1e-12)
     assert float(smooth.acting(1.0)) == pytest.approx(1.0 + 0.25e-6, rel=1e-9)
