@@ -1038,3 +1038,43 @@ def test_a_short_knock_at_rest_is_left_out_and_said(tmp_path: Path, capsys) -> N
     rest = np.delete(np.arange(n), np.arange(250, 255))
     assert f"IMU 2: gyro bias (rad/s) gx={knocked[rest, 9].mean():.5f} " in out
     assert f"gx={knocked[:, 9].mean():.5f} " not in out
+
+
+def test_a_knock_after_which_the_robot_rests_in_another_pose_is_said(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A knock on both IMUs (5 of 500 samples) after which the robot rests 1.5 degrees
+    about y from its pose before (within the stillness bounds over the whole rest): the
+    knock's warning says the IMU rests in another pose and to record again (the printed
+    pitch, about -0.75, is a mix of the two poses); a knock with the pose kept does not."""
+    rng = np.random.default_rng(5)
+    n = 500
+    values = np.hstack([_rest_values(n, 0.0, 0.0), _rest_values(n, 0.0, 0.0)])
+    values[:, [0, 1, 2, 6, 7, 8]] += rng.normal(0.0, 0.05, (n, 6))
+    values[:, [3, 4, 5, 9, 10, 11]] += rng.normal(0.0, 0.005, (n, 6))
+    values[250:255, [4, 10]] += 0.3
+    path = tmp_path / "knock.csv"
+    _write_rest(path, values)
+    code, _, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0 and err.count("(a knock?)") == 2 and "another pose" not in err, err
+    turn = math.radians(1.5)
+    for first in (0, 6):  # about y: ax, az of each IMU from the knock on
+        ax, az = values[255:, first].copy(), values[255:, first + 2].copy()
+        values[255:, first] = math.cos(turn) * ax + math.sin(turn) * az
+        values[255:, first + 2] = -math.sin(turn) * ax + math.cos(turn) * az
+    _write_rest(path, values)
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0
+    assert err.count("degrees from its pose before it: the robot settled in another pose") == 2
+    assert "record the rest again" in err
+
+
+def test_calibrate_port_given_a_recording_says_calibrate_from(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """calibrate --port with a recording's path names calibrate --from, not estimate."""
+    path = tmp_path / "rest.csv"
+    path.write_text("t,ax,ay,az,gx,gy,gz\n", encoding="utf-8")
+    code, _, err = _calibrate_main(capsys, "--port", str(path))
+    assert code == 2 and err.count("\n") == 1
+    assert "a recording is calibrated with continuum-mhe calibrate --from FILE" in err

@@ -332,6 +332,12 @@ KNOCK_NOISE_FLOOR = 0.02
 #: Knocks on more than this share of an IMU's samples are left in: not a knock but the
 #: readings' own scatter (a vibrating bench), which the stillness bounds judge.
 KNOCK_SHARE_MAX = 0.05
+#: After a knock the robot may rest in another pose: an IMU whose gravity direction
+#: before its first knock and after its last one are more than this apart (deg), and
+#: more than :data:`SETTLE_SIGMAS` standard errors of that difference, gets the warning
+#: that its mounting is a mix of the two poses.
+SETTLE_DEG = 0.2
+SETTLE_SIGMAS = 6.0
 
 
 def knocks_at_rest(
@@ -368,9 +374,33 @@ def knocks_at_rest(
             f"IMU {i + 1}: {count} of {int(valid.sum())} sample(s) from t = "
             f"{time_text(float(at[0]))} to {time_text(float(at[-1]))} s left out of its means "
             f"and noise: a reading more than {KNOCK_SIGMAS:g} times its axis's noise from "
-            "the rest (a knock?)"
+            "the rest (a knock?)" + _settled(block, valid, knocked, float(np.median(noise[:3])))
         )
     return out, said
+
+
+def _settled(block: FloatArray, valid: FloatArray, knocked: FloatArray, noise: float) -> str:
+    """``""``, or what to add to a knock's warning where one IMU's samples ``block``
+    (n, 6) rest in another pose after its knocks than before them: the angle between the
+    mean accelerometer vectors of the ``valid`` samples before the first ``knocked`` one
+    and after the last, beyond :data:`SETTLE_DEG` and :data:`SETTLE_SIGMAS` standard
+    errors (``noise``: the accelerometer's noise per axis, m/s^2)."""
+    first, last = np.flatnonzero(knocked)[[0, -1]]
+    before = block[: int(first)][valid[: int(first)], :3]
+    after = block[int(last) + 1 :][valid[int(last) + 1 :], :3]
+    if len(before) < MIN_REST_SAMPLES or len(after) < MIN_REST_SAMPLES:
+        return ""
+    a, b = before.mean(axis=0), after.mean(axis=0)
+    cos = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-12)
+    angle = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
+    g = max(float(np.linalg.norm(a)), 1e-12)
+    error = math.degrees(noise / g * math.sqrt(1.0 / len(before) + 1.0 / len(after)))
+    if angle <= max(SETTLE_DEG, SETTLE_SIGMAS * error):
+        return ""
+    return (
+        f"; after it the IMU rests {angle:.2f} degrees from its pose before it: the robot "
+        "settled in another pose, and the mounting is a mix of the two; record the rest again"
+    )
 
 
 #: A gyro spread this many times its bound, with every accelerometer still, reads as a
@@ -574,7 +604,11 @@ def collect(
     except MissingExtraError:
         raise
     except Exception as exc:
-        raise InputError(port_hint(port, exc)) from None
+        raise InputError(
+            port_hint(
+                port, exc, "a recording is calibrated with continuum-mhe calibrate --from FILE"
+            )
+        ) from None
     events: queue.Queue[Event] = queue.Queue()
     reader = SerialReader(port, baud, conn, events, 1.0)
     clock = DeviceClock()

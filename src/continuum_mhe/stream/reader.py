@@ -29,8 +29,13 @@ def open_port(port: str, baud: int, feature: str = "live on a serial port") -> A
     return serial.serial_for_url(port, baudrate=baud, timeout=0.05, exclusive=exclusive)
 
 
-def port_hint(port: str, exc: BaseException) -> str:
-    """One line: why ``port`` did not open, the likely causes, the ports present."""
+def port_hint(
+    port: str,
+    exc: BaseException,
+    recording: str = "a recording is estimated with continuum-mhe estimate FILE",
+) -> str:
+    """One line: why ``port`` did not open, the likely causes, the ports present;
+    ``recording`` says what to run where ``port`` is a file or folder (a recording)."""
     present = sorted(
         p for pat in ("/dev/ttyACM*", "/dev/ttyUSB*", "/dev/cu.usb*") for p in glob.glob(pat)
     )
@@ -39,8 +44,7 @@ def port_hint(port: str, exc: BaseException) -> str:
         kind = "a folder" if os.path.isdir(port) else "a regular file"
         return (
             f"{port}: {kind}, not a serial device: give the device (Linux /dev/ttyACM0, "
-            "macOS /dev/cu.usbmodem*); a recording is estimated with continuum-mhe "
-            "estimate FILE"
+            f"macOS /dev/cu.usbmodem*); {recording}"
         )
     if isinstance(exc, PermissionError) or "Permission denied" in text:
         causes = (
