@@ -823,3 +823,38 @@ def test_a_recording_that_only_the_other_mounting_explains_is_said(tmp_path) -> 
     (start,) = said(120.0 + 55.0 * np.clip((t - 2.0) / 4.0, 0.0, 1.0))  # the start's alone
     assert "at the start gravity puts IMU 1 120 degrees" in start
     assert said(70.0 + 40.0 * np.sin(t) ** 2) == []  # 70 to 110: beyond either way up
+
+
+def test_a_filter_s_bound_notice_of_unobservable_bends_says_they_pass_the_bound() -> None:
+    """A filter does not hold its bends to the bound: where the robot's IMUs do not
+    determine its shape (one IMU on two sections), or every row lacked an IMU's
+    reading, the free bends drift to the bound and past it, and the readings did not
+    set them; the notice says so rather than that the readings set those shapes."""
+    from continuum_mhe.estimators.run_notices import BendsOnBound
+
+    f = make_formulation("bend", read_robot("two-section"))
+    theta_2 = [o.name for o in f.outputs].index("theta_2")
+    output = np.zeros((2, f.ny))
+    output[:, theta_2] = [3.5, 4.0]
+    raise_it = "raise theta_max in the robot file R"
+    bends = BendsOnBound(f)
+    bends.add(output, ["uncertain", "uncertain"])
+    line = bends.notice(2, "ekf", False, raise_it, observable=False)
+    assert line is not None and "section 2 up to 4 rad" in line
+    assert "the readings, not the bound, set those shapes" not in line, line
+    assert line.endswith(
+        "the EKF does not hold its estimates to the bound, and the robot's IMUs do not "
+        "determine its shape: the bends they leave free drift to the bound and past it (one "
+        "IMU per section determines them; check-robot tells)"
+    ), line
+    z = np.zeros((2, f.nz))
+    z[:, 2:4] = np.nan  # IMU 2 missing in both rows
+    bends = BendsOnBound(f)
+    bends.add(output, ["uncertain", "uncertain"], z)
+    line = bends.notice(2, "ukf", False, raise_it)
+    assert line is not None and "the readings, not the bound, set those shapes" not in line
+    assert "the bends the other IMUs leave free drift to the bound and past it" in line, line
+    bends = BendsOnBound(f)
+    bends.add(output, ["ok", "ok"])
+    line = bends.notice(2, "ekf", False, raise_it)
+    assert line is not None and "so the readings, not the bound, set those shapes" in line

@@ -116,16 +116,19 @@ class BendsOnBound:
             if self.partial
             else ""
         )
+        # a filter does not stop the free bends at the bound: they drift past it
+        drift = "drift to the bound" if holds else "drift to the bound and past it"
+        free = not observable or self.partial == self.count
         if not observable:
             further = (
                 "and the robot's IMUs do not determine its shape: the bends they leave "
-                "free drift to the bound (one IMU per section determines them; "
+                f"free {drift} (one IMU per section determines them; "
                 "check-robot tells)"
             )
         elif self.partial == self.count:
             further = (
                 "and all of them while an IMU's reading was missing (a dropout): the "
-                "bends the other IMUs leave free drift to the bound, which says nothing "
+                f"bends the other IMUs leave free {drift}, which says nothing "
                 "of how far the robot bends"
             )
         elif reached and all(s.theta_max >= DEFAULT_THETA_MAX for s in reached):
@@ -154,10 +157,11 @@ class BendsOnBound:
             if big > 0 and len(sections) > 1
         ] or [f"up to {big:.3g} rad" for big in self.largest if big > 0]
         reach = f", {', '.join(largest)}" if largest else ""
+        # the bends the readings leave free are set by neither the readings nor the bound
+        settled = "" if free else ", so the readings, not the bound, set those shapes"
         return (
             f"{what} on or beyond {of}{reach}: the {method.upper()} does "
-            "not hold its estimates to the bound, so the readings, not the bound, set "
-            f"those shapes, {further}"
+            f"not hold its estimates to the bound{settled}, {further}"
         )
 
 
