@@ -1051,3 +1051,41 @@ def test_plot_of_a_results_folder_into_a_file_says_it_is_not_a_folder(
     assert main(["plot", str(folder), "--out", str(target)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{target}: not a folder: give --out a folder" in err
+
+
+def test_conditions_figure_draws_the_tip_error_of_the_report_table(quick_run: Path) -> None:
+    """Both panels of ``exp4_conditions`` give the mean tip error (mm) that the report's
+    table of the conditions and its verdicts give, the whole run's and the first N's."""
+    from matplotlib.container import BarContainer
+
+    from continuum_mhe.evaluation import plotting
+
+    d = load_results(quick_run)["exp4_ekf_comparison"]
+    figs = RENDERERS["exp4_ekf_comparison"](d)
+    try:
+        whole, first = figs["exp4_conditions"].axes[:2]
+        for ax, block in ((whole, d["conditions"]), (first, d["conditions_early"])):
+            assert ax.get_ylabel() == "mean tip error (mm)"
+            bars = next(c for c in ax.containers if isinstance(c, BarContainer))  # MHE's
+            mhe = [bar.get_height() for bar in bars]
+            assert mhe == pytest.approx([g["mhe"]["tip_mean_mm"]["mean"] for g in block.values()])
+    finally:
+        for fig in figs.values():
+            plotting.close(fig)
+
+
+def test_beyond_figure_tick_labels_do_not_overlap(quick_run: Path) -> None:
+    """The recovery panel's labels (``bad-start off`` beside ``bad-start on``) are each
+    readable: no two of a panel's x tick labels overlap."""
+    from continuum_mhe.evaluation import plotting
+
+    fig = RENDERERS["exp7_beyond"](load_results(quick_run)["exp7_beyond"])["exp7_beyond"]
+    try:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+        for ax in fig.axes:
+            boxes = [t.get_window_extent(renderer) for t in ax.get_xticklabels() if t.get_text()]
+            for a, b in zip(boxes, boxes[1:]):
+                assert a.x1 <= b.x0 or not a.overlaps(b), ax.get_title()
+    finally:
+        plotting.close(fig)

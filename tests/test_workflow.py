@@ -780,3 +780,50 @@ def test_plot_of_a_one_row_estimate_with_a_truth_says_so(tmp_path: Path, capsys)
     err = capsys.readouterr().err.strip()
     assert err.endswith("the estimate has 1 row: a truth is drawn beside two rows or more"), err
     assert not (tmp_path / "f.png").exists()
+
+
+def test_figures_of_a_long_robot_description_keep_their_titles_whole() -> None:
+    """The demo's titles name the robot (sections, IMUs, mounting): a title wider than
+    its figure is wrapped, not cut at the figure's edges."""
+    from matplotlib.text import Text
+
+    from continuum_mhe.evaluation import plotting
+    from continuum_mhe.results import EstimateSeries, Status
+
+    t = np.linspace(0.0, 1.0, 21)
+    truth = np.column_stack([0 * t, 0 * t, 0.2 + 0 * t, 0.1 + t, 0 * t])
+    series = EstimateSeries("mhe", t, truth.copy(), np.full(len(t), Status.OK.value), 0 * t)
+    title = "Tip path (simulated spatial recording, " + "2 sections (0.16 m, 0.14 m), " * 4
+    for fig in (
+        plotting.trajectory_3d(truth, [series], title),
+        plotting.states_vs_time(t, truth, [series], title),
+    ):
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+        titles = [x for x in fig.findobj(Text) if x.get_text() == title]
+        assert titles
+        for text in titles:
+            extent = text.get_window_extent(renderer)
+            assert fig.bbox.x0 <= extent.x0 and extent.x1 <= fig.bbox.x1
+        plotting.close(fig)
+
+
+def test_a_status_has_one_colour_in_every_estimate_figure() -> None:
+    """The status strip colours each status alike in every file, whichever other
+    statuses the file has (``uncertain`` beside ``ok`` alone, or beside ``reset``)."""
+    from continuum_mhe.evaluation import plotting
+    from continuum_mhe.evaluation.estimate_figure import estimate_figure
+    from continuum_mhe.io.state_tables import StateTable
+
+    t = np.linspace(0.0, 1.0, 6)
+    names = ["x", "y", "z", "theta", "phi"]
+    values = np.column_stack([0 * t, 0 * t, 0.2 + 0 * t, 0 * t, 0 * t])
+    colours = []
+    for other in ("ok", "reset"):
+        statuses = np.array(["uncertain", other, "ok", "ok", "ok", "ok"])
+        fig = estimate_figure(StateTable(t, names, values, statuses))
+        strip = fig.axes[-2]  # the status strip (the 3D view is the last axes)
+        row = [lab.get_text() for lab in strip.get_yticklabels()].index("uncertain")
+        colours.append(next(ln for ln in strip.get_lines() if ln.get_ydata()[0] == row).get_color())
+        plotting.close(fig)
+    assert colours[0] == colours[1]

@@ -380,7 +380,7 @@ def estimate_figure(
     if z_down:  # the base frame's z points down in the world: drawn so
         view.invert_zaxis()
         view.set_zlabel("z (mm, base z down)")
-    fig.suptitle(title)
+    fig.suptitle(title, wrap=True)
     fig.tight_layout()
     return fig
 
@@ -400,12 +400,25 @@ def _force_panel(ax: plt.Axes, est: StateTable, truth: StateTable | None) -> Non
     ax.grid(alpha=0.3)
 
 
+#: the colours of the statuses other than ok (green), in :class:`Status`'s order: each
+#: status has the same colour in every figure, whichever others its file has
+_STATUS_COLORS = ("C3", "C1", "C4", "C5", "C6", "C7", "C8", "C9", "C0")
+
+
+def status_color(status: Status) -> str:
+    """The colour of ``status``'s marks in the status strip."""
+    if status is Status.OK:
+        return "C2"
+    others = [s for s in Status if s is not Status.OK]
+    return _STATUS_COLORS[others.index(status) % len(_STATUS_COLORS)]
+
+
 def _status_strip(ax: plt.Axes, est: StateTable) -> None:
     """One row of marks per status the file has, at the times it has it."""
     present = [s for s in Status if np.any(est.status == s.value)]
     for k, s in enumerate(present):
         at = est.t[est.status == s.value]
-        ax.plot(at, np.full(len(at), k), "|", ms=9, color="C2" if s is Status.OK else f"C{k + 3}")
+        ax.plot(at, np.full(len(at), k), "|", ms=9, color=status_color(s))
     ax.set_yticks(range(len(present)), [s.value for s in present], fontsize="small")
     ax.set_ylim(-0.7, len(present) - 0.3)
     ax.set_ylabel("status")

@@ -75,7 +75,7 @@ def trajectory_3d(
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
-    ax.set_title(title)
+    ax.set_title(title, wrap=True)  # a robot's long description: wrapped, not cut
     ax.legend(loc="upper left")
     fig.tight_layout()
     return fig
@@ -161,7 +161,7 @@ def states_vs_time(
         loc="upper right", ncol=5, fontsize="small",
     )  # fmt: skip
     axes[-1].set_xlabel("t (s)")
-    fig.suptitle(title)
+    fig.suptitle(title, wrap=True)
     fig.tight_layout()
     return fig
 
@@ -205,7 +205,7 @@ def backbone_snapshots(
         ax.set_zlabel("z (mm)")
         if j == 0:
             ax.legend(loc="upper left", fontsize="small")
-    fig.suptitle(title)
+    fig.suptitle(title, wrap=True)
     fig.tight_layout()
     return fig
 

@@ -159,14 +159,15 @@ def exp4_figures(d: dict[str, Any]) -> dict[str, Figure]:
     cond = d["conditions"]
     ck = list(cond)
     fig2, axes = plt.subplots(1, 2, figsize=(10, 4))
+    # the tip error, as the report's table of the conditions and its verdicts give it
     _bars(
         axes[0],
         [k.removeprefix("condition-") for k in ck],
         [cond[k] for k in ck],
         ("mhe", "ekf", "ukf"),
-        "srmse",
+        "tip_mean_mm",
     )
-    axes[0].set_ylabel("SRMSE (m + rad)")
+    axes[0].set_ylabel("mean tip error (mm)")
     axes[0].set_title("whole run")
     early = d["conditions_early"]
     _bars(
@@ -286,6 +287,7 @@ def exp7_figures(d: dict[str, Any]) -> dict[str, Figure]:
                 labels.append(f"{g}\n{side}")
                 blocks.append({m: {"v": rec[g][m]["tip_mean_mm"][side]} for m in rec[g]})
         _bars(axes[2], labels, blocks, tuple(next(iter(rec.values()))), "v")
+        axes[2].tick_params(axis="x", labelsize="small")  # six labels: apart, not touching
         axes[2].set_ylabel("mean tip error over the event (mm)")
         axes[2].set_title("recovery settings off / on")
         axes[2].legend(fontsize="small")
