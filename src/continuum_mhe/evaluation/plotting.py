@@ -126,7 +126,7 @@ def states_vs_time(
                         if j == 0 else None,
                     )  # fmt: skip
                 if straight.any():
-                    ax.legend(loc="upper right", fontsize="small")
+                    ax.legend(loc="best", fontsize="small")  # off the phi line
         if truth is not None:
             ax.plot(
                 _breaks(name, t, truth[:, k]),
