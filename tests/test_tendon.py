@@ -281,9 +281,11 @@ def test_the_model_floor_on_a_bend_past_120_degrees() -> None:
 
 
 def test_a_slack_tendon_pulls_nothing() -> None:
-    """A negative tension (a state can stray there) acts as zero."""
+    """A negative tension (a state can stray there) acts as zero, with the exact clip
+    (``slack_smoothing=0``; this one-IMU robot's default clip is the smooth one, whose
+    slack tendon pulls half its width: ``test_load_hypotheses_mhe.py``)."""
     robot = _one_section(Tendon(0, 0.0, 0.01), Tendon(0, math.pi, 0.01))
-    f = TendonFormulation(robot=robot)
+    f = TendonFormulation(robot=robot, slack_smoothing=0.0)
     x = np.zeros(f.nx)
     x[3:6] = [0.02, 0.0, 0.0]
     x[6:8] = [1.0, -3.0]
