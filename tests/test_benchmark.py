@@ -449,6 +449,73 @@ def test_a_peer_is_timed_on_its_solve_alone(monkeypatch) -> None:
     assert failed == 0 and np.all(sec == 2.0)  # the two reads around the solve alone
 
 
+def test_dompc_is_timed_without_copying_the_window_into_its_templates(monkeypatch) -> None:
+    """do-mpc's time per sample is the EKF arrival step and ``make_step``: its window's
+    readings and masks and the prior go into do-mpc's templates before each clock
+    start, as a peer's data do (a CasADi structure assignment costs tens of us, a
+    window of N nodes 2N of them)."""
+    from continuum_mhe.benchmark import dompc
+
+    calls: list[str] = []
+    f = make_formulation("bend")
+
+    class Template:
+        def __init__(self, name: str) -> None:
+            self.name = name
+
+        def __setitem__(self, key: object, value: object) -> None:
+            calls.append(self.name)
+
+    class Mhe:
+        x0: object = None
+
+        def set_initial_guess(self) -> None:
+            pass
+
+        def make_step(self, y: object) -> np.ndarray:
+            calls.append("make_step")
+            return np.zeros(f.nx)
+
+    def clock() -> float:
+        calls.append("clock")
+        return float(len(calls))
+
+    monkeypatch.setattr(dompc, "_dompc_mhe", lambda *a: (Mhe(), Template("tvp"), Template("par")))
+    monkeypatch.setattr(dompc.time, "perf_counter", clock)
+    n, rec = 3, simulate("paper3d", duration=0.3, seed=0)
+    _, sec = run_dompc(f, n, rec)
+    sample = ["tvp"] * 2 * n + ["clock", "clock", "par", "par", "clock", "make_step", "clock"]
+    assert calls == sample * len(rec.t)
+    assert np.all(sec == 3.0)  # (1 + 2): the arrival step and make_step alone
+
+
+def test_a_casadi_peer_is_called_with_casadi_matrices(monkeypatch) -> None:
+    """A CasADi peer's solve is the ``nlpsol`` call on the window, its guess and its
+    multipliers already converted to CasADi matrices in ``prepare``: numpy arguments
+    would be converted inside the timed call (about 0.1 us an element, a few hundred
+    us a window at N = 30)."""
+    import casadi
+
+    f = make_formulation("bend")
+    windows = peers.record_windows(f, simulate("paper3d", duration=0.4, seed=0), 3)
+    peer = peers.CasadiPeer(f, 3, "sqp-hpipm")
+    solver, kinds = peer.solver, []
+
+    class Spy:
+        def __call__(self, **kwargs: casadi.DM) -> dict[str, casadi.DM]:
+            kinds.append({k: type(v) for k, v in kwargs.items()})
+            return solver(**kwargs)
+
+        def stats(self) -> dict[str, object]:
+            return solver.stats()
+
+    peer.solver = Spy()  # type: ignore[assignment]
+    out, _, failed, _ = peers.run_peer(f, peer, windows)
+    assert failed == 0 and np.isfinite(out[2:]).all()
+    assert len(kinds) == sum(w is not None for w in windows) and "lam_x0" in kinds[-1]
+    assert all(kind is casadi.DM for call in kinds for kind in call.values())
+
+
 @pytest.mark.parametrize("ng", [0, 1])
 def test_the_peers_multipliers_move_by_one_sample_as_their_states(ng: int) -> None:
     """Each multiplier of a window answer labelled by its stage and place: after the

@@ -86,7 +86,10 @@ def run_dompc(
     time-varying parameters and the arrival prior into the parameters: from sample
     ``N`` on, the EKF's filtered state and covariance at sample ``k - N`` (one EKF step
     per sample, timed with do-mpc's step, as our MHE's arrival update is); before,
-    the first sample's prior (``Formulation.start_prior``)."""
+    the first sample's prior (``Formulation.start_prior``). The time per sample is the
+    EKF step and ``make_step``; copying the window's data and the prior into do-mpc's
+    templates is not timed, as the peers' data are not
+    (:func:`~continuum_mhe.benchmark.peers.run_peer`)."""
     from continuum_mhe.estimators import make_estimator
 
     f = formulation
@@ -104,19 +107,24 @@ def run_dompc(
         mhe.set_initial_guess()
         zero = np.zeros((nz, 1))
         for j in between_samples(range(n)):  # (as the harness's timed runs)
-            t0 = time.perf_counter()
+            # the window's data are handed over before the clock starts, as the peers'
+            # (CasADi's structure assignments cost tens of us a node)
             for k in range(horizon):
                 s = j - horizon + 1 + k
                 tvp["_tvp", k, "z"] = rec.z[max(s, 0)]
                 tvp["_tvp", k, "m"] = f.measurement_mask(rec.z[s]) if s >= 0 else np.zeros(nz)
+            t0 = time.perf_counter()
             if j >= horizon:
                 prior = ekf.step(Measurement(float(rec.t[j - horizon]), rec.z[j - horizon]))
                 if prior.state is None or prior.covariance is None:
                     raise RuntimeError(f"the EKF gave no arrival prior at sample {j - horizon}")
-                par["xbar"], par["pinv"] = prior.state, np.linalg.inv(prior.covariance).ravel()
+                xbar, pinv = prior.state, np.linalg.inv(prior.covariance).ravel()
             else:
-                par["xbar"], par["pinv"] = x0, pinv0
+                xbar, pinv = x0, pinv0
+            arrival = time.perf_counter() - t0
+            par["xbar"], par["pinv"] = xbar, pinv
+            t0 = time.perf_counter()
             x = np.asarray(mhe.make_step(zero), float).ravel()
-            sec[j] = time.perf_counter() - t0
+            sec[j] = arrival + time.perf_counter() - t0
             out[j] = f.output(x)
     return out, sec

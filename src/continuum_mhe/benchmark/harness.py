@@ -72,8 +72,8 @@ METHOD_NOTES: dict[str, str] = {
     "core, as ekf-kernel (fallbk: windows not certified)",
     "ipopt": "MHE solved by IPOPT through CasADi (the paper's solver): the whole step",
     "do-mpc": "do-mpc's MHE (IPOPT) given the same window cost through its API: "
-    "make_step plus our EKF arrival step; its first N estimates differ (no growing "
-    "window)",
+    "make_step plus our EKF arrival step (the window's data copied into its templates "
+    "before the clock starts); its first N estimates differ (no growing window)",
     **PEER_NOTES,
     "ekf": "EKF through three CasADi calls per step: the whole estimator step",
     "ekf-compiled": "the same EKF as one compiled call (the EKF make_estimator "

@@ -274,11 +274,14 @@ class CasadiPeer:
     def __init__(self, formulation: Formulation, horizon: int, name: str) -> None:
         self.formulation, self.horizon = formulation, horizon
         self.ocp = o = ocp_nlp(formulation, horizon)
-        self._x0 = self._p = np.zeros(0)  # the prepared window (prepare)
+        # the bounds and the prepared window (prepare) as nlpsol takes them: CasADi
+        # matrices, so that no array is converted inside the timed call
+        self._bounds = {k: ca.DM(getattr(o, k)) for k in ("lbx", "ubx", "lbg", "ubg")}
+        self._x0 = self._p = ca.DM()
         # the previous answer's multipliers (lam_x, lam_g), and the prepared window's
         # start from them, shifted (prepare)
-        self._lam: tuple[FloatArray, FloatArray] | None = None
-        self._lam0: tuple[FloatArray, FloatArray] | None = None
+        self._lam: tuple[ca.DM, ca.DM] | None = None
+        self._lam0: dict[str, ca.DM] = {}
         nx, n = formulation.nx, horizon
         common: dict[str, Any] = {"print_time": False, "error_on_fail": False}
         if name == "fatrop":
@@ -329,25 +332,26 @@ class CasadiPeer:
 
     def reset(self) -> None:
         """A new recording: no previous multipliers."""
-        self._lam = self._lam0 = None
+        self._lam, self._lam0 = None, {}
 
     def prepare(self, problem: WindowProblem, X0: FloatArray) -> None:
         """The window's parameters and the guess, as ``nlpsol`` takes them: the states'
         and the multipliers of the previous answer shifted by one sample, as the fast
         MHE shifts its own (:func:`shifted_multipliers`; none before the first answer of
-        a recording; fatrop, an interior-point method, does not take them)."""
-        self._x0 = ocp_guess(self.formulation, problem, X0)
-        self._p = pack_parameters(problem)
-        self._lam0 = None
+        a recording; fatrop, an interior-point method, does not take them). All are
+        converted to CasADi matrices here, outside the timed :meth:`solve`."""
+        self._x0 = ca.DM(ocp_guess(self.formulation, problem, X0))
+        self._p = ca.DM(pack_parameters(problem))
+        self._lam0 = {}
         if self._lam is not None:
             nx, ng = self.formulation.nx, self.ocp.ng
-            self._lam0 = shifted_multipliers(*self._lam, nx, ng)
+            lam_x, lam_g = (np.asarray(v, dtype=float).ravel() for v in self._lam)
+            x, g = shifted_multipliers(lam_x, lam_g, nx, ng)
+            self._lam0 = {"lam_x0": ca.DM(x), "lam_g0": ca.DM(g)}
 
     def solve(self) -> tuple[FloatArray, bool, float]:
-        o = self.ocp
-        lam = {} if self._lam0 is None else {"lam_x0": self._lam0[0], "lam_g0": self._lam0[1]}
-        sol = self.solver(x0=self._x0, p=self._p, lbx=o.lbx, ubx=o.ubx, lbg=o.lbg, ubg=o.ubg, **lam)
-        self._lam = (np.asarray(sol["lam_x"]).ravel(), np.asarray(sol["lam_g"]).ravel())
+        sol = self.solver(x0=self._x0, p=self._p, **self._bounds, **self._lam0)
+        self._lam = (sol["lam_x"], sol["lam_g"])  # (shifted by the next prepare)
         X = ocp_states(np.asarray(sol["x"], dtype=float).ravel(), self.formulation.nx, self.horizon)
         return X, bool(self.solver.stats()["success"]), math.nan
 
