@@ -57,8 +57,8 @@ from continuum_mhe.estimators.run_notices import (
     WideUncertain,
     drifted_notice,
     free_of_load_clause,
-    glitch_clause,
     inconsistent_notice,
+    recovery_clauses,
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
@@ -338,40 +338,9 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         msg += f"; {clause}"
     if free_note := free_of_load_clause(est.inference, n):
         msg += f"; {free_note}"
-    if diag.frozen_samples:
-        of = ", ".join(f"{k}: {v}" for k, v in sorted(tally.frozen.items()))
-        msg += (
-            f"; {diag.frozen_samples} of the {n} estimates had a frozen IMU (the same reading "
-            f"for over {args.freeze:g} s, treated as a dropout): {of}"
-        )
-    if glitches := glitch_clause(diag):
-        msg += f"; {glitches}"
-    if diag.restarts:
-        msg += (
-            f"; restarted {diag.restarts} time(s) after the estimate diverged, failed or its "
-            "uncertainty outgrew the workspace (status reset, or no-estimate on a sample without "
-            "a valid reading)"
-        )
-    if diag.gap_resets:
-        msg += (
-            f"; restarted after {diag.gap_resets} gap(s) longer than {args.gap_reset:g} s "
-            "without a valid reading (a gap in t, or IMUs silent or stuck on one value)"
-        )
-    if diag.late_imu_starts:
-        msg += (
-            f"; restarted {diag.late_imu_starts} time(s) at an IMU's first reading beside "
-            "the others (the start had no reading of it)"
-        )
-    if diag.bad_starts:
-        msg += (
-            f"; restarted {diag.bad_starts} time(s) after readings inconsistent with the "
-            "start or an IMU's return"
-        )
-    if diag.drift_resets:
-        msg += (
-            f"; restarted {diag.drift_resets} time(s) from the last ok estimate's IMU errors "
-            f"after {args.drift_reset:g} s of drifted rows"
-        )
+    frozen = ", ".join(f"{k}: {v}" for k, v in sorted(tally.frozen.items()))
+    for clause in recovery_clauses(diag, est.recovery, n, frozen):
+        msg += f"; {clause}"
     if diag.bad_start_chains:
         msg += (
             f"; stopped restarting {diag.bad_start_chains} time(s) after "

@@ -281,14 +281,13 @@ def _evaluate(args: argparse.Namespace) -> int:
     xyz = ([est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS])
     # a truth in another frame (a motion capture's origin): its distances from the base
     # say nothing of the robot's length
-    fit = frame_fit(est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], length)
+    tip_est, tip_truth = est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]]
+    fit = frame_fit(tip_est, tip_truth, length)
     about_another_origin = moves_the_base(fit, length)
     hint = other_robot or (
         ""
         if about_another_origin
-        else _length_hint(
-            est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], m.tip_mean_mm / 1e3, length
-        )
+        else _length_hint(tip_est, tip_truth, m.tip_mean_mm / 1e3, length)
     )
     # the robot from the estimate's options line: a truth that misfits it is another
     # robot's (its --length would misfit the estimate instead)

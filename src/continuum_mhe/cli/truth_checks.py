@@ -144,7 +144,7 @@ def frame_fit(tip_est: np.ndarray, tip_truth: np.ndarray, length: float) -> Fram
     turn = best_rotation(tip_est, tip_truth, moved=True)
     if (
         turn is None
-        or float(np.linalg.norm(turn.offset)) < MOVED_MIN_SHARE * length
+        or not moves_the_base(turn, length)
         or not turn.error < MOVED_GAIN * turn.unturned
     ):
         return None

@@ -20,6 +20,7 @@ from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX
 from continuum_mhe.results import Diagnostics, Status
+from continuum_mhe.settings import RecoverySettings
 
 #: A tendon robot's tip force beyond this many times its largest tension (and over
 #: :data:`FORCE_NOTICE_MIN` N) is said at the end of ``estimate``
@@ -510,6 +511,53 @@ def glitch_clause(diagnostics: Diagnostics) -> str | None:
         f"skipped {diagnostics.glitches} IMU reading(s) far beyond the prediction from the ok "
         "estimate before them (glitches: that IMU's dropout for the sample, the row not ok)"
     )
+
+
+def recovery_clauses(
+    diagnostics: Diagnostics, recovery: RecoverySettings, n: int, frozen_by_imu: str = ""
+) -> list[str]:
+    """The summary's clauses of what the sensor-health policy did over ``n`` estimates
+    (``estimate``'s and ``live``'s), in order: the rows with a frozen IMU (``frozen_by_imu``:
+    their count by IMU, where known), the glitches skipped, and the restarts after a
+    diverged estimate, a gap, an IMU's late first reading, a bad start and drifted rows;
+    those that happened alone."""
+    d, r = diagnostics, recovery
+    clauses = []
+    if d.frozen_samples:
+        of = f": {frozen_by_imu}" if frozen_by_imu else ""
+        clauses.append(
+            f"{d.frozen_samples} of the {n} estimates had a frozen IMU (the same reading for "
+            f"over {r.freeze:g} s, treated as a dropout){of}"
+        )
+    if glitches := glitch_clause(d):
+        clauses.append(glitches)
+    if d.restarts:
+        clauses.append(
+            f"restarted {d.restarts} time(s) after the estimate diverged, failed or its "
+            "uncertainty outgrew the workspace (status reset, or no-estimate on a sample "
+            "without a valid reading)"
+        )
+    if d.gap_resets:
+        clauses.append(
+            f"restarted after {d.gap_resets} gap(s) longer than {r.gap_reset:g} s without a "
+            "valid reading (a gap in t, or IMUs silent or stuck on one value)"
+        )
+    if d.late_imu_starts:
+        clauses.append(
+            f"restarted {d.late_imu_starts} time(s) at an IMU's first reading beside the "
+            "others (the start had no reading of it)"
+        )
+    if d.bad_starts:
+        clauses.append(
+            f"restarted {d.bad_starts} time(s) after readings inconsistent with the start or "
+            "an IMU's return"
+        )
+    if d.drift_resets:
+        clauses.append(
+            f"restarted {d.drift_resets} time(s) from the last ok estimate's IMU errors after "
+            f"{r.drift_reset:g} s of drifted rows"
+        )
+    return clauses
 
 
 def untrusted_start_notice(diagnostics: Diagnostics, n: int, tendons: bool = True) -> str | None:

@@ -26,8 +26,8 @@ from continuum_mhe.estimators.run_notices import (
     WideUncertain,
     drifted_notice,
     free_of_load_clause,
-    glitch_clause,
     inconsistent_notice,
+    recovery_clauses,
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
@@ -1161,45 +1161,14 @@ class LiveSession:
             msg += "; warning: " + force_note
         if wide_note := self.wide.notice(c.estimates):
             msg += "; note: " + wide_note
-        diag, recovery = self.estimator.diagnostics, self.estimator.recovery
-        if diag.frozen_samples:  # as estimate's summary says them
-            msg += (
-                f"; {diag.frozen_samples} of the {c.estimates} estimates had a frozen IMU (the "
-                f"same reading for over {recovery.freeze:g} s, treated as a dropout)"
-            )
-        if glitches := glitch_clause(diag):
-            msg += f"; {glitches}"
-        if diag.restarts:
-            msg += (
-                f"; restarted {diag.restarts} time(s) after the estimate diverged, failed or "
-                "its uncertainty outgrew the workspace (status reset, or no-estimate on a "
-                "sample without a valid reading)"
-            )
-        if diag.gap_resets:
-            msg += (
-                f"; restarted after {diag.gap_resets} gap(s) longer than "
-                f"{recovery.gap_reset:g} s without a valid reading (a gap in t, or IMUs silent "
-                "or stuck on one value)"
-            )
-        if diag.bad_starts:
-            msg += (
-                f"; restarted {diag.bad_starts} time(s) after readings inconsistent with the "
-                "start or an IMU's return"
-            )
+        for clause in recovery_clauses(
+            self.estimator.diagnostics, self.estimator.recovery, c.estimates
+        ):  # as estimate's summary says them
+            msg += f"; {clause}"
         if self._tension_stream is not None and self._tension_stream.glitches:
             msg += (
                 f"; replaced {self._tension_stream.glitches} tension glitch(es) (a tension "
                 "off the curve through the samples around alone)"
-            )
-        if resets := self.estimator.diagnostics.drift_resets:
-            msg += (
-                f"; restarted {resets} time(s) from the last ok estimate's IMU errors after "
-                f"{self.estimator.recovery.drift_reset:g} s of drifted rows"
-            )
-        if late := self.estimator.diagnostics.late_imu_starts:
-            msg += (
-                f"; restarted {late} time(s) at an IMU's first reading beside the others "
-                "(the start had no reading of it)"
             )
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (

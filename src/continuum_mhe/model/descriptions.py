@@ -120,6 +120,12 @@ def imu_suffix(i: int, n_imus: int) -> str:
     return "" if n_imus == 1 else f"_{i + 1}"
 
 
+def imu_twist_names(n_imus: int) -> tuple[str, ...]:
+    """The output names of each IMU's twist (``--imu-twist``): ``imu_twist`` for one IMU,
+    else ``imu_twist_1 .. imu_twist_n``."""
+    return tuple(f"imu_twist{imu_suffix(i, n_imus)}" for i in range(n_imus))
+
+
 def tilt_blocks(n_imus: int) -> tuple[MeasurementBlock, ...]:
     """``roll_i, pitch_i`` per IMU (``roll, pitch`` with one IMU)."""
     return tuple(

@@ -72,7 +72,12 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.bend import BendFormulation
-from continuum_mhe.model.descriptions import MeasurementBlock, OutputSpec, direct_blocks
+from continuum_mhe.model.descriptions import (
+    MeasurementBlock,
+    OutputSpec,
+    direct_blocks,
+    imu_twist_names,
+)
 from continuum_mhe.model.imu import STANDARD_GRAVITY, shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
 from continuum_mhe.model.pcc import angular_velocity_at_sym, pose_at_sym
@@ -321,9 +326,7 @@ class DirectFormulation(BendFormulation):
         base = super().outputs
         if not self.imu_twist:
             return base
-        n = self.robot.n_imus
-        names = ["imu_twist"] if n == 1 else [f"imu_twist_{i}" for i in range(1, n + 1)]
-        return (*base, *(OutputSpec(name, "rad") for name in names))
+        return (*base, *(OutputSpec(name, "rad") for name in imu_twist_names(self.robot.n_imus)))
 
     def output_sym(self, x: Sym) -> Sym:
         """``bend``'s outputs, then each IMU's twist (``imu_twist``)."""

@@ -14,7 +14,7 @@ from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
 from continuum_mhe.io.position_units import position_unit_problem
 from continuum_mhe.io.state_tables import check_estimate_fits, read_state_table, robot_misfit
 from continuum_mhe.io.tensions import read_tensions
-from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
+from continuum_mhe.model.descriptions import OutputSpec, imu_twist_names, pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.viewer.geometry import TendonShapes
@@ -35,8 +35,7 @@ def estimated_extras(names: Sequence[str], robot: Robot) -> tuple[OutputSpec, ..
             for s in range(1, robot.n_sections + 1)
             if f"tension_gain_{s}" in names
         )
-    n_imus = robot.n_imus
-    twists = ["imu_twist"] if n_imus == 1 else [f"imu_twist_{i}" for i in range(1, n_imus + 1)]
+    twists = imu_twist_names(robot.n_imus)
     if all(n in names for n in twists):
         return tuple(OutputSpec(n, "rad") for n in twists)
     return ()

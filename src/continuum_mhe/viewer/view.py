@@ -27,6 +27,7 @@ from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
     TIP_FORCE_COLUMNS,
     OutputSpec,
+    imu_twist_names,
     pcc_outputs,
     section_bends,
 )
@@ -123,8 +124,7 @@ def force_arrow_scale(robot: Robot) -> float | None:
     if b is None:
         return None
     length = robot.length
-    force_scale = b.youngs_modulus * math.pi * b.radius**4 / 4.0 / length**2
-    return FORCE_ARROW_SHARE * length / force_scale
+    return FORCE_ARROW_SHARE * length / (b.bending_stiffness / length**2)
 
 
 def force_label(force: FloatArray) -> str:
@@ -193,11 +193,7 @@ class BackboneView:
             else None
         )
         #: each IMU's twist ``imu_twist_i`` among the outputs (``--imu-twist``), else None
-        twists = (
-            ["imu_twist"]
-            if robot.n_imus == 1
-            else [f"imu_twist_{i}" for i in range(1, robot.n_imus + 1)]
-        )
+        twists = imu_twist_names(robot.n_imus)
         self._twist_columns = (
             [names.index(c) for c in twists] if all(c in names for c in twists) else None
         )
