@@ -222,7 +222,12 @@ class HorizonInference final : public PolicyInference {
     (void)nx;
     return status;
   }
-  void output(const double*, double* y) override { std::copy(h_.y.begin(), h_.y.end(), y); }
+  void output(const double* x, double* y) override {
+    if (std::equal(h_.state.begin(), h_.state.end(), x))  // the answer's, kept
+      std::copy(h_.y.begin(), h_.y.end(), y);
+    else
+      h_.node.output(x, y);
+  }
   void output_std(const double* x, const double* P, double* s) override {
     if (P == cov_ && h_.cov_ok)
       std::copy(h_.ystd.begin(), h_.ystd.end(), s);
@@ -645,7 +650,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<double> change_limit, double change_lag, int confirm_samples,
              std::vector<double> std_limit, bool jump_hold,
              std::vector<double> freeze_tolerance, double silent_after, double glitch_factor,
-             double drift_reset, double whole_gap_reset) {
+             double drift_reset, double whole_gap_reset,
+             std::vector<std::pair<int, int>> free_pairs, std::vector<double> free_reach,
+             std::vector<int> wrapped_outputs) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -705,6 +712,20 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             if (!(std::isnan(whole_gap_reset) || whole_gap_reset > 0.0))
               throw std::invalid_argument("whole_gap_reset must be > 0 s, or NaN (off)");
             s.whole_gap_reset = whole_gap_reset;
+            if (free_reach.size() != free_pairs.size())
+              throw std::invalid_argument("free_reach needs one value per free pair");
+            for (size_t p = 0; p < free_pairs.size(); ++p) {
+              const auto [i, j] = free_pairs[p];
+              if (i < 0 || i >= nx || j < 0 || j >= nx)
+                throw std::invalid_argument("a free pair's row is not a state");
+              if (!(std::isfinite(free_reach[p]) && free_reach[p] > 0.0))
+                throw std::invalid_argument("free_reach must be finite and positive");
+            }
+            for (int i : wrapped_outputs)
+              if (i < 0 || i >= ny) throw std::invalid_argument("a wrapped output is not an output");
+            s.free_pairs = std::move(free_pairs);
+            s.free_reach = std::move(free_reach);
+            s.wrapped_outputs = std::move(wrapped_outputs);
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -741,6 +762,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("jump_hold") = false, nb::arg("freeze_tolerance") = std::vector<double>(),
           nb::arg("silent_after") = INFINITY, nb::arg("glitch_factor") = 0.0,
           nb::arg("drift_reset") = NAN, nb::arg("whole_gap_reset") = NAN,
+          nb::arg("free_pairs") = std::vector<std::pair<int, int>>(),
+          nb::arg("free_reach") = std::vector<double>(),
+          nb::arg("wrapped_outputs") = std::vector<int>(),
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
@@ -764,7 +788,11 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "``drift_reset`` (s, NaN: off): rows drifted for longer since the last ok one "
           "restart the estimate from that one's sensor states; ``whole_gap_reset`` (s, "
           "NaN: off): a valid sample after samples without the whole rows for longer "
-          "restarts as after a gap.")
+          "restarts as after a gap; ``free_pairs`` (bend pairs of state rows), "
+          "``free_reach`` (rad, one per pair), ``wrapped_outputs``: the sections whose bend "
+          "the IMUs leave free; each written standard deviation carries the rms of the "
+          "outputs' moves over shapes of those bends spread evenly over their reach "
+          "(empty: none).")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

@@ -110,6 +110,25 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   zero_mask_.assign(s_.nz, 0.0);
   bias_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   std_b_.resize(s_.ny);
+  if (!s_.free_pairs.empty()) {
+    // shapes spread evenly over each free section's reach (its disk of bend vectors,
+    // uniform in area): a Kronecker sequence, one pair of irrational steps per section
+    const size_t np = s_.free_pairs.size();
+    free_bends_.resize(FREE_SHAPES * np * 2);
+    for (size_t j = 0; j < FREE_SHAPES; ++j)
+      for (size_t p = 0; p < np; ++p) {
+        const double u = std::fmod((j + 0.5) * std::sqrt(2.0 + 4.0 * p), 1.0);
+        const double v = std::fmod((j + 0.5) * std::sqrt(3.0 + 4.0 * p), 1.0);
+        const double r = s_.free_reach[p] * std::sqrt(u), a = 2.0 * M_PI * v;
+        free_bends_[(j * np + p) * 2] = r * std::cos(a);
+        free_bends_[(j * np + p) * 2 + 1] = r * std::sin(a);
+      }
+    free_x_.resize(s_.nx);
+    free_y_.resize(s_.ny);
+    free_msd_.resize(s_.ny);
+    free_wrapped_.assign(s_.ny, 0);
+    for (int i : s_.wrapped_outputs) free_wrapped_[i] = 1;
+  }
   prev_x_.resize(s_.nx);
   last_x_.resize(s_.nx);
   last_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
@@ -122,6 +141,30 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   if (static_cast<int>(s_.start_limit.size()) != s_.nz + 1)
     throw std::invalid_argument("start_limit must hold nz + 1 values");
   reset(false, false);
+}
+
+void SensorHealth::widen_by_free_bends(const double* x, const double* y, double* ystd) {
+  // the root mean square of the outputs' moves from the estimate's over the free bends'
+  // shapes, in quadrature with the standard deviation: the estimate is one of them,
+  // and where the readings do not pin them the robot may be any other
+  const int ny = s_.ny;
+  const size_t np = s_.free_pairs.size();
+  std::fill(free_msd_.begin(), free_msd_.end(), 0.0);
+  for (size_t j = 0; j < FREE_SHAPES; ++j) {
+    std::copy(x, x + s_.nx, free_x_.begin());
+    for (size_t p = 0; p < np; ++p) {
+      free_x_[s_.free_pairs[p].first] = free_bends_[(j * np + p) * 2];
+      free_x_[s_.free_pairs[p].second] = free_bends_[(j * np + p) * 2 + 1];
+    }
+    inference_.output(free_x_.data(), free_y_.data());
+    for (int i = 0; i < ny; ++i) {
+      const double d = free_wrapped_[i] ? std::remainder(free_y_[i] - y[i], 2.0 * M_PI)
+                                        : free_y_[i] - y[i];
+      free_msd_[i] += d * d;
+    }
+  }
+  for (int i = 0; i < ny; ++i)
+    ystd[i] = std::sqrt(ystd[i] * ystd[i] + free_msd_[i] / static_cast<double>(FREE_SHAPES));
 }
 
 void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
@@ -841,6 +884,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // half its width: beyond it (a covariance widened to the shift that fits readings
     // this estimate cannot explain), the estimate may lie anywhere in the range, and
     // that is what the limit says (after the statuses: it changes none)
+    if (!s_.free_pairs.empty()) widen_by_free_bends(x, y, ystd);
     if (!s_.std_limit.empty())
       for (int i = 0; i < s_.ny; ++i) ystd[i] = std::min(ystd[i], s_.std_limit[i]);
     out.has_std = true;

@@ -173,6 +173,14 @@ struct PolicySettings {
   // ny, or empty: the largest standard deviation of each output, half the width of the
   // range its value has on the robot (inf: no range); a written one is held to it
   std::vector<double> std_limit;
+  // The bend pairs (state rows) of the sections whose bend the IMUs leave free, each
+  // with its section's reach (theta_max, rad), and the wrapped outputs: each written
+  // standard deviation carries the root mean square of how far the output moves from
+  // the estimate's when those bends take shapes spread evenly over their reach (no
+  // reading pins them, so the estimate may be any of them). Empty: none.
+  std::vector<std::pair<int, int>> free_pairs;
+  std::vector<double> free_reach;
+  std::vector<int> wrapped_outputs;
   // rows within the unobserved window of a reading beyond one sample's limit against
   // the prediction are uncertain (IMUs without gyros: a burst of wrong readings agrees
   // with the estimate that moved onto it)
@@ -356,6 +364,12 @@ class SensorHealth {
   // unobserved window (its first one too) and has not yet entered a start
   std::vector<char> imu_seen_, reads_now_, late_pending_;
   std::vector<double> z_, mask_, zero_mask_, bias_, std_b_;
+  // the free bends' spread (free_pairs): the shapes' bends (FREE_SHAPES x pairs x 2),
+  // a state and its outputs
+  static constexpr size_t FREE_SHAPES = 64;
+  std::vector<double> free_bends_, free_x_, free_y_, free_msd_;
+  std::vector<char> free_wrapped_;
+  void widen_by_free_bends(const double* x, const double* y, double* ystd);
   // The constant reading errors' term of the standard deviations counts each reading
   // the estimate still holds: a reading missing now (a dropout) at its last value while
   // it was valid within the unobserved window since the last (re)start, since its

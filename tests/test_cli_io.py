@@ -1441,6 +1441,16 @@ def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_pa
     assert str(refused.value) == (
         f"{truth}: line 6: column y is nan (every row needs a finite value in each column)"
     )
+    # where an empty or nan cell is a gap, an infinity is not one: the line says what is
+    row = lines[5].split(",")
+    row[header.index("y")] = "inf"
+    lines[5] = ",".join(row)
+    truth.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError) as refused:
+        read_state_table(truth, gaps=True)
+    assert str(refused.value) == (
+        f"{truth}: line 6: column y is inf (leave the cell empty (or nan) for a value not measured)"
+    )
 
 
 def test_a_value_of_many_digits_is_named_short(tmp_path, capsys) -> None:

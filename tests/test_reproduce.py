@@ -990,13 +990,22 @@ def test_reproduce_refuses_a_bad_scheduler_address_or_rod_recording_in_one_line(
     lines = rod.read_text().splitlines(keepends=True)
     lines[4] = lines[4].rstrip("\n") + ",1\n"  # file line 5: a field too many
     bad.write_text("".join(lines))
+    text = tmp_path / "text.csv"  # a cell that is no number: refused, not read as NaN
+    lines = rod.read_text().splitlines(keepends=True)
+    header = next(ln for ln in lines if not ln.startswith("#")).strip().split(",")
+    at = lines.index(next(ln for ln in lines if not ln.startswith("#"))) + 3
+    cells = lines[at].rstrip("\n").split(",")
+    cells[header.index("roll")] = "abc"
+    lines[at] = ",".join(cells) + "\n"
+    text.write_text("".join(lines))
     cases = [
         (["--scheduler", "notanaddress"], "not a scheduler's address: give its host and port"),
         (["--scheduler", "tcp://h:8786", "--jobs", "2"], "--jobs does nothing with --scheduler"),
         (["--rod-csv", str(est)], "not a rod recording: missing column(s) roll, pitch"),
         (["--rod-csv", str(short)], "3 samples: the rod experiment's MHE window needs more"),
         (["--rod-csv", str(one)], "1 samples: the rod experiment's MHE window needs more"),
-        (["--rod-csv", str(bad)], "malformed recording (line 5: 17 fields, the header has 16)"),
+        (["--rod-csv", str(bad)], f"{bad}: line 5: 17 fields, the header has 16"),
+        (["--rod-csv", str(text)], f"{text}: line {at + 1}: column roll: 'abc' is not a number"),
     ]
     for extra, said in cases:
         assert main(["reproduce", "--out", str(out), "--quick", *extra]) == 2

@@ -1408,6 +1408,36 @@ def force29_estimate(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, st
     return out, _estimate_with_own_tensions(DATA / "force-29_raw.csv", "force-29", out)
 
 
+def test_plot_checks_a_tip_truth_against_the_robot_it_draws_on(
+    force29_estimate: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``plot`` without ``--robot`` draws a tendon estimate on the robot its options line
+    names (0.4 m here): a truth of tip positions alone was checked against the default
+    0.2 m robot instead, and called "the truth of another robot"."""
+    est, _ = force29_estimate
+    truth = read_state_table(DATA / "force-29_truth.csv")
+    tip = tmp_path / "tip.csv"
+    write_table(tip, ["t", "x", "y", "z"],
+                np.column_stack([truth.t, *(truth.column(c) for c in "xyz")]))  # fmt: skip
+    assert main(["plot", str(est), "--truth", str(tip), "-o", str(tmp_path / "p.png")]) == 0
+    err = capsys.readouterr().err
+    assert "drawn on that robot" in err and "beyond the robot's length" not in err, err
+
+
+def test_evaluate_refuses_a_tendon_estimate_on_a_robot_without_a_backbone(
+    force29_estimate: tuple[Path, str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``evaluate`` with ``--robot`` of constant-curvature sections scored a tendon
+    robot's estimate on it (its tip force and twists left out, with two warnings), where
+    ``plot`` and ``view`` refuse the pair: one line naming the robot file."""
+    est, _ = force29_estimate
+    truth = str(DATA / "force-29_truth.csv")
+    assert main(["evaluate", str(est), truth, "--robot", "two-section"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("continuum-mhe: error: two-section: the robot has no [backbone]")
+    assert main(["evaluate", str(est), truth]) == 0  # on the robot its options line names
+
+
 def test_a_tendon_truth_with_gaps_in_its_tip_force_is_plotted_and_scored(
     force29_estimate: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

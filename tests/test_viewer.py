@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
+from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.descriptions import pcc_outputs
@@ -232,6 +233,17 @@ def test_view_user_mistakes_are_one_line(
     assert "pass --robot with the robot it was estimated on" in _one_error_line(capsys)
     assert main(["view", est, "--robot", "two-section", "--save", str(tmp_path / "v.txt")]) == 2
     assert ".rrd" in _one_error_line(capsys)
+    # an estimate given as the truth, and a truth in mm: one line each, as plot says them
+    argv = ["view", est, "--robot", "two-section", "--save", str(out), "--truth"]
+    assert main([*argv, est]) == 2
+    assert "an estimate, not a truth" in _one_error_line(capsys)
+    truth = read_state_table(two_section["truth"], ())
+    mm = tmp_path / "mm.csv"
+    write_table(mm, ["t", "x", "y", "z"],
+                np.column_stack([truth.t, *(1000 * truth.column(c) for c in "xyz")]))  # fmt: skip
+    assert main([*argv, str(mm)]) == 2
+    assert "positions in mm?" in _one_error_line(capsys)
+    mm.unlink()
     if sys.platform.startswith("linux"):
         monkeypatch.delenv("DISPLAY", raising=False)
         monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)

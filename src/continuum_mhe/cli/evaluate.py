@@ -33,6 +33,7 @@ from continuum_mhe.cli.truth_checks import (
     truth_frame_warning,
 )
 from continuum_mhe.errors import InputError, time_text
+from continuum_mhe.evaluation.estimate_figure import has_tip_force
 from continuum_mhe.evaluation.metrics import (
     FAR_STD,
     Calibration,
@@ -238,6 +239,12 @@ def _evaluate(args: argparse.Namespace) -> int:
     # without --robot or --length: the estimate's own, else one section of --length
     warned: list[str] = []  # said once the scores are known, and in --json
     robot = estimate_robot(args, args.estimates, "evaluated on that robot", warned)
+    if args.robot and has_tip_force(est.names) and not robot.has_mechanics:
+        raise InputError(
+            f"{args.robot}: the robot has no [backbone], but {args.estimates} is a tendon "
+            "robot's estimate (its tip force columns): give that robot's file, or no "
+            "--robot for the one its options line names"
+        )
     other_recorded = bool(warned)  # the estimate's options line names another robot
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
     for path, table in ((args.estimates, est), (args.truth, truth)):

@@ -155,7 +155,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
             unit = position_unit_against(truth.names, truth.values, est.names, est.values)
         if unit:
             raise InputError(f"{path}: {unit}")
-    backbone = _tendon_backbone(args, est.names, est.t, robot)
+    backbone, drawn_on = _tendon_backbone(args, est.names, est.t, robot)
     # the robot file's mounting, else the one the estimate's options line records
     mounting = robot.mounting if robot is not None else recorded_mounting(args.source)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
@@ -165,7 +165,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
             est,
             args.truth,
             truth,
-            tuple(lengths or own or (DEFAULT_LENGTH,)),
+            tuple(lengths or (drawn_on.lengths if drawn_on else None) or own or (DEFAULT_LENGTH,)),
             "--truth-shift",
             args.truth_shift,
         )
@@ -191,12 +191,12 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
 
 def _tendon_backbone(
     args: argparse.Namespace, names: Sequence[str], t: FloatArray, robot: Robot | None
-) -> BackboneOf | None:
+) -> tuple[BackboneOf | None, Robot | None]:
     """The mechanics model's backbone for a tendon robot's estimate (columns ``names``
     at the times ``t``, s), from ``--robot`` (``robot``, as read; without it the robot
     file the estimate's options line names, said in a note) and ``--inputs`` (checked
-    against ``t`` as ``estimate`` checks it); None (the section ends joined, said in a
-    note) without them."""
+    against ``t`` as ``estimate`` checks it), and the robot it is drawn on; None (the
+    section ends joined, said in a note) without them."""
     from continuum_mhe.cli.config import recorded_option, recorded_tensions
     from continuum_mhe.cli.robot_options import recorded_robot
     from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
@@ -208,7 +208,7 @@ def _tendon_backbone(
                 f"{args.source}: --inputs draws a tendon robot's backbone, but the "
                 "estimate has no tip force columns (fx, fy, fz)"
             )
-        return None
+        return None, robot
     name = args.robot
     recorded = None if args.inputs else recorded_tensions(args.source)
     inputs = args.inputs or (recorded.path if recorded else None)
@@ -233,14 +233,14 @@ def _tendon_backbone(
             "--robot ROBOT.toml --inputs TENSIONS.csv for the mechanics model's curve",
             file=sys.stderr,
         )
-        return None
+        return None, robot
     # (a recording that carries its tensions beside its IMUs' columns, as live records
     # them, gives them too: the drawing takes their values alone)
     tensions = read_tensions(inputs, robot.n_tendons, other_columns=True, time_warning=False)
     tensions.check_scale(robot)  # mN for N, as estimate refuses them
     if len(t):
         tensions.check_span(float(t[0]), float(t[-1]))  # milliseconds?
-    return tendon_backbone(robot, tensions)
+    return tendon_backbone(robot, tensions), robot
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

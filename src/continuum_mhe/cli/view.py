@@ -14,7 +14,7 @@ from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
-from continuum_mhe.cli.truth_checks import truth_beside
+from continuum_mhe.cli.truth_checks import refuse_an_estimate_as_truth, truth_beside
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.text_rows import held_for_rereading, held_text
 from continuum_mhe.model.imu import MOUNTINGS
@@ -94,10 +94,12 @@ def _refuse_tendon_estimate_on_another_robot(
 
 def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
     """The truth against the estimate, as ``plot`` checks it: refused in one line where
+    it is an estimate (its ``status`` or ``std_`` columns), its positions are in mm,
     fewer than two of its rows share the estimate's times (``t`` in milliseconds, another
     recording) or it has another robot's sections; a warning where its clock looks
     offset. Nothing here where either file cannot be read: replay says why."""
     from continuum_mhe.io.estimate_files import read_estimates
+    from continuum_mhe.io.position_units import position_unit_problem
     from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.model.descriptions import TIP_COLUMNS
 
@@ -106,6 +108,9 @@ def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
         truth = read_state_table(args.truth, gaps=True)
     except UserError:
         return
+    refuse_an_estimate_as_truth(args.truth, truth, "view EST.csv --truth TRUTH.csv")
+    if unit := position_unit_problem(truth.names, truth.values, robot.lengths):
+        raise InputError(f"{args.truth}: {unit}")  # before a length misfit it would cause
     if len(est.t) < 2:  # one row: nothing to compare times with
         return
     for line in truth_beside(args.estimates, est, args.truth, truth, robot.lengths)[1]:

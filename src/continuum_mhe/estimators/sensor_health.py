@@ -70,7 +70,7 @@ from continuum_mhe.io.input_options import (
 from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.slack_readings import take_slack_readings
 from continuum_mhe.io.tensions import TensionsWarning, tension_scale_problem
-from continuum_mhe.model.descriptions import tip_position_indices
+from continuum_mhe.model.descriptions import tip_position_indices, wrapped_indices
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
@@ -186,8 +186,10 @@ class PythonInference:
         return state, cov, status_code(status), None
 
     def output(self, x: FloatArray) -> FloatArray:
-        """The outputs of the last inferred state (``x`` is its copy)."""
-        return self.inference.output(x if self._state is None else self._state)
+        """The outputs of the state ``x``: the last inferred state's copy (whose outputs
+        the inference may hold), or another."""
+        last = self._state
+        return self.inference.output(last if last is not None and np.array_equal(x, last) else x)
 
     def output_std(self, x: FloatArray, P: FloatArray, answer: bool) -> FloatArray:
         """Output standard deviations of the last inferred state with covariance ``P``
@@ -410,6 +412,10 @@ class Estimator(Generic[InferenceT]):
             change_psd=list(change.psd) if change is not None else [],
             change_limit=change_limit,
             change_lag=change.lag if change is not None else 0.0,
+            # the sections whose bend the IMUs leave free: no reading narrows them
+            free_pairs=[(i, j) for i, j, _ in f.free_bends()],
+            free_reach=[reach for _, _, reach in f.free_bends()],
+            wrapped_outputs=list(wrapped_indices(f.outputs)),
         )
 
     def __copy__(self) -> NoReturn:

@@ -191,9 +191,15 @@ def read_state_table(
         if st != "no-estimate" and not all(map(math.isfinite, finite)):
             cells = zip(("t", *names), (row[t_idx], *(row[j] for j in idx)), (tv, *vals))
             col, text = next((c, x) for c, x, v in cells if not math.isfinite(v))
+            if not gaps:
+                rule = "every row needs a finite value in each column"
+            elif col == "t":
+                rule = "every row needs a finite time"
+            else:  # an infinity: a gap is an empty cell
+                rule = "leave the cell empty (or nan) for a value not measured"
             raise InputError(
                 f"{p}: line {line}: column {table.as_written(col)} is {shorten(text) or 'empty'} "
-                "(every row needs a finite value in each column)"
+                f"({rule})"
             )
         sd.append(
             [

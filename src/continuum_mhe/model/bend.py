@@ -26,7 +26,12 @@ from continuum_mhe.model.imu import (
     tilt_tangent_residual_sym,
 )
 from continuum_mhe.model.kinematics import Sym, rotation_bend
-from continuum_mhe.model.pcc import gravity_direction_at_sym, pose_at_sym, up_vector
+from continuum_mhe.model.pcc import (
+    free_sections,
+    gravity_direction_at_sym,
+    pose_at_sym,
+    up_vector,
+)
 from continuum_mhe.model.settings import FormulationName
 
 
@@ -201,6 +206,13 @@ class BendFormulation(Formulation):
         f64 = np.ascontiguousarray
         cov = None if P is None else f64(P, dtype=np.float64)
         return bool(self._checks.is_diverged(f64(x, dtype=np.float64), cov))
+
+    def free_bends(self) -> tuple[tuple[int, int, float], ...]:
+        """``(i, j, reach)`` for each section whose bend the IMUs leave free
+        (:func:`~continuum_mhe.model.pcc.free_sections`): its bend coordinates' state
+        rows and its ``theta_max`` (rad)."""
+        sections = self.robot.sections
+        return tuple((2 * k, 2 * k + 1, sections[k].theta_max) for k in free_sections(self.robot))
 
     def state_checks(self) -> _core.StateChecks:
         """:meth:`is_diverged` and :meth:`at_bound` as data for the compiled core (the

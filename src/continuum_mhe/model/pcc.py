@@ -260,13 +260,12 @@ def backbone_frames(
 SHAPE_RANK_TOL = 1e-8
 
 
-@cache
-def shape_rank(robot: Robot) -> int:
-    """How many of the robot's ``2 n`` bend coordinates one sample of its IMUs' gravity
-    directions (what tilt and the accelerometers at rest measure) determines: the rank
-    of their Jacobian with respect to the bends, the largest over three random shapes
-    (generic shapes; the singular ones are a set of measure zero). Below ``2 n`` the
-    shape is not observable anywhere, for example with one IMU on two sections."""
+def _shape_jacobians(robot: Robot) -> list[tuple[FloatArray, int]]:
+    """The Jacobian of the robot's IMUs' gravity directions with respect to its ``2 n``
+    bend coordinates at three random generic shapes (the singular ones are a set of
+    measure zero), each with its rank (singular values above :data:`SHAPE_RANK_TOL` of
+    the largest, at least of 1 rad per rad: an IMU at ``at = 1e-300`` sees nothing,
+    whatever the ratio)."""
     n = robot.n_sections
     b = ca.SX.sym("b", 2 * n)
     bends = [(b[2 * k], b[2 * k + 1]) for k in range(n)]
@@ -276,10 +275,49 @@ def shape_rank(robot: Robot) -> int:
     jac = ca.Function("shape_jacobian", [b], [ca.jacobian(g, b)])
     rng = np.random.default_rng(0)
     reach = np.repeat([s.theta_max for s in robot.sections], 2)
-    rank = 0
+    out = []
     for _ in range(3):
         x = reach * rng.uniform(0.15, 0.45, 2 * n) * rng.choice((-1.0, 1.0), 2 * n)
-        sv = np.linalg.svd(np.asarray(jac(x), dtype=float), compute_uv=False)
-        floor = SHAPE_RANK_TOL * max(sv[0], 1.0)  # rad per rad: an IMU at at = 1e-300 sees
-        rank = max(rank, int(np.sum(sv > floor)))  # nothing, whatever the ratio
-    return rank
+        J = np.asarray(jac(x), dtype=float).reshape(g.numel(), 2 * n)
+        sv = np.linalg.svd(J, compute_uv=False)
+        out.append((J, int(np.sum(sv > SHAPE_RANK_TOL * max(sv[0], 1.0)))))
+    return out
+
+
+@cache
+def shape_rank(robot: Robot) -> int:
+    """How many of the robot's ``2 n`` bend coordinates one sample of its IMUs' gravity
+    directions (what tilt and the accelerometers at rest measure) determines: the rank
+    of their Jacobian with respect to the bends, the largest over three random shapes
+    (generic shapes). Below ``2 n`` the shape is not observable anywhere, for example
+    with one IMU on two sections."""
+    return max(rank for _, rank in _shape_jacobians(robot))
+
+
+#: A section whose bend coordinates carry at least this share of a direction the IMUs
+#: do not see is one they leave free (:func:`free_sections`).
+FREE_SECTION_SHARE = 1e-6
+
+
+@cache
+def free_sections(robot: Robot) -> tuple[int, ...]:
+    """The sections (0-based) whose bend the IMUs' gravity directions leave partly free:
+    those with a share of a direction in which the readings do not change (the null
+    space of the Jacobian of :func:`shape_rank`, at the shapes where its rank is
+    largest). Empty where the IMUs determine the shape; with IMUs at the ends of
+    sections 1 and 3 of three, sections 2 and 3 (the tip IMU sees how far the two bend
+    together, not how they share it)."""
+    jacobians = _shape_jacobians(robot)
+    best = max(rank for _, rank in jacobians)
+    free: set[int] = set()
+    for J, rank in jacobians:
+        if rank != best:
+            continue
+        null = np.linalg.svd(J)[2][rank:]  # rows: an orthonormal basis of the null space
+        share = (null * null).sum(axis=0)  # per bend coordinate
+        free.update(
+            k
+            for k in range(robot.n_sections)
+            if share[2 * k : 2 * k + 2].sum() > FREE_SECTION_SHARE
+        )
+    return tuple(sorted(free))

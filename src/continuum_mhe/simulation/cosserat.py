@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -400,36 +399,48 @@ def write_recording(path: str | Path, recording: RodRecording) -> None:
 
 
 def read_recording(path: str | Path) -> RodRecording:
-    """Read a recording written by :func:`write_recording`."""
+    """Read a recording written by :func:`write_recording`, through the package's text
+    table reader (separators, a BOM, comments and ``t_ms`` as every CSV reader takes
+    them). A missing column, a row of another number of fields, a cell that is not a
+    finite number, or a time not after the one before: one line naming the file and the
+    line (:class:`~continuum_mhe.errors.InputError`)."""
     from continuum_mhe.errors import InputError
+    from continuum_mhe.io.text_rows import column_indices, open_rows, parse_float
 
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: no such file")
-    with open(p, encoding="utf-8-sig", errors="replace") as fh:
-        lines = fh.read().splitlines()
-    at = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")), None)
-    present = [] if at is None else [c.strip() for c in lines[at].split(",")]
-    missing = [c for c in COLUMNS if c not in present]
-    if missing:  # (an estimate or measurement file, not a rod recording)
-        raise InputError(
-            f"{p}: not a rod recording: missing column(s) {', '.join(missing)} "
-            f"(a recording of python -m continuum_mhe.simulation.cosserat has {','.join(COLUMNS)})"
-        )
-    assert at is not None
-    try:
-        data = np.genfromtxt(lines[at + 1 :], delimiter=",", names=present, comments="#", ndmin=1)
-    except ValueError as exc:  # numpy names every bad line: the first is said
-        bad = re.search(r"Line #(\d+) \(got (\d+) columns instead of (\d+)\)", str(exc))
-        why = (
-            f"line {int(bad[1]) + at + 1}: {bad[2]} fields, the header has {bad[3]}"
-            if bad
-            else str(exc).strip().splitlines()[0]
-        )
-        raise InputError(f"{p}: malformed recording ({why})") from None
-    return RodRecording(
-        columns={c: np.atleast_1d(np.asarray(data[c], dtype=float)) for c in COLUMNS}
-    )
+    hint = ",".join(COLUMNS)
+    with open_rows(path, header_hint=hint) as rows:
+        missing = [c for c in COLUMNS if c not in rows.header]
+        if missing:  # (an estimate or measurement file, not a rod recording)
+            raise InputError(
+                f"{rows.name}: not a rod recording: missing column(s) {', '.join(missing)} "
+                f"(a recording of python -m continuum_mhe.simulation.cosserat has {hint})"
+            )
+        idx = column_indices(rows, COLUMNS)
+        values: list[list[float]] = []
+        for line, fields in rows.rows:
+            if len(fields) != len(rows.header):
+                raise InputError(
+                    f"{rows.name}: line {line}: {len(fields)} fields, the header has "
+                    f"{len(rows.header)}"
+                )
+            row = [parse_float(rows.name, line, rows.as_written(c), fields[j])
+                   for c, j in zip(COLUMNS, idx)]  # fmt: skip
+            row[0] *= rows.time_scale
+            bad = next((c for c, v in zip(COLUMNS, row) if not math.isfinite(v)), None)
+            if bad is not None:
+                raise InputError(
+                    f"{rows.name}: line {line}: column {rows.as_written(bad)} is "
+                    f"{fields[idx[COLUMNS.index(bad)]]} (a rod recording has a finite value in "
+                    "each cell)"
+                )
+            if values and row[0] <= values[-1][0]:
+                raise InputError(
+                    f"{rows.name}: line {line}: t = {fields[idx[0]]} is not after the row "
+                    "before's (times must increase)"
+                )
+            values.append(row)
+    table = np.asarray(values, dtype=float).reshape(-1, len(COLUMNS))
+    return RodRecording(columns={c: table[:, k] for k, c in enumerate(COLUMNS)})
 
 
 def info_path(path: str | Path) -> Path:
