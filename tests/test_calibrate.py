@@ -583,6 +583,13 @@ def test_a_rest_recording_too_short_to_calibrate_is_refused(tmp_path, capsys) ->
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"{path}: " in err and needle in err, err
         assert not out.exists()
+    # seconds in a column named t_ms: the rest is 1000 times too short, and the error
+    # says why, not only that it is short
+    seconds = tmp_path / "seconds_as_ms.csv"
+    seconds.write_text("\n".join([header.replace("t,", "t_ms,", 1), *lines[1:]]) + "\n")
+    assert main(["calibrate", "--from", str(seconds), "--robot", "two-section"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith("times in another unit (seconds in a t_ms column?)"), err
 
 
 def test_the_serial_line_s_options_with_a_recording_are_refused(capsys) -> None:

@@ -25,6 +25,7 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.calibration.bend import YawCalibration, yaws_from_bend
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.extras import MissingExtraError
+from continuum_mhe.io.csv_files import TOO_FAST_STEP_S
 from continuum_mhe.io.input_options import MOUNTING_FLIPPED, flipped_mounting
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.raw_imu import csv_input_kind, mount_rotation
@@ -295,9 +296,16 @@ def calibrate(
     under :data:`MIN_REST_SAMPLES` valid ones (its mean and spread would be noise)."""
     span = float(t[-1] - t[0]) if len(t) else 0.0
     if len(t) < 2 or span < MIN_REST_S:
+        step = float(np.median(np.diff(t))) if len(t) > 1 else math.inf
+        cause = (  # the span is short because the times are in another unit
+            f": its samples are {step:.2g} s apart, faster than any IMU: times in another "
+            "unit (seconds in a t_ms column?)"
+            if step < TOO_FAST_STEP_S
+            else " (a few seconds)"
+        )
         raise InputError(
             f"{len(t)} sample(s) over {span:.3g} s: calibration needs the robot still for "
-            f"at least {MIN_REST_S:g} s (a few seconds)"
+            f"at least {MIN_REST_S:g} s{cause}"
         )
     k = VALUES_PER_IMU[fmt]
     steps = np.diff(t)
