@@ -842,6 +842,8 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     inference_.output_std(x, P, ystd);
     if (factor != 1.0)  // the model error the readings show (covariance matching)
       for (int i = 0; i < ny; ++i) ystd[i] *= factor;
+    // the bends no reading pins (before the statuses that a wide tip makes uncertain)
+    if (!s_.free_pairs.empty()) widen_by_free_bends(x, y, ystd);
     if (!s_.tip_rows.empty() && s_.checks_start) {
       // a tip standard deviation beyond the fraction: the estimate may be any of
       // shapes far apart. When it shrinks again the estimate stays uncertain for the
@@ -884,7 +886,6 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // half its width: beyond it (a covariance widened to the shift that fits readings
     // this estimate cannot explain), the estimate may lie anywhere in the range, and
     // that is what the limit says (after the statuses: it changes none)
-    if (!s_.free_pairs.empty()) widen_by_free_bends(x, y, ystd);
     if (!s_.std_limit.empty())
       for (int i = 0; i < s_.ny; ++i) ystd[i] = std::min(ystd[i], s_.std_limit[i]);
     out.has_std = true;

@@ -226,7 +226,7 @@ def test_check_robot_judges_a_tendon_robot_by_its_mechanics_model(
     tip_only.write_text(body[:first] + body[body.index("[[imu]]", first + 1) :])
     assert main(["check-robot", str(tip_only), "--samples", "20"]) == 0
     out = capsys.readouterr().out
-    assert "3x3, rank 3 at 0.0 % of those (min rank 2)" in out
+    assert "3x3, of full rank (3) at 0.0 % of those (min rank 2)" in out
     assert "NOT observable from one sample" in out
     # the Jacobian against central differences of the solved statics
     statics = TendonStatics(shipped)

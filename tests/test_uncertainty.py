@@ -351,6 +351,17 @@ def test_the_sections_the_imus_leave_free() -> None:
     assert free_sections(replace(two, imus=two.imus[1:])) == (0, 1)  # the tip IMU alone
     assert free_sections(replace(two, imus=two.imus[:1])) == (1,)  # nothing beyond IMU 1
     assert free_sections(_three_sections_imus_1_and_3()) == (1, 2)
+    # an IMU a thousandth of the way along section 1 turns by less than its noise (2
+    # degrees) across the section's reach: of full rank, but no reading pins the split
+    from continuum_mhe.model.robot import ImuPlacement
+
+    near_base = replace(two, imus=(ImuPlacement(section=0, at=1e-3), two.imus[1]))
+    assert free_sections(near_base) == ()
+    assert free_sections(near_base, math.radians(2.0)) == (0, 1)
+    halfway = replace(two, imus=(ImuPlacement(section=0, at=0.5), two.imus[1]))
+    assert free_sections(halfway, math.radians(2.0)) == ()
+    assert make_formulation("bend", near_base).free_bends() == ((0, 1, 3.0), (2, 3, 3.0))
+    assert make_formulation("direct", halfway).free_bends() == ()
 
 
 def _three_sections_imus_1_and_3():  # type: ignore[no-untyped-def]
@@ -367,8 +378,8 @@ def test_a_section_without_its_own_imu_has_the_spread_of_its_reach(method: str) 
     # IMUs at the ends of sections 1 and 3 of three: the tip IMU sees how far sections 2
     # and 3 bend together, not how they share it, and the estimate lands on any of the
     # shapes that fit. Its standard deviations held only what the motion model kept of
-    # the start (tip x / y / z coverage 0.27 to 0.47, NEES 130 and more, EKF); with the
-    # free bends' spread they cover the truth
+    # the start (tip x / y / z coverage 0.19 to 0.33 and NEES 361 with the EKF, 0.09 to
+    # 0.15 with the MHE); with the free bends' spread they cover the truth
     from continuum_mhe.simulation.scenarios import simulate_robot
 
     robot = _three_sections_imus_1_and_3()
@@ -387,6 +398,30 @@ def test_a_section_without_its_own_imu_has_the_spread_of_its_reach(method: str) 
     # section 1 carries its own IMU: the free bends do not move its end
     std = {c: np.median(est.output_std[:, names.index(c)]) for c in ("x", "x_1")}
     assert std["x_1"] < 0.1 * std["x"], std
+
+
+def test_an_imu_that_barely_turns_with_its_section_leaves_no_row_ok_far_off() -> None:
+    # an IMU a thousandth of the way along section 1 (of full rank, but turning by less
+    # than its noise across the section's reach): rows were ok 167 mm off with a 61 mm
+    # tip standard deviation; the free bends' spread makes them wide, so uncertain
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = Robot(
+        sections=tuple(Section(length=0.15, theta_max=1.5) for _ in range(2)),
+        imus=(ImuPlacement(section=0, at=1e-3), ImuPlacement(section=1, at=1.0)),
+    )
+    rec = simulate_robot("spatial", robot, duration=20.0, dt=0.05, seed=0)
+    est = make_estimator("ekf", make_formulation("bend", robot)).run(rec.t, rec.z)
+    names = [o.name for o in est.outputs]
+    tip = [names.index(c) for c in ("x", "y", "z")]
+    err = np.linalg.norm(est.output[:, tip] - rec.truth[:, tip], axis=1)
+    assert err.mean() > 0.1  # the estimate is far off: the readings do not place it
+    assert not np.any((est.status == Status.OK) & (err > 0.1 * robot.length))
+    cal = compute_calibration(
+        est.output, est.output_std, rec.truth, names, [o.name for o in rec.outputs]
+    )
+    assert min(cal.coverage[c] for c in ("x", "y", "z")) >= 0.9, cal.coverage
 
 
 # --- std columns and calibration -------------------------------------------------------------

@@ -95,6 +95,8 @@ class ObservabilityReport:
         own = asdict(self)
         # JSON has no infinity: a tip the readings do not place (rank-deficient) is null
         own["tip_noise_std"] = self.tip_noise_std if math.isfinite(self.tip_noise_std) else None
+        # the sections' lengths summed: 0.1 + 0.1 + 0.1 written as 0.3
+        own["length"] = round(self.length, 12) if math.isfinite(self.length) else None
         return {
             **own,
             "model_check": model_check(self),
@@ -455,7 +457,7 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
         of = "" if not r.tendon_unsolved else f", {solved} of them with an equilibrium"
         lines.append(
             f"tendon model, {given}, one sample (d gravity directions / d tip force, "
-            f"{r.tendon_samples} loads{of}): {s.rows}x{s.cols}, rank {s.cols} at "
+            f"{r.tendon_samples} loads{of}): {s.rows}x{s.cols}, of full rank ({s.cols}) at "
             f"{_percent(s.full_rank_fraction)} % of those (min rank {s.min_rank}); relative "
             f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
@@ -479,7 +481,7 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
             else ""
         )
         lines.append(
-            f"{label}: {s.rows}x{s.cols}, rank {s.cols} (all unknowns) at "
+            f"{label}: {s.rows}x{s.cols}, of full rank ({s.cols}, every unknown) at "
             f"{_percent(s.full_rank_fraction)} % of shapes (min rank {s.min_rank}); "
             "relative smallest singular value "
             f"p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}{absolute}"
@@ -493,7 +495,8 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
     if r.known_case:
         k = r.known_case
         lines.append(
-            "section 1 at 90 deg, section 2 bending in the horizontal plane (a shape "
+            "section 1 at 90 deg, section 2 bending in the horizontal plane"
+            f"{', the others straight' if robot.n_sections > 2 else ''} (a shape "
             "that tilt alone cannot see): relative "
             f"smallest singular value tilt {k['tilt']:.1e}, tilt window {k['tilt_window']:.1e}, "
             f"with gyros {k['gyro_window']:.1e}"

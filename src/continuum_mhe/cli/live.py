@@ -253,13 +253,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_tension_gain_option(p)
     add_recording_options(p)
     add_config_option(p)
-    p.add_argument("--duration", type=float, help="stop after this many seconds")
+    p.add_argument(
+        "--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)"
+    )
     add_method_option(p)
     p.add_argument("--plot", action="store_true", help="show the shape and tip trace live")
-    p.add_argument("--status-every", type=float, default=1.0, help="seconds between status lines")
     p.add_argument(
-        "--retry-max", type=float, default=5.0, help="longest wait between reopen attempts, s"
-    )
+        "--status-every", type=float, default=1.0,
+        help="seconds between status lines (default 1)",
+    )  # fmt: skip
+    p.add_argument(
+        "--retry-max", type=float, default=5.0,
+        help="longest wait between reopen attempts, s (default 5)",
+    )  # fmt: skip
     add_model_options(p)
     add_mhe_options(p)
     add_recovery_options(p)

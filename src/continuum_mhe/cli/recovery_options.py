@@ -97,8 +97,9 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         metavar="F",
         help="status uncertain instead of ok when the tip's standard deviation as "
         "written (sqrt(std_x^2 + std_y^2 + std_z^2)) exceeds F times the robot's length; "
-        "and for the --gap-reset window (1 s without it) after the estimator's own (without "
-        "the readings' constant errors, --reading-bias-deg) last did "
+        "after the estimator's own tip standard deviation (without the readings' constant "
+        "errors, --reading-bias-deg) last exceeded it, the rows stay uncertain for the "
+        "--gap-reset window (1 s without it) "
         f"(default {RecoverySettings.uncertain_fraction:g})",
     )
 

@@ -62,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - start
     n_fig = sum(1 for f in files if f.suffix == ".png")
     print(
-        f"wrote {n_fig} figures, {len(files)} files to {out} in {wall:.0f} s; "
+        f"wrote {n_fig} figures, {len(files)} files to {out} in {wall:.0f} s (the whole "
+        "command; report.md gives the trials' own time); "
         f"see {out / 'report.md'}",
         file=sys.stderr,
     )

@@ -212,7 +212,14 @@ class BendFormulation(Formulation):
         (:func:`~continuum_mhe.model.pcc.free_sections`): its bend coordinates' state
         rows and its ``theta_max`` (rad)."""
         sections = self.robot.sections
-        return tuple((2 * k, 2 * k + 1, sections[k].theta_max) for k in free_sections(self.robot))
+        free = free_sections(self.robot, self.gravity_direction_std)
+        return tuple((2 * k, 2 * k + 1, sections[k].theta_max) for k in free)
+
+    @property
+    def gravity_direction_std(self) -> float:
+        """The standard deviation of a reading of an IMU's gravity direction, rad (each
+        roll and pitch)."""
+        return self.noise.measurement_std
 
     def state_checks(self) -> _core.StateChecks:
         """:meth:`is_diverged` and :meth:`at_bound` as data for the compiled core (the

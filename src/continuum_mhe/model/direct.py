@@ -406,8 +406,14 @@ class DirectFormulation(BendFormulation):
         """``z - h(x)``, unwrapped (unit vector and rates are not angles)."""
         return z - self.measurement_sym(x)
 
+    @property
+    def gravity_direction_std(self) -> float:
+        """The standard deviation of each component of an accelerometer's direction
+        (about rad)."""
+        return self.accel_direction_std or self.noise.measurement_std
+
     def meas_cov(self) -> FloatArray:
-        f_std = self.accel_direction_std or self.noise.measurement_std
+        f_std = self.gravity_direction_std
         one = np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3)
         full = one if self.robot.n_imus == 1 else np.kron(np.eye(self.robot.n_imus), one)
         return np.asarray(full, dtype=np.float64)

@@ -300,21 +300,25 @@ FREE_SECTION_SHARE = 1e-6
 
 
 @cache
-def free_sections(robot: Robot) -> tuple[int, ...]:
+def free_sections(robot: Robot, reading_std: float = 0.0) -> tuple[int, ...]:
     """The sections (0-based) whose bend the IMUs' gravity directions leave partly free:
-    those with a share of a direction in which the readings do not change (the null
-    space of the Jacobian of :func:`shape_rank`, at the shapes where its rank is
-    largest). Empty where the IMUs determine the shape; with IMUs at the ends of
-    sections 1 and 3 of three, sections 2 and 3 (the tip IMU sees how far the two bend
-    together, not how they share it)."""
-    jacobians = _shape_jacobians(robot)
-    best = max(rank for _, rank in jacobians)
+    those with a share of a direction along which the readings do not change, or change
+    by less than ``reading_std`` (rad, their noise) when the bends move across their
+    whole reach (``theta_max``): the Jacobian of :func:`shape_rank` with its columns
+    scaled by each section's reach, at the three shapes, its directions of singular
+    values below that (or below the rank tolerance). Empty where the IMUs determine the
+    shape; with IMUs at the ends of sections 1 and 3 of three, sections 2 and 3 (the tip
+    IMU sees how far the two bend together, not how they share it); with an IMU a
+    thousandth of the way along section 1 and one at the tip of two, both (that IMU
+    turns by less than its noise across section 1's reach)."""
+    reach = np.repeat([s.theta_max for s in robot.sections], 2)
     free: set[int] = set()
-    for J, rank in jacobians:
-        if rank != best:
-            continue
-        null = np.linalg.svd(J)[2][rank:]  # rows: an orthonormal basis of the null space
-        share = (null * null).sum(axis=0)  # per bend coordinate
+    for J, _ in _shape_jacobians(robot):
+        _, sv, vt = np.linalg.svd(J * reach)
+        sv = np.concatenate([sv, np.zeros(len(reach) - len(sv))])
+        floor = max(SHAPE_RANK_TOL * max(sv[0], 1.0), reading_std)
+        unseen = vt[sv <= floor]  # rows: directions (in reach units) the readings miss
+        share = (unseen * unseen).sum(axis=0)  # per bend coordinate
         free.update(
             k
             for k in range(robot.n_sections)

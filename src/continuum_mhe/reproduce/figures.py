@@ -154,7 +154,8 @@ def exp4_figures(d: dict[str, Any]) -> dict[str, Figure]:
     ax.set_xlabel("Table 1 scenario")
     ax.set_ylabel("SRMSE (m + rad)")
     ax.set_title(f"Monte Carlo, {n} seeds per scenario, mean and 95 % CI")
-    ax.legend()
+    ax.set_ylim(top=1.2 * ax.get_ylim()[1])  # room above the bars for the legend
+    ax.legend(loc="upper center", ncol=3)
     fig.tight_layout()
     cond = d["conditions"]
     ck = list(cond)

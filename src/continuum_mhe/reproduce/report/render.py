@@ -123,8 +123,8 @@ def render_report(r: Results) -> str:
         "Moving Horizon Approach' (Sec. 3)",
         "",
         *_few_seeds_line(cfg, str(man.get("command", ""))),
-        f"Command: `{man.get('command', 'continuum-mhe reproduce')}`; " + _counts(man) + " in "
-        f"{_f(man.get('wall_s_trials'), 0)} s "
+        f"Command: `{man.get('command', 'continuum-mhe reproduce')}`; " + _counts(man) + " run in "
+        f"{_f(man.get('wall_s_trials'), 0)} s of wall time (the trials alone) "
         + (
             f"(Dask scheduler {man['scheduler']})."
             if man.get("scheduler")
