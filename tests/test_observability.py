@@ -308,6 +308,32 @@ def test_check_robot_says_an_imu_near_its_sections_base_sees_the_bend_weakly(
             "within about" in line) is weak  # fmt: skip
 
 
+@pytest.mark.parametrize(
+    ("imus", "free"),
+    [
+        ([(0, 1.0), (2, 1.0)], (2, 3)),  # sections 1 and 3 of three: 2 and 3 share a bend
+        ([(0, 1e-3), (1, 1.0)], (1, 2)),  # an IMU that turns by less than its noise
+        ([(0, 1.0), (1, 1.0)], ()),
+    ],
+)
+def test_check_robot_names_the_sections_whose_bend_the_imus_leave_free(
+    imus: list[tuple[int, float]], free: tuple[int, ...]
+) -> None:
+    n = max(k for k, _ in imus) + 1
+    robot = Robot(
+        tuple(Section(0.15, theta_max=1.5) for _ in range(n)),
+        tuple(ImuPlacement(section=k, at=at) for k, at in imus),
+    )
+    report = observability_report(robot, samples=50)
+    assert report.free_sections == free
+    said = "the IMUs leave the bend of section(s) "
+    assert (
+        (said + ", ".join(map(str, free)) in verdict(report))
+        if free
+        else said not in verdict(report)
+    )
+
+
 def test_check_robot_json_is_strict_json_for_a_robot_the_readings_do_not_place(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

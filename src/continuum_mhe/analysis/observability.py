@@ -36,7 +36,7 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.model.pcc import up_vector
+from continuum_mhe.model.pcc import free_sections, up_vector
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation
@@ -90,6 +90,10 @@ class ObservabilityReport:
     tip_noise_std: float = math.nan
     #: the robot's length, m
     length: float = math.nan
+    #: the sections (1-based) whose bend the IMUs leave free, or pin by less than
+    #: :data:`VERDICT_NOISE` across their reach (:func:`~continuum_mhe.model.pcc.
+    #: free_sections`): the estimates' standard deviations carry their reach
+    free_sections: tuple[int, ...] = ()
 
     def as_dict(self) -> dict[str, object]:
         own = asdict(self)
@@ -145,6 +149,13 @@ def verdict(r: ObservabilityReport) -> str:
             "length, at the median shape): an IMU near its section's base barely turns "
             "with the bend (put each section's IMU at its end, at = 1)"
         )
+    if r.free_sections:
+        weak += (
+            f"; the IMUs leave the bend of section(s) "
+            f"{', '.join(map(str, r.free_sections))} free (or turn by less than "
+            f"{math.degrees(VERDICT_NOISE):g} degrees across its reach): the estimates' "
+            "standard deviations carry that reach"
+        )
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
             f"observable: one sample of tilt determines all {t.cols} bend coordinates at "
@@ -163,7 +174,7 @@ def verdict(r: ObservabilityReport) -> str:
         return (
             f"NOT observable: tilt determines at most {t.max_rank} of the {t.cols} bend "
             "coordinates at every sampled shape; estimates of this robot are all marked "
-            f"uncertain (put an IMU on every section; {gyros})"
+            f"uncertain (put an IMU on every section; {gyros}){weak}"
         )
     return (
         f"observable except near some shapes: full rank at {_percent(t.full_rank_fraction)} % "
@@ -410,9 +421,10 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
             sv = np.linalg.svd(_eval(fn, xk)[0], compute_uv=False)
             known[name] = float(sv[-1] / sv[0])
     if robot.backbone is None:
+        free = tuple(k + 1 for k in free_sections(robot, VERDICT_NOISE))
         return ObservabilityReport(
             samples, tilt, tilt2, gyro2, examples, known, n_imus=robot.n_imus,
-            tip_noise_std=tip_std, length=sum(robot.lengths),
+            tip_noise_std=tip_std, length=sum(robot.lengths), free_sections=free,
         )  # fmt: skip
     m = min(samples, TENDON_SAMPLES)
     tendon, unsolved = tendon_force_summary(robot, m, seed)
