@@ -312,7 +312,7 @@ def test_check_robot_says_an_imu_near_its_sections_base_sees_the_bend_weakly(
     ("imus", "free"),
     [
         ([(0, 1.0), (2, 1.0)], (2, 3)),  # sections 1 and 3 of three: 2 and 3 share a bend
-        ([(0, 1e-3), (1, 1.0)], (1, 2)),  # an IMU that turns by less than its noise
+        ([(0, 1e-3), (1, 1.0)], (1, 2)),  # an IMU that barely turns
         ([(0, 1.0), (1, 1.0)], ()),
     ],
 )

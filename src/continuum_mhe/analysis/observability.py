@@ -36,7 +36,7 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.model.pcc import free_sections, up_vector
+from continuum_mhe.model.pcc import FREE_AVERAGED_READINGS, free_sections, up_vector
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation
@@ -90,9 +90,10 @@ class ObservabilityReport:
     tip_noise_std: float = math.nan
     #: the robot's length, m
     length: float = math.nan
-    #: the sections (1-based) whose bend the IMUs leave free, or pin by less than
-    #: :data:`VERDICT_NOISE` across their reach (:func:`~continuum_mhe.model.pcc.
-    #: free_sections`): the estimates' standard deviations carry their reach
+    #: the sections (1-based) whose bend the IMUs leave free, or see by less than the
+    #: noise of a mean of readings of :data:`VERDICT_NOISE` across their reach
+    #: (:func:`~continuum_mhe.model.pcc.free_sections`): the estimates' standard
+    #: deviations carry their reach
     free_sections: tuple[int, ...] = ()
 
     def as_dict(self) -> dict[str, object]:
@@ -152,9 +153,9 @@ def verdict(r: ObservabilityReport) -> str:
     if r.free_sections:
         weak += (
             f"; the IMUs leave the bend of section(s) "
-            f"{', '.join(map(str, r.free_sections))} free (or turn by less than "
-            f"{math.degrees(VERDICT_NOISE):g} degrees across its reach): the estimates' "
-            "standard deviations carry that reach"
+            f"{', '.join(map(str, r.free_sections))} free (or turn by less than the noise "
+            f"of a mean of {FREE_AVERAGED_READINGS} readings of {math.degrees(VERDICT_NOISE):g} "
+            "degrees across its reach): the estimates' standard deviations carry that reach"
         )
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (

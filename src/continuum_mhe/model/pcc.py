@@ -297,31 +297,40 @@ def shape_rank(robot: Robot) -> int:
 #: A section whose bend coordinates carry at least this share of a direction the IMUs
 #: do not see is one they leave free (:func:`free_sections`).
 FREE_SECTION_SHARE = 1e-6
+#: A direction whose move across the whole reach changes the readings by less than the
+#: noise of the mean of this many of them is one they do not see (:func:`free_sections`):
+#: a motion model holds a shape for about as many samples (two seconds at 50 Hz).
+FREE_AVERAGED_READINGS = 100
 
 
 @cache
 def free_sections(robot: Robot, reading_std: float = 0.0) -> tuple[int, ...]:
     """The sections (0-based) whose bend the IMUs' gravity directions leave partly free:
     those with a share of a direction along which the readings do not change, or change
-    by less than ``reading_std`` (rad, their noise) when the bends move across their
-    whole reach (``theta_max``): the Jacobian of :func:`shape_rank` with its columns
-    scaled by each section's reach, at the three shapes, its directions of singular
-    values below that (or below the rank tolerance). Empty where the IMUs determine the
-    shape; with IMUs at the ends of sections 1 and 3 of three, sections 2 and 3 (the tip
-    IMU sees how far the two bend together, not how they share it); with an IMU a
-    thousandth of the way along section 1 and one at the tip of two, both (that IMU
-    turns by less than its noise across section 1's reach)."""
+    by less than the noise of the mean of :data:`FREE_AVERAGED_READINGS` readings
+    (``reading_std``, rad, is one reading's) when the bends move across their whole
+    reach (``theta_max``): the Jacobian of :func:`shape_rank` with its columns
+    scaled by each section's reach, its directions of singular values below that (or
+    below the rank tolerance), at each of the three shapes (a section is free where it
+    is at all three: one of them may lie near a singular shape by chance). Empty where
+    the IMUs determine the shape; with IMUs at the ends of sections 1 and 3 of three,
+    sections 2 and 3 (the tip IMU sees how far the two bend together, not how they
+    share it); with an IMU a thousandth of the way along section 1 and one at the tip
+    of two, both (that IMU turns by a few hundredths of a degree across section 1's
+    reach)."""
     reach = np.repeat([s.theta_max for s in robot.sections], 2)
-    free: set[int] = set()
-    for J, _ in _shape_jacobians(robot):
+    free = set(range(robot.n_sections))
+    for J, _ in _shape_jacobians(robot):  # free at every shape: not a singular one's
         _, sv, vt = np.linalg.svd(J * reach)
         sv = np.concatenate([sv, np.zeros(len(reach) - len(sv))])
-        floor = max(SHAPE_RANK_TOL * max(sv[0], 1.0), reading_std)
+        floor = max(
+            SHAPE_RANK_TOL * max(sv[0], 1.0), reading_std / math.sqrt(FREE_AVERAGED_READINGS)
+        )
         unseen = vt[sv <= floor]  # rows: directions (in reach units) the readings miss
         share = (unseen * unseen).sum(axis=0)  # per bend coordinate
-        free.update(
+        free &= {
             k
             for k in range(robot.n_sections)
             if share[2 * k : 2 * k + 2].sum() > FREE_SECTION_SHARE
-        )
+        }
     return tuple(sorted(free))
