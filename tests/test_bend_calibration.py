@@ -226,3 +226,25 @@ def test_shipped_bend_recordings_give_the_drawn_yaws() -> None:
         for y, true in zip(yaws, drawn):
             assert abs(y.yaw_deg - true) < 0.05, (name, y.yaw_deg, true)
             assert y.yaw_std_deg < 0.02
+
+
+def test_imus_tilting_out_of_order_in_the_bend_are_said() -> None:
+    """In a bend of every section the same way an IMU further out tilts at least as far:
+    with the second and third IMUs' columns swapped (both recordings), the third tilted
+    67 degrees against the second's 100, and their yaws (the second's 90 degrees) went to
+    each other's robot-file entry without a word. IMUs listed out of order in the robot
+    file are judged by their places along the backbone."""
+    from continuum_mhe.calibration.bend import YawCalibration, tilt_order_warning
+
+    def tilts(*deg: float) -> list[YawCalibration]:
+        return [YawCalibration(0.0, 0.0, d, 0.1, 0.01) for d in deg]
+
+    ends = [(0, 1.0), (1, 1.0), (2, 1.0)]
+    said = tilt_order_warning(ends, tilts(33.0, 100.0, 67.0))
+    assert said.startswith("IMU 3 tilts up to 67 deg in the bend, less than IMU 2 nearer")
+    assert "IMU columns in the robot file's order?" in said
+    assert tilt_order_warning(ends, tilts(33.0, 67.0, 100.0)) == ""
+    assert tilt_order_warning(ends, tilts(33.0, 70.0, 67.0)) == ""  # within the margin
+    listed = [(2, 1.0), (0, 1.0), (1, 0.5)]  # the tip's IMU first in the file
+    assert tilt_order_warning(listed, tilts(100.0, 33.0, 50.0)) == ""
+    assert "IMU 1 tilts up to 40 deg" in tilt_order_warning(listed, tilts(40.0, 33.0, 50.0))

@@ -2048,6 +2048,33 @@ def test_plot_refuses_a_truth_in_mm_without_the_robot(tmp_path, capsys) -> None:
     assert main(["plot", str(est), "--truth", str(t), "-o", str(figure)]) == 0
 
 
+def test_a_tip_truth_in_cm_is_refused_naming_it(tmp_path, capsys) -> None:
+    """Tip positions alone in cm (a motion capture's): 100 times the robot's reach is a
+    shape of no unit but cm, so only the estimate tells. ``evaluate`` named the estimate
+    file for the truth's fault; ``plot --robot`` drew it with a warning that the truth was
+    another robot's. Both refuse it in one line naming the truth."""
+    m, t = _simulated(tmp_path, "a")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    truth = read_state_table(t)
+    cm = tmp_path / "tip_cm.csv"
+    write_table(cm, ["t", "x", "y", "z"],
+                np.column_stack([truth.t, *(100 * truth.column(c) for c in "xyz")]))  # fmt: skip
+    robot = tmp_path / "r.toml"
+    robot.write_text("[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n")
+    figure = tmp_path / "p.png"
+    capsys.readouterr()
+    for argv in (
+        ["evaluate", str(est), str(cm)],
+        ["plot", str(est), "--truth", str(cm), "--robot", str(robot), "-o", str(figure)],
+    ):
+        assert main(argv) == 2
+        (line,) = capsys.readouterr().err.strip().splitlines()[-1:]
+        assert line.startswith(f"continuum-mhe: error: {cm}: its tip is "), line
+        assert line.endswith("positions in cm? give x, y, z in m"), line
+    assert not figure.exists()
+
+
 @pytest.mark.parametrize(
     ("header", "said"),
     [

@@ -110,11 +110,13 @@ class Status(str, Enum):
         "inconsistent",
         "an estimate was made, but the readings disagree with it beyond their noise (this "
         "sample's normalised residual beyond the chi-square 99.99 % quantile, or beyond "
-        "99 % here and at the sample before, or their recent average beyond the 99.9 % "
-        "quantile of its F distribution): the model does not follow the data here; the "
-        "standard deviations are widened by the estimated model error (noise_scale); or an "
-        "IMU's reading so far beyond the prediction from the ok estimate before it that it "
-        "was skipped as a glitch (the estimate is the prediction without it)",
+        "99 % here and at the sample before, or a residual no linear update leaves whose "
+        "shift to the readings lies outside the estimate's covariance, or their recent "
+        "average beyond the 99.9 % quantile of its F distribution): the model does not "
+        "follow the data here; the standard deviations are widened by the estimated model "
+        "error (noise_scale); or an IMU's reading so far beyond the prediction from the ok "
+        "estimate before it that it was skipped as a glitch (the estimate is the "
+        "prediction without it)",
     )
 
 

@@ -27,6 +27,7 @@ cross-check: a bend not in one plane makes the two disagree.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -179,3 +180,29 @@ def yaws_from_bend(
         except InputError as exc:
             raise InputError(f"{path}: IMU {i + 1}: {exc}") from None
     return out
+
+
+#: How far (deg, the tilts' 90th percentiles) an IMU further out along the backbone may
+#: tilt less than one before it in a bend of every section the same way
+#: (:func:`tilt_order_warning`): the percentiles' scatter and a slightly uneven bend.
+TILT_ORDER_MARGIN_DEG = 5.0
+
+
+def tilt_order_warning(places: Sequence[tuple[int, float]], yaws: Sequence[YawCalibration]) -> str:
+    """``""``, or why the IMUs' tilts in a bend of every section the same way (the
+    recording the yaw calibration asks for) cannot be the robot's: an IMU further out
+    along the backbone (``places``: each IMU's ``(section, at)``, in the files' order)
+    tilting less than one before it by over :data:`TILT_ORDER_MARGIN_DEG`, as the IMUs'
+    columns in another order than the robot file's give it; the yaws then go to the
+    wrong IMUs."""
+    order = sorted(range(len(places)), key=lambda i: places[i])
+    for inner, outer in zip(order, order[1:]):
+        a, b = yaws[inner].tilt_deg, yaws[outer].tilt_deg
+        if b < a - TILT_ORDER_MARGIN_DEG:
+            return (
+                f"IMU {outer + 1} tilts up to {b:.0f} deg in the bend, less than IMU "
+                f"{inner + 1} nearer the base ({a:.0f} deg): with every section bent the same "
+                "way an IMU further out tilts at least as far; are the recordings' IMU "
+                "columns in the robot file's order? (each yaw goes to the IMU of its columns)"
+            )
+    return ""

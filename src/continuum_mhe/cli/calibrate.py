@@ -25,7 +25,7 @@ from continuum_mhe.calibration.at_rest import (
     rest_gravity_problem,
     rest_tilt_warning,
 )
-from continuum_mhe.calibration.bend import YawCalibration
+from continuum_mhe.calibration.bend import YawCalibration, tilt_order_warning
 from continuum_mhe.cli.options import add_overwrite_option, given_options
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
@@ -170,6 +170,9 @@ def run(args: argparse.Namespace) -> int:
             bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot, topics))
         except InputError as exc:
             raise _without_skip_bad(exc, "the bent robot") from None
+        places = [(imu.section, imu.at) for imu in robot.imus]
+        if order := tilt_order_warning(places, bend[2]):
+            print(f"{PROG}: warning: {args.bend}: {order}", file=sys.stderr)
     yaws = [imu.mount_rpy[2] for imu in robot.imus]
     print(format_report(cal, source, bend, yaws, robot.mounting))
     if args.write_robot:

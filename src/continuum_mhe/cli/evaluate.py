@@ -51,6 +51,7 @@ from continuum_mhe.evaluation.metrics import (
 from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.io.position_units import (
     force_unit_against,
+    position_unit_against,
     position_unit_problem,
     steady_ratio,
 )
@@ -250,8 +251,12 @@ def _evaluate(args: argparse.Namespace) -> int:
     for path, table in ((args.estimates, est), (args.truth, truth)):
         if unit := position_unit_problem(table.names, table.values, robot.lengths):
             raise InputError(f"{path}: {unit}")
-    if unit := force_unit_against(truth.names, truth.values, est.names, est.values):
-        raise InputError(f"{args.truth}: {unit}")
+    for unit in (
+        position_unit_against(truth.names, truth.values, est.names, est.values),
+        force_unit_against(truth.names, truth.values, est.names, est.values),
+    ):
+        if unit:  # tip positions alone in cm: within any robot's reach times 100
+            raise InputError(f"{args.truth}: {unit}")
     scored_from = _scored_from(est, args.skip_start)
     first_t = float(est.t[0]) if len(est.t) else math.nan  # the clock's, before any skip
     est = _after_start(args.estimates, est, args.skip_start)

@@ -110,8 +110,9 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         "calibrated gyro biases (calibrate --from REST.csv --write-robot), held then, not "
         "estimated. On the shipped twisting rods, calibrated, it takes the EKF's mean tip "
         "error from 67 and 19 mm to 8.8 and 8.1 mm; on a rod that hardly twists it costs "
-        "2 to 5 mm, and on readings the model follows (simulate) 14 against 2.6 mm, with "
-        "rows ok 20 mm off (docs/model.md): only for a robot that twists",
+        "1.4 to 1.9 mm (about 4 mm with other draws of the IMUs' errors), and on readings "
+        "the model follows (simulate) 14 against 2.6 mm, with rows ok 20 mm off "
+        "(docs/model.md): only for a robot that twists",
     )
 
 

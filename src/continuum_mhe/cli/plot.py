@@ -151,7 +151,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         unit = ""
         if table is not None and lengths is not None:
             unit = position_unit_problem(table.names, table.values, lengths)
-        elif table is truth and truth is not None:
+        if not unit and table is truth and truth is not None:  # tip positions alone in cm
             unit = position_unit_against(truth.names, truth.values, est.names, est.values)
         if unit:
             raise InputError(f"{path}: {unit}")
