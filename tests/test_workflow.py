@@ -119,15 +119,19 @@ def test_plot_draws_a_hanging_robot_hanging(
 ) -> None:
     """The backbone's panel of a z-down robot's estimate draws the base's z axis pointing
     down (the robot hangs there as it hangs), with the robot file, from the mounting the
-    estimate's options line records, and from standard input; a z-up robot's points up."""
+    estimate's options line records, and from standard input; a z-up robot's points up.
+    Its z range is what is drawn (an S that stays on its side of the base): it ran from
+    minus the robot's reach, half the panel empty."""
     from continuum_mhe.evaluation import plotting
 
     drawn: list[bool] = []  # whether each figure's backbone panel has z pointing down
+    beyond_base: list[float] = []  # how far each panel's z runs past the base, mm
 
     def kept(fig, path, formats=("png",)):
         (view,) = [ax for ax in fig.axes if ax.name == "3d"]
         low, high = view.get_zlim()
         drawn.append(bool(low > high))
+        beyond_base.append(-min(low, high))  # the base frame's z, drawn up or down
         path.with_suffix(".png").write_bytes(b"")
 
     monkeypatch.setattr(plotting, "save", kept)
@@ -149,6 +153,7 @@ def test_plot_draws_a_hanging_robot_hanging(
             monkeypatch.setattr("sys.stdin", piped)
             assert main(["plot", "-", "-o", str(fig), "--overwrite"]) == 0
     assert drawn == [True] * 3 + [False] * 3
+    assert max(beyond_base) < 0.1 * 270, beyond_base  # the robot: 0.15 + 0.12 m
 
 
 def test_plot_refuses_a_truth_of_another_robot_and_an_existing_figure(

@@ -462,6 +462,7 @@ def _backbones(
              for k, (a, b) in enumerate(zip(ends[:-1], ends[1:]))]
         )  # fmt: skip
     reach = float(sum(lengths)) if lengths is not None else 0.0
+    z_drawn = [0.0, 0.0]  # the lowest and highest z drawn (m), the base's included
     off = 0.0  # the model's backbone's tip from the estimate's (m), at most
     unsolved: list[str] = []  # the rows drawn whose loads have no equilibrium
     est_unsolved = 0  # of them the estimate's
@@ -500,6 +501,10 @@ def _backbones(
                     label=label)  # fmt: skip
             ax.plot(*(ends_xyz * 1e3).T, "o", color=color, ms=3)
             reach = max(reach, float(np.max(np.linalg.norm(line, axis=1))))
+            z_drawn = [
+                min(z_drawn[0], float(line[:, 2].min())),
+                max(z_drawn[1], float(line[:, 2].max())),
+            ]
     if unsolved:  # (every one of the estimate's: the error above)
         warnings.warn(
             f"{len(unsolved)} of the backbones drawn joined through their section ends: the "
@@ -510,7 +515,11 @@ def _backbones(
     r = reach * 1e3
     ax.set_xlim(-r, r)
     ax.set_ylim(-r, r)
-    ax.set_zlim(-r, r)
+    # z over what is drawn (a robot standing on its base leaves the half below it empty),
+    # at the same scale as x and y
+    low, high = z_drawn[0] * 1e3 - 0.05 * r, z_drawn[1] * 1e3 + 0.05 * r
+    ax.set_zlim(low, high)
+    ax.set_box_aspect((2 * r, 2 * r, high - low))
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
