@@ -765,9 +765,13 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   if (s_.checks_start) {  // the readings against the estimates (consistency.hpp)
     // a reading the robust MHE rejected as an outlier is flagged as one, and says
     // nothing about the estimate
-    const double* judged = !has_state || !inference_.outlier() ? mask_.data() : zero_mask_.data();
+    const bool rejected = has_state && inference_.outlier();
+    const double* judged = rejected ? zero_mask_.data() : mask_.data();
     const bool disagree = consistency_check(t, z, judged, x, P, has_state, has_cov);
-    if ((disagree || gated > 0) && trusted(status)) status = ST_INCONSISTENT;
+    // a row whose newest reading the robust MHE rejected is not one its readings agree
+    // with, whichever was wrong (a reading's glitch, or an estimate that followed a
+    // burst and now rejects the clean readings after it): as a skipped glitch's row
+    if ((disagree || gated > 0 || rejected) && trusted(status)) status = ST_INCONSISTENT;
     // a reading beyond the limit of one sample against the prediction (IMUs without
     // gyros, jump_hold): the estimator moved onto readings its model called impossible,
     // and a burst of wrong readings then agrees with the moved estimate as the robot's

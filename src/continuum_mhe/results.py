@@ -114,9 +114,10 @@ class Status(str, Enum):
         "shift to the readings lies outside the estimate's covariance, or their recent "
         "average beyond the 99.9 % quantile of its F distribution): the model does not "
         "follow the data here; the standard deviations are widened by the estimated model "
-        "error (noise_scale); or an IMU's reading so far beyond the prediction from the ok "
-        "estimate before it that it was skipped as a glitch (the estimate is the "
-        "prediction without it)",
+        "error (noise_scale); or a row whose newest reading a robust MHE rejected as an "
+        "outlier; or an IMU's reading so far beyond the prediction from the ok estimate "
+        "before it that it was skipped as a glitch (the estimate is the prediction "
+        "without it)",
     )
 
 
