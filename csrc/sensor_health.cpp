@@ -929,8 +929,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (0.0 <= t - drifted_t_ && t - drifted_t_ <= window) status = ST_UNCERTAIN;
   }
   out.outlier = has_state && inference_.outlier();
-  // the reject reset's run; a sample without readings neither ends nor extends it
-  const int rejected = has_state ? inference_.rejected_every_reading() : 0;
+  // the reject reset's run; a sample without readings neither ends nor extends it. An
+  // IMU back from a silence whose readings the robust MHE rejects counts as every
+  // reading rejected: its part of the shape went on without it, and the estimate that
+  // rejects it is the lost one (the other IMUs' readings agree with any shape of it)
+  int rejected = has_state ? inference_.rejected_every_reading() : 0;
+  if (rejected == 0 && has_state && !returned_.empty() && inference_.outlier()) rejected = 1;
   if (rejected == 0)
     rejecting_since_.reset();
   else if (rejected == 1 && !rejecting_since_)
