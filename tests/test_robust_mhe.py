@@ -661,33 +661,50 @@ def test_recovery_options_the_cost_ignores_are_refused(tmp_path, capsys, extra, 
     assert "--bad-start does not apply with " + str(config) in capsys.readouterr().err
 
 
+SPATIAL_TENDON = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+
+
+def _damaged_tip_error(
+    tmp_path: Path, rows: range, damage: dict[str, object], loss: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """The shipped spatial-tendon rod's tilt recording with the cells of ``rows``
+    (samples) in the columns of ``damage`` replaced (a function of the cell's text, or
+    the text itself), estimated as a user would (``estimate --robot two-section --loss
+    LOSS``): its statuses and its tip error, m, against the truth."""
+    lines = (SPATIAL_TENDON / "spatial-tendon_tilt.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    for k in rows:
+        cells = lines[k + 1].split(",")  # line 1 is the header
+        for column, new in damage.items():
+            i = header.index(column)
+            cells[i] = new(cells[i]) if callable(new) else str(new)
+        lines[k + 1] = ",".join(cells)
+    damaged, out = tmp_path / "damaged.csv", tmp_path / "e.csv"
+    damaged.write_text("\n".join(lines) + "\n")
+    argv = ["estimate", str(damaged), "--robot", "two-section", "--loss", loss, "-o", str(out)]
+    assert main(argv) == 0
+    est = read_state_table(out)
+    truth = read_state_table(SPATIAL_TENDON / "spatial-tendon_truth.csv", ())
+    err = np.linalg.norm(
+        np.column_stack([est.column(c) - truth.column(c) for c in ("x", "y", "z")]), axis=1
+    )
+    return np.asarray(est.status), err
+
+
 def test_a_robust_mhe_that_follows_a_burst_leaves_no_row_ok_far_off(tmp_path: Path) -> None:
     """IMU 2's roll 40 degrees off for ten samples of the shipped spatial-tendon rod
     (tilt), estimated as a user would (``estimate --loss huber``): the MHE followed the
     burst and then rejected the clean readings after it, and those rows, flagged as
     outliers, were ok 20 to 77 mm off at 6 standard deviations. A row whose newest
     reading the robust MHE rejects is inconsistent."""
-    rod = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
-    lines = (rod / "spatial-tendon_tilt.csv").read_text().splitlines()
-    header = lines[0].split(",")
-    roll = header.index("roll_2")
-    for k in range(371, 381):  # samples 370 to 379 (line 1 is the header)
-        cells = lines[k].split(",")
-        cells[roll] = repr(float(np.angle(np.exp(1j * (float(cells[roll]) + np.radians(40))))))
-        lines[k] = ",".join(cells)
-    burst = tmp_path / "burst.csv"
-    burst.write_text("\n".join(lines) + "\n")
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(burst), "--robot", "two-section", "--loss", "huber", "-o", str(out)]
-    assert main(argv) == 0
-    est = read_state_table(out)
-    truth = read_state_table(rod / "spatial-tendon_truth.csv", ())
-    err = np.linalg.norm(
-        np.column_stack([est.column(c) - truth.column(c) for c in ("x", "y", "z")]), axis=1
-    )
+
+    def turned(cell: str) -> str:
+        return repr(float(np.angle(np.exp(1j * (float(cell) + np.radians(40.0))))))
+
+    status, err = _damaged_tip_error(tmp_path, range(370, 380), {"roll_2": turned}, "huber")
     assert err[370:420].max() > 0.02  # it followed the burst
     after = slice(370, None)  # (before it, rows are ok up to 22 mm off at 1.2 to 1.9 std)
-    far = np.flatnonzero((np.asarray(est.status)[after] == "ok") & (err[after] > 0.02))
+    far = np.flatnonzero((status[after] == "ok") & (err[after] > 0.02))
     assert not len(far), far + 370
 
 
@@ -698,23 +715,6 @@ def test_a_robust_mhe_takes_an_imu_back_after_its_dropout(tmp_path: Path) -> Non
     reading rejected) never came: the estimate stayed 150 to 230 mm off to the end. An
     IMU back from a silence whose readings are rejected for the reject reset's time
     restarts the estimate."""
-    rod = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
-    lines = (rod / "spatial-tendon_tilt.csv").read_text().splitlines()
-    header = lines[0].split(",")
-    imu2 = [header.index("roll_2"), header.index("pitch_2")]
-    for k in range(362, 412):  # samples 361 to 410
-        cells = lines[k].split(",")
-        for i in imu2:
-            cells[i] = ""
-        lines[k] = ",".join(cells)
-    dropped = tmp_path / "dropped.csv"
-    dropped.write_text("\n".join(lines) + "\n")
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(dropped), "--robot", "two-section", "--loss", "cauchy", "-o", str(out)]
-    assert main(argv) == 0
-    est = read_state_table(out)
-    truth = read_state_table(rod / "spatial-tendon_truth.csv", ())
-    err = np.linalg.norm(
-        np.column_stack([est.column(c) - truth.column(c) for c in ("x", "y", "z")]), axis=1
-    )
+    silent = {"roll_2": "", "pitch_2": ""}
+    _, err = _damaged_tip_error(tmp_path, range(361, 411), silent, "cauchy")
     assert err[500:].mean() < 0.015, err[500:].mean()  # the last two seconds
