@@ -552,7 +552,8 @@ class Estimator(Generic[InferenceT]):
                 after a reset, where the first readings put the robot the other way up
                 (as :meth:`run` checks a recording's: a
                 :class:`~continuum_mhe.io.input_options.MountingWarning` where they start
-                bent past 90 degrees), and for every later sample until a reset.
+                bent past 100 degrees, 90 and ``MOUNTING_MARGIN``), and for every later
+                sample until a reset.
         """
         expect_type("measurement", measurement, Measurement, "a Measurement(t, z)")
         if measurement.labels is not None:
@@ -706,7 +707,8 @@ class Estimator(Generic[InferenceT]):
         reader checks them (:func:`~continuum_mhe.io.input_options.check_mounting`): a
         :class:`UserError` where gravity says the robot is mounted the other way, a
         :class:`~continuum_mhe.io.input_options.MountingWarning` where it starts bent past
-        90 degrees or an IMU reads as if mounted upside down; not again for the array
+        100 degrees (90 and ``MOUNTING_MARGIN``) or an IMU reads as if mounted upside
+        down; not again for the array
         that :func:`~continuum_mhe.io.inputs.load_input` read, which it checked for the
         same robot."""
         if progress is not None and not callable(progress):
