@@ -121,6 +121,10 @@ class PythonInference final : public PolicyInference {
     nb::gil_scoped_acquire gil;
     return nb::cast<int>(obj_.attr("rejected")());
   }
+  int rejected_readings(const std::vector<int>& rows) override {
+    nb::gil_scoped_acquire gil;
+    return nb::cast<int>(obj_.attr("rejected")(nb::cast(rows)));
+  }
   bool is_diverged(const double* x, const double* P) override {
     nb::gil_scoped_acquire gil;
     nb::object p = P ? nb::cast(cov(P)) : nb::none();
@@ -242,14 +246,20 @@ class HorizonInference final : public PolicyInference {
   }
   // 1 when every block of the newest sample with a valid reading was weighted below
   // outlier_weight in the last answer, 0 when not, -1 when no block had a reading
-  int rejected_every_reading() override {
+  int rejected_every_reading() override { return rejected(nullptr); }
+  int rejected_readings(const std::vector<int>& rows) override { return rejected(&rows); }
+  // rejected_every_reading over the blocks that hold any of ``rows`` (all: nullptr)
+  int rejected(const std::vector<int>* rows) const {
     if (!robust_) return 0;
     const Index last = (h_.n - 1) * h_.nz;
     bool any = false, every = true;
     for (Index b = 0; b < h_.nblk; ++b) {
       // a block the loss does not act on (not an IMU's: a tendon robot's tip condition,
       // its tensions) is never rejected, and says nothing of the readings
-      if (h_.solver.block_loss[b] == 0 || h_.zmask[last + h_.solver.blocks[2 * b]] <= 0.0)
+      const int64_t start = h_.solver.blocks[2 * b], size = h_.solver.blocks[2 * b + 1];
+      if (h_.solver.block_loss[b] == 0 || h_.zmask[last + start] <= 0.0) continue;
+      if (rows && std::none_of(rows->begin(), rows->end(),
+                               [&](int r) { return start <= r && r < start + size; }))
         continue;
       any = true;
       every = every && h_.w_last[b] < outlier_weight;

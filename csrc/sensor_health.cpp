@@ -934,7 +934,9 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // reading rejected: its part of the shape went on without it, and the estimate that
   // rejects it is the lost one (the other IMUs' readings agree with any shape of it)
   int rejected = has_state ? inference_.rejected_every_reading() : 0;
-  if (rejected == 0 && has_state && !returned_.empty() && inference_.outlier()) rejected = 1;
+  if (rejected == 0 && has_state && !returned_.empty() &&
+      inference_.rejected_readings(returned_) == 1)
+    rejected = 1;
   if (rejected == 0)
     rejecting_since_.reset();
   else if (rejected == 1 && !rejecting_since_)

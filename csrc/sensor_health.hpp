@@ -78,6 +78,10 @@ class PolicyInference {
   // every valid reading: 1, 0, or -1 when the sample had none
   virtual bool outlier() { return false; }
   virtual int rejected_every_reading() { return 0; }
+  // the same for the blocks that hold any of ``rows`` (reading rows): 1 when every such
+  // block of the newest sample with a valid reading was rejected, 0 when not, -1 when
+  // none had a reading
+  virtual int rejected_readings(const std::vector<int>& /*rows*/) { return 0; }
   // the model's checks of a state (P may be nullptr)
   virtual bool is_diverged(const double* x, const double* P) = 0;
   virtual bool drifted(const double* x) = 0;

@@ -240,11 +240,16 @@ def test_imus_tilting_out_of_order_in_the_bend_are_said() -> None:
         return [YawCalibration(0.0, 0.0, d, 0.1, 0.01) for d in deg]
 
     ends = [(0, 1.0), (1, 1.0), (2, 1.0)]
-    said = tilt_order_warning(ends, tilts(33.0, 100.0, 67.0))
+    reach = [3.0, 3.0, 3.0]
+    said = tilt_order_warning(ends, tilts(33.0, 100.0, 67.0), reach)
     assert said.startswith("IMU 3 tilts up to 67 deg in the bend, less than IMU 2 nearer")
     assert "IMU columns in the robot file's order?" in said
-    assert tilt_order_warning(ends, tilts(33.0, 67.0, 100.0)) == ""
-    assert tilt_order_warning(ends, tilts(33.0, 70.0, 67.0)) == ""  # within the margin
+    assert tilt_order_warning(ends, tilts(33.0, 67.0, 100.0), reach) == ""
+    assert tilt_order_warning(ends, tilts(33.0, 70.0, 67.0), reach) == ""  # within the margin
     listed = [(2, 1.0), (0, 1.0), (1, 0.5)]  # the tip's IMU first in the file
-    assert tilt_order_warning(listed, tilts(100.0, 33.0, 50.0)) == ""
-    assert "IMU 1 tilts up to 40 deg" in tilt_order_warning(listed, tilts(40.0, 33.0, 50.0))
+    assert tilt_order_warning(listed, tilts(100.0, 33.0, 50.0), reach) == ""
+    said = tilt_order_warning(listed, tilts(40.0, 33.0, 50.0), reach)
+    assert "IMU 1 tilts up to 40 deg" in said
+    # a tilt reads at most 180 degrees: an outer IMU bent to 210 reads 150, which the
+    # section between it and one at 150 can bend it to: not said
+    assert tilt_order_warning(ends, tilts(60.0, 150.0, 150.0 - 10), reach) == ""

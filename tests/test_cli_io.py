@@ -1451,6 +1451,12 @@ def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_pa
     assert str(refused.value) == (
         f"{truth}: line 6: column y is inf (leave the cell empty (or nan) for a value not measured)"
     )
+    row = lines[5].split(",")  # a gap before it in the row: the infinity is named
+    row[header.index("x")] = ""
+    lines[5] = ",".join(row)
+    truth.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match="line 6: column y is inf"):
+        read_state_table(truth, gaps=True)
 
 
 def test_a_value_of_many_digits_is_named_short(tmp_path, capsys) -> None:

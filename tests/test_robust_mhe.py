@@ -718,3 +718,23 @@ def test_a_robust_mhe_takes_an_imu_back_after_its_dropout(tmp_path: Path) -> Non
     silent = {"roll_2": "", "pitch_2": ""}
     _, err = _damaged_tip_error(tmp_path, range(361, 411), silent, "cauchy")
     assert err[500:].mean() < 0.015, err[500:].mean()  # the last two seconds
+
+
+def test_rows_whose_reading_the_robust_cost_rejected_do_not_call_the_robot_file_wrong(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 40-degree spike on IMU 2 every fourth sample: the Cauchy MHE rejects them and
+    follows the rod (their rows inconsistent), and the summary counts them as outliers;
+    the warning that the readings disagree with the model for much of the run (check the
+    robot file) is not given for them."""
+
+    def turned(cell: str) -> str:
+        return repr(float(np.angle(np.exp(1j * (float(cell) + np.radians(40.0))))))
+
+    capsys.readouterr()
+    status, err = _damaged_tip_error(tmp_path, range(0, 601, 4), {"roll_2": turned}, "cauchy")
+    said = capsys.readouterr().err
+    assert (status == "inconsistent").sum() > 0.2 * len(status)
+    assert err[50:].mean() < 0.015  # the spikes rejected: the rod followed
+    assert "are inconsistent" not in said, said
+    assert "outliers flagged" in said

@@ -188,17 +188,25 @@ def yaws_from_bend(
 TILT_ORDER_MARGIN_DEG = 5.0
 
 
-def tilt_order_warning(places: Sequence[tuple[int, float]], yaws: Sequence[YawCalibration]) -> str:
+def tilt_order_warning(
+    places: Sequence[tuple[int, float]],
+    yaws: Sequence[YawCalibration],
+    theta_max: Sequence[float],
+) -> str:
     """``""``, or why the IMUs' tilts in a bend of every section the same way (the
     recording the yaw calibration asks for) cannot be the robot's: an IMU further out
-    along the backbone (``places``: each IMU's ``(section, at)``, in the files' order)
-    tilting less than one before it by over :data:`TILT_ORDER_MARGIN_DEG`, as the IMUs'
-    columns in another order than the robot file's give it; the yaws then go to the
-    wrong IMUs."""
+    along the backbone (``places``: each IMU's ``(section, at)``, 0-based, in the files'
+    order) tilting less than one before it by over :data:`TILT_ORDER_MARGIN_DEG`, as the
+    IMUs' columns in another order than the robot file's give it; the yaws then go to
+    the wrong IMUs. A tilt reads at most 180 degrees: an outer IMU bent further reads
+    less, so the order is judged only where the sections between them (their
+    ``theta_max``, rad, by section) cannot bend it past 180 degrees."""
     order = sorted(range(len(places)), key=lambda i: places[i])
     for inner, outer in zip(order, order[1:]):
         a, b = yaws[inner].tilt_deg, yaws[outer].tilt_deg
-        if b < a - TILT_ORDER_MARGIN_DEG:
+        between = math.degrees(_bend_between(places[inner], places[outer], theta_max))
+        folded = 360.0 - b - a <= between  # the outer IMU may be bent past 180 degrees
+        if b < a - TILT_ORDER_MARGIN_DEG and not folded:
             return (
                 f"IMU {outer + 1} tilts up to {b:.0f} deg in the bend, less than IMU "
                 f"{inner + 1} nearer the base ({a:.0f} deg): with every section bent the same "
@@ -206,3 +214,14 @@ def tilt_order_warning(places: Sequence[tuple[int, float]], yaws: Sequence[YawCa
                 "columns in the robot file's order? (each yaw goes to the IMU of its columns)"
             )
     return ""
+
+
+def _bend_between(
+    inner: tuple[int, float], outer: tuple[int, float], theta_max: Sequence[float]
+) -> float:
+    """The most the backbone between two places ``(section, at)`` (0-based) can bend,
+    rad: each section's ``theta_max`` over the share of it between them."""
+    (s0, a0), (s1, a1) = inner, outer
+    if s0 == s1:
+        return (a1 - a0) * theta_max[s0]
+    return (1.0 - a0) * theta_max[s0] + sum(theta_max[s0 + 1 : s1]) + a1 * theta_max[s1]

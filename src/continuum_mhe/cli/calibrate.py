@@ -171,7 +171,8 @@ def run(args: argparse.Namespace) -> int:
         except InputError as exc:
             raise _without_skip_bad(exc, "the bent robot") from None
         places = [(imu.section, imu.at) for imu in robot.imus]
-        if order := tilt_order_warning(places, bend[2]):
+        reach = [s.theta_max for s in robot.sections]
+        if order := tilt_order_warning(places, bend[2], reach):
             print(f"{PROG}: warning: {args.bend}: {order}", file=sys.stderr)
     yaws = [imu.mount_rpy[2] for imu in robot.imus]
     print(format_report(cal, source, bend, yaws, robot.mounting))

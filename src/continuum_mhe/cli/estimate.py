@@ -106,6 +106,8 @@ class _Tally:
     counts: dict[str, int] = field(default_factory=dict)
     frozen: dict[str, int] = field(default_factory=dict)
     outliers: int = 0
+    #: rows inconsistent because the robust MHE rejected their newest reading
+    rejected_inconsistent: int = 0
     readings: int = 0
 
 
@@ -141,6 +143,8 @@ def _estimate_block(
     if note:
         print(f"{PROG}: note: {note}", file=sys.stderr)
     tally.outliers += int(batch.outlier.sum())
+    inconsistent = np.asarray(statuses) == "inconsistent"
+    tally.rejected_inconsistent += int((inconsistent & batch.outlier.astype(bool)).sum())
     tally.bound.add(batch.output, statuses, z)
     tally.beyond.add(batch.output)
     tally.force.add(z, batch.output)
@@ -380,7 +384,9 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         print(f"{PROG}: warning: {drift_note}", file=sys.stderr)
     if load_note := untrusted_start_notice(diag, n, bool(formulation.robot.tendons)):
         print(f"{PROG}: warning: {load_note}", file=sys.stderr)
-    inconsistent = tally.counts.get("inconsistent", 0)
+    # (a row whose reading the robust cost rejected says what the estimator did, not
+    # that the model does not follow the robot: the summary counts those as outliers)
+    inconsistent = tally.counts.get("inconsistent", 0) - tally.rejected_inconsistent
     if inconsistent_note := inconsistent_notice(inconsistent, n, formulation):
         print(f"{PROG}: warning: {inconsistent_note}", file=sys.stderr)
     if diag.reject_resets:

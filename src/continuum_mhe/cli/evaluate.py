@@ -33,7 +33,6 @@ from continuum_mhe.cli.truth_checks import (
     truth_frame_warning,
 )
 from continuum_mhe.errors import InputError, time_text
-from continuum_mhe.evaluation.estimate_figure import has_tip_force
 from continuum_mhe.evaluation.metrics import (
     FAR_STD,
     Calibration,
@@ -240,7 +239,8 @@ def _evaluate(args: argparse.Namespace) -> int:
     # without --robot or --length: the estimate's own, else one section of --length
     warned: list[str] = []  # said once the scores are known, and in --json
     robot = estimate_robot(args, args.estimates, "evaluated on that robot", warned)
-    if args.robot and has_tip_force(est.names) and not robot.has_mechanics:
+    tendon_estimate = all(c in est.names for c in TIP_FORCE_COLUMNS)
+    if args.robot and tendon_estimate and not robot.has_mechanics:
         raise InputError(
             f"{args.robot}: the robot has no [backbone], but {args.estimates} is a tendon "
             "robot's estimate (its tip force columns): give that robot's file, or no "

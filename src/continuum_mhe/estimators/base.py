@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -150,10 +151,11 @@ class Inference(ABC):
         """Whether the last :meth:`infer` down-weighted its measurement (robust MHE only)."""
         return False
 
-    def rejected_every_reading(self) -> bool | None:
+    def rejected_every_reading(self, rows: Sequence[int] | None = None) -> bool | None:
         """Whether the last :meth:`infer` down-weighted every valid reading of its sample
-        (the reject reset counts these): always False here, as for every inference
-        without a robust loss; a robust MHE's answers None when the sample had no valid
+        (the reject reset counts these), or every valid reading of the blocks that hold
+        any of the reading ``rows``: always False here, as for every inference without a
+        robust loss; a robust MHE's answers None when the sample had no such valid
         reading."""
         return False
 

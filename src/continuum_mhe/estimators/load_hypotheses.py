@@ -46,6 +46,7 @@ estimator of such a robot (``Diagnostics.untrusted_start_samples`` counts them).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -252,8 +253,8 @@ class LoadHypothesesInference(Inference):
     def outlier(self) -> bool:
         return self._chosen.outlier()
 
-    def rejected_every_reading(self) -> bool | None:
-        return self._chosen.rejected_every_reading()
+    def rejected_every_reading(self, rows: Sequence[int] | None = None) -> bool | None:
+        return self._chosen.rejected_every_reading(rows)
 
     def close_recording(self) -> None:
         self._counted_t = None  # a sample at the same time is then another one

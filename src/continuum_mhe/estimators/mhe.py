@@ -49,7 +49,7 @@ import math
 import threading
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -778,13 +778,18 @@ class MovingHorizonInference(Inference):
         :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT`."""
         return self.flags_outliers and bool(np.min(self._window.w_last) < OUTLIER_WEIGHT)
 
-    def rejected_every_reading(self) -> bool | None:
+    def rejected_every_reading(self, rows: Sequence[int] | None = None) -> bool | None:
         """True when the last solve down-weighted every valid block of the newest sample
         below :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT` (one faulty IMU of
-        several is not a lost estimate); None when the sample had no valid block."""
+        several is not a lost estimate), or every valid block that holds any of the
+        reading ``rows``; None when the sample had no such valid block."""
         if not self.flags_outliers:
             return False
         valid = (self._window.zmask[-1][self._blocks[:, 0]] > 0.0) & self._robust_block
+        if rows is not None:
+            starts, sizes = self._blocks[:, 0], self._blocks[:, 1]
+            held = np.array([any(s <= r < s + n for r in rows) for s, n in zip(starts, sizes)])
+            valid &= held
         if not valid.any():
             return None
         return bool(np.all(np.asarray(self._window.w_last)[valid] < OUTLIER_WEIGHT))

@@ -202,9 +202,10 @@ class PythonInference:
     def outlier(self) -> bool:
         return self.inference.outlier()
 
-    def rejected(self) -> int:
-        """:meth:`~.base.Inference.rejected_every_reading` as 1, 0, or -1 for None."""
-        rejected = self.inference.rejected_every_reading()
+    def rejected(self, rows: list[int] | None = None) -> int:
+        """:meth:`~.base.Inference.rejected_every_reading` (of the blocks that hold any
+        of the reading ``rows``, where given) as 1, 0, or -1 for None."""
+        rejected = self.inference.rejected_every_reading(rows)
         return -1 if rejected is None else int(rejected)
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None) -> bool:

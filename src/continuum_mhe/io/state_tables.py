@@ -190,7 +190,11 @@ def read_state_table(
         finite = [tv, *(v for v in vals if not (gaps and math.isnan(v)))]
         if st != "no-estimate" and not all(map(math.isfinite, finite)):
             cells = zip(("t", *names), (row[t_idx], *(row[j] for j in idx)), (tv, *vals))
-            col, text = next((c, x) for c, x, v in cells if not math.isfinite(v))
+            col, text = next(  # (not a gap: a value left out where gaps are allowed)
+                (c, x)
+                for c, x, v in cells
+                if not math.isfinite(v) and not (gaps and c != "t" and math.isnan(v))
+            )
             if not gaps:
                 rule = "every row needs a finite value in each column"
             elif col == "t":

@@ -265,6 +265,8 @@ class LiveSession:
         self.wide = WideUncertain(self.formulation, estimator.recovery.uncertain_fraction)
         #: the estimates written, by status (the summary's drifted warning counts them)
         self.status_counts: Counter[str] = Counter()
+        #: rows inconsistent because the robust MHE rejected their newest reading
+        self.rejected_inconsistent = 0
         columns = estimate_columns(self.formulation.outputs, outlier=self.flags_outliers)
         self.out: RowSink | None = (
             None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)
@@ -1021,6 +1023,8 @@ class LiveSession:
         self.counts.estimates += 1
         self.last = est
         self.status_counts[str(est.status)] += 1
+        if est.outlier and est.status == "inconsistent":
+            self.rejected_inconsistent += 1  # the robust cost rejected its reading
         self.solve_ms.append(est.solve_ms)
         if self.on_estimate is not None:
             self.on_estimate(est)
@@ -1184,7 +1188,7 @@ class LiveSession:
             self.estimator.diagnostics, c.estimates, bool(self.formulation.robot.tendons)
         ):
             msg += "; warning: " + load_note
-        inconsistent = self.status_counts.get("inconsistent", 0)
+        inconsistent = self.status_counts.get("inconsistent", 0) - self.rejected_inconsistent
         if inconsistent_note := inconsistent_notice(inconsistent, c.estimates, self.formulation):
             msg += "; warning: " + inconsistent_note
         if self.record is not None and c.first_restart_t is not None:
