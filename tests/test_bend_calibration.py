@@ -230,10 +230,10 @@ def test_shipped_bend_recordings_give_the_drawn_yaws() -> None:
 
 def test_imus_tilting_out_of_order_in_the_bend_are_said() -> None:
     """In a bend of every section the same way an IMU further out tilts at least as far:
-    with the second and third IMUs' columns swapped (both recordings), the third tilted
-    67 degrees against the second's 100, and their yaws (the second's 90 degrees) went to
-    each other's robot-file entry without a word. IMUs listed out of order in the robot
-    file are judged by their places along the backbone."""
+    with the second and third IMUs' columns swapped (both recordings), the third tilts
+    67 degrees against the second's 100, and their yaws (the second's 90 degrees) would
+    go to each other's robot-file entry: said in a warning. IMUs listed out of order in
+    the robot file are judged by their places along the backbone."""
     from continuum_mhe.calibration.bend import YawCalibration, tilt_order_warning
 
     def tilts(*deg: float) -> list[YawCalibration]:

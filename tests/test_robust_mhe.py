@@ -431,7 +431,7 @@ def test_newton_off_reaches_the_same_robust_optimum(recording) -> None:
         for newton in (True, False)
     }
     series = {newton: est.run(recording.t, z) for newton, est in ests.items()}
-    for s in series.values():  # ok but where the newest reading was rejected
+    for s in series.values():  # ok but where the newest reading is rejected
         assert s.outlier is not None and s.outlier.any()
         assert np.all(s.status[1:] == np.where(s.outlier[1:], "inconsistent", "ok"))
     assert_allclose(series[False].output, series[True].output, rtol=0, atol=1e-6)
@@ -693,10 +693,10 @@ def _damaged_tip_error(
 
 def test_a_robust_mhe_that_follows_a_burst_leaves_no_row_ok_far_off(tmp_path: Path) -> None:
     """IMU 2's roll 40 degrees off for ten samples of the shipped spatial-tendon rod
-    (tilt), estimated as a user would (``estimate --loss huber``): the MHE followed the
-    burst and then rejected the clean readings after it, and those rows, flagged as
-    outliers, were ok 20 to 77 mm off at 6 standard deviations. A row whose newest
-    reading the robust MHE rejects is inconsistent."""
+    (tilt), estimated as a user would (``estimate --loss huber``): the MHE follows the
+    burst and then rejects the clean readings after it, those rows 20 to 77 mm off at
+    up to 6 standard deviations. A row whose newest reading the robust MHE rejects is
+    inconsistent: none of them is ok."""
 
     def turned(cell: str) -> str:
         return repr(float(np.angle(np.exp(1j * (float(cell) + np.radians(40.0))))))
@@ -710,11 +710,11 @@ def test_a_robust_mhe_that_follows_a_burst_leaves_no_row_ok_far_off(tmp_path: Pa
 
 def test_a_robust_mhe_takes_an_imu_back_after_its_dropout(tmp_path: Path) -> None:
     """IMU 2 of the shipped spatial-tendon rod (tilt) silent for a second: on its return
-    its readings lay far from the estimate that went on without it, the Cauchy MHE
-    rejected them as outliers, and since IMU 1's were taken the reject reset (every
-    reading rejected) never came: the estimate stayed 150 to 230 mm off to the end. An
-    IMU back from a silence whose readings are rejected for the reject reset's time
-    restarts the estimate."""
+    its readings lie far from the estimate that went on without it, and the Cauchy MHE
+    rejects them as outliers while it takes IMU 1's, so that not every reading is
+    rejected (the reject reset's rule), and without more the estimate stays 150 to 230 mm
+    off to the end. An IMU back from a silence whose own readings are rejected for the
+    reject reset's time restarts the estimate."""
     silent = {"roll_2": "", "pitch_2": ""}
     _, err = _damaged_tip_error(tmp_path, range(361, 411), silent, "cauchy")
     assert err[500:].mean() < 0.015, err[500:].mean()  # the last two seconds

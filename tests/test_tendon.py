@@ -1412,8 +1412,8 @@ def test_plot_checks_a_tip_truth_against_the_robot_it_draws_on(
     force29_estimate: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """``plot`` without ``--robot`` draws a tendon estimate on the robot its options line
-    names (0.4 m here): a truth of tip positions alone was checked against the default
-    0.2 m robot instead, and called "the truth of another robot"."""
+    names (0.4 m here), and checks a truth of tip positions alone against that robot (on
+    the default 0.2 m robot the shipped truth reads as "the truth of another robot")."""
     est, _ = force29_estimate
     truth = read_state_table(DATA / "force-29_truth.csv")
     tip = tmp_path / "tip.csv"
@@ -1427,8 +1427,8 @@ def test_plot_checks_a_tip_truth_against_the_robot_it_draws_on(
 def test_evaluate_refuses_a_tendon_estimate_on_a_robot_without_a_backbone(
     force29_estimate: tuple[Path, str], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """``evaluate`` with ``--robot`` of constant-curvature sections scored a tendon
-    robot's estimate on it (its tip force and twists left out, with two warnings), where
+    """``evaluate`` with ``--robot`` of constant-curvature sections refuses a tendon
+    robot's estimate (scored there, its tip force and twists would be left out), as
     ``plot`` and ``view`` refuse the pair: one line naming the robot file."""
     est, _ = force29_estimate
     truth = str(DATA / "force-29_truth.csv")

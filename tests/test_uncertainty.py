@@ -372,8 +372,8 @@ def test_robots_with_an_imu_on_each_section_leave_no_bend_free() -> None:
     # random robots of one to four sections, bends up to 1 to 3.1 rad, each section's IMU
     # at 0.2 to 1 of it, standing or hanging: at some shapes one sample barely sees a
     # direction (a scaled singular value of 0.006 on a three-section robot at 3 rad),
-    # which a motion model holds; no section is free (they were, with every row
-    # uncertain and standard deviations of the whole reach)
+    # which a motion model holds; no section is free (a free one would make every row
+    # uncertain, with standard deviations of the whole reach)
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 
     rng = np.random.default_rng(1)
@@ -404,9 +404,9 @@ def _three_sections_imus_1_and_3():  # type: ignore[no-untyped-def]
 def test_a_section_without_its_own_imu_has_the_spread_of_its_reach(method: str) -> None:
     # IMUs at the ends of sections 1 and 3 of three: the tip IMU sees how far sections 2
     # and 3 bend together, not how they share it, and the estimate lands on any of the
-    # shapes that fit. Its standard deviations held only what the motion model kept of
-    # the start (tip x / y / z coverage 0.19 to 0.33 and NEES 361 with the EKF, 0.09 to
-    # 0.15 with the MHE); with the free bends' spread they cover the truth
+    # shapes that fit. Its covariance holds only what the motion model kept of the start
+    # (alone: tip x / y / z coverage 0.19 to 0.33 and NEES 361 with the EKF, 0.09 to
+    # 0.15 with the MHE); with the free bends' spread the written ones cover the truth
     from continuum_mhe.simulation.scenarios import simulate_robot
 
     robot = _three_sections_imus_1_and_3()
@@ -429,8 +429,8 @@ def test_a_section_without_its_own_imu_has_the_spread_of_its_reach(method: str) 
 
 def test_an_imu_that_barely_turns_with_its_section_leaves_no_row_ok_far_off() -> None:
     # an IMU a thousandth of the way along section 1 (of full rank, but turning by less
-    # than its noise across the section's reach): rows were ok 167 mm off with a 61 mm
-    # tip standard deviation; the free bends' spread makes them wide, so uncertain
+    # than its noise across the section's reach): the covariance alone gives a 61 mm tip
+    # standard deviation 167 mm off; the free bends' spread makes it wide, so uncertain
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section
     from continuum_mhe.simulation.scenarios import simulate_robot
 

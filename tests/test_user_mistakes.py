@@ -2050,9 +2050,9 @@ def test_plot_refuses_a_truth_in_mm_without_the_robot(tmp_path, capsys) -> None:
 
 def test_a_tip_truth_in_cm_is_refused_naming_it(tmp_path, capsys) -> None:
     """Tip positions alone in cm (a motion capture's): 100 times the robot's reach is a
-    shape of no unit but cm, so only the estimate tells. ``evaluate`` named the estimate
-    file for the truth's fault; ``plot --robot`` drew it with a warning that the truth was
-    another robot's. Both refuse it in one line naming the truth."""
+    shape of no unit but cm, so only the estimate tells. ``evaluate`` and ``plot
+    --robot`` refuse it in one line naming the truth (not the estimate, and not drawn as
+    another robot's truth)."""
     m, t = _simulated(tmp_path, "a")
     est = tmp_path / "e.csv"
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0

@@ -120,8 +120,8 @@ def test_plot_draws_a_hanging_robot_hanging(
     """The backbone's panel of a z-down robot's estimate draws the base's z axis pointing
     down (the robot hangs there as it hangs), with the robot file, from the mounting the
     estimate's options line records, and from standard input; a z-up robot's points up.
-    Its z range is what is drawn (an S that stays on its side of the base): it ran from
-    minus the robot's reach, half the panel empty."""
+    Its z range is what is drawn (an S that stays on its side of the base), not minus
+    the robot's reach, which leaves half the panel empty."""
     from continuum_mhe.evaluation import plotting
 
     drawn: list[bool] = []  # whether each figure's backbone panel has z pointing down
