@@ -300,3 +300,21 @@ def test_two_tendons_on_one_path_are_said(tmp_path: Path) -> None:
             ]
         else:
             assert lines == []
+
+
+def test_a_section_of_metres_is_said_as_centimetres_read_as_metres(tmp_path: Path) -> None:
+    """A section of 3 "m" (3 cm written as 3) is under the 5 m refused as millimetres,
+    and longer than any continuum robot's section: a warning naming the file and the
+    section says so; 2 m and less, none."""
+    import warnings
+
+    from continuum_mhe.io.robot_file import RobotFileWarning, read_robot
+
+    path = tmp_path / "cm.toml"
+    path.write_text("[[section]]\nlength = 0.2\n[[section]]\nlength = 3\n[[imu]]\nsection = 2\n")
+    with pytest.warns(RobotFileWarning, match=r"cm\.toml: section 2: length 3 m .*is 0\.03\)"):
+        read_robot(str(path))
+    path.write_text("[[section]]\nlength = 2\n[[imu]]\nsection = 1\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_robot(str(path))

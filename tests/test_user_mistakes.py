@@ -2805,6 +2805,10 @@ def test_a_robot_built_in_code_gets_the_robot_files_slip_warnings() -> None:
         with warnings.catch_warnings():  # said once
             warnings.simplefilter("error")
             make_formulation("bend", robot)
+    # a section of 3.17 m: centimetres read as metres?
+    robot = Robot((Section(3.17), Section(0.1383)), (ImuPlacement(0), ImuPlacement(1)))
+    with pytest.warns(RobotWarning, match=r"^robot: sections\[0\]: length 3\.17 m .* 0\.0317\)"):
+        make_formulation("bend", robot)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         make_formulation("bend", Robot(two, (ImuPlacement(0), ImuPlacement(1))))

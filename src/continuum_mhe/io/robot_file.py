@@ -77,6 +77,7 @@ from continuum_mhe.model.robot import (
     Section,
     Tendon,
     at_in_metres,
+    long_section_hint,
     misplaced_imus,
     mount_rpy_hint,
     slips_said,
@@ -227,6 +228,8 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             # the key the problem is with, first, so that the message names its line
             named = "" if str(exc).startswith(exc.field) else f"{exc.field}: "
             raise InputError(f"{path}: {where}: {named}{exc}") from None
+        if hint := long_section_hint(length):
+            warnings.warn(f"{path}: {where}: {hint}", RobotFileWarning, stacklevel=3)
     if not sections:
         raise InputError(f"{path}: no [[section]]: a robot needs at least one section")
     imus: list[ImuPlacement] = []

@@ -32,6 +32,10 @@ from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
 MAX_SECTION_LENGTH = 5.0
+#: A section longer than this, m, is said as a likely slip (:func:`long_section_hint`):
+#: continuum robots' sections are centimetres to tens of centimetres long, and one
+#: written in centimetres under 5 cm passes :data:`MAX_SECTION_LENGTH`.
+LONG_SECTION_LENGTH = 2.0
 #: Shortest section accepted, m (a shorter one is a unit slip, not a robot).
 MIN_SECTION_LENGTH = 1e-3
 #: Most sections a robot may have. The models' symbolic Jacobians (``check-robot``, the
@@ -516,6 +520,17 @@ def at_in_metres(at: float, length: float) -> bool:
     return abs(at - length) <= _MM / 2 and min(abs(length - 1.0), abs(length - 0.5)) > _MM / 2
 
 
+def long_section_hint(length: float) -> str:
+    """``""``, or a section length's likely slip: longer than
+    :data:`LONG_SECTION_LENGTH` (a length in centimetres read as metres?)."""
+    if length <= LONG_SECTION_LENGTH:
+        return ""
+    return (
+        f"length {length:g} m is longer than a continuum robot's section usually is: "
+        f"lengths are in metres (centimetres? {length:g} cm is {length / 100:g})"
+    )
+
+
 def misplaced_imus(imus: Sequence[ImuPlacement]) -> tuple[int | None, tuple[int, int] | None]:
     """The first IMU (0-based) listed after one nearer the tip (by section, then
     ``at``; None where they run from the base to the tip), and the first pair ``(i, j)``,
@@ -528,11 +543,16 @@ def misplaced_imus(imus: Sequence[ImuPlacement]) -> tuple[int | None, tuple[int,
 
 def likely_slips(robot: Robot) -> tuple[str, ...]:
     """What in ``robot`` (built in code: 0-based ``imus[i]`` and ``sections[k]``) looks
-    like a slip, one line each: IMUs not listed from the base to the tip (the
+    like a slip, one line each: a section longer than :data:`LONG_SECTION_LENGTH`, IMUs
+    not listed from the base to the tip (the
     measurement columns follow their order) or two at one place, an ``at`` equal to its
     section's length in m, a ``mount_rpy`` that looks like radians, a ``gyro_bias`` that
     looks like deg/s. A robot file's reader says the same with the file's lines."""
-    out = []
+    out = [
+        f"sections[{k}]: {hint}"
+        for k, s in enumerate(robot.sections)
+        if (hint := long_section_hint(s.length))
+    ]
     imus = robot.imus
 
     def place(i: int) -> str:
