@@ -349,6 +349,7 @@ class Estimator(Generic[InferenceT]):
             if change is not None
             else []
         )
+        free = f.free_bends()  # the sections whose bend the IMUs leave free
         return _core.SensorHealth(
             PythonInference(self.inference) if compiled is None else compiled,
             self._consistency.core,
@@ -413,9 +414,9 @@ class Estimator(Generic[InferenceT]):
             change_psd=list(change.psd) if change is not None else [],
             change_limit=change_limit,
             change_lag=change.lag if change is not None else 0.0,
-            # the sections whose bend the IMUs leave free: no reading narrows them
-            free_pairs=[(i, j) for i, j, _ in f.free_bends()],
-            free_reach=[reach for _, _, reach in f.free_bends()],
+            # (no reading narrows them)
+            free_pairs=[(i, j) for i, j, _ in free],
+            free_reach=[reach for _, _, reach in free],
             wrapped_outputs=list(wrapped_indices(f.outputs)),
         )
 

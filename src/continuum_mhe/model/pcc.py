@@ -260,7 +260,8 @@ def backbone_frames(
 SHAPE_RANK_TOL = 1e-8
 
 
-def _shape_jacobians(robot: Robot) -> list[tuple[FloatArray, int]]:
+@cache
+def _shape_jacobians(robot: Robot) -> tuple[tuple[FloatArray, int], ...]:
     """The Jacobian of the robot's IMUs' gravity directions with respect to its ``2 n``
     bend coordinates at three random generic shapes (the singular ones are a set of
     measure zero), each with its rank (singular values above :data:`SHAPE_RANK_TOL` of
@@ -281,7 +282,7 @@ def _shape_jacobians(robot: Robot) -> list[tuple[FloatArray, int]]:
         J = np.asarray(jac(x), dtype=float).reshape(g.numel(), 2 * n)
         sv = np.linalg.svd(J, compute_uv=False)
         out.append((J, int(np.sum(sv > SHAPE_RANK_TOL * max(sv[0], 1.0)))))
-    return out
+    return tuple(out)
 
 
 @cache
