@@ -2815,6 +2815,43 @@ def test_a_robot_built_in_code_gets_the_robot_files_slip_warnings() -> None:
         make_formulation("bend", read_robot("two-section"))
 
 
+def test_an_estimator_of_a_robot_built_with_a_mount_rpy_says_that_it_is_not_applied() -> None:
+    """A robot built in code with an IMU's ``mount_rpy``, and readings handed to the
+    estimator: the estimator takes them in each IMU's disk frame, so ``make_estimator``
+    warns, once per robot, naming the IMU; readings that came through the raw
+    conversion (turned by ``mount_rpy``) or from ``simulate_robot`` (in the disks'
+    frames) get no warning."""
+    from continuum_mhe.io import raw_measurements
+    from continuum_mhe.model.robot import RobotWarning
+
+    # lengths no other test's robot has: an equal robot would count as said
+    mounted = Robot(
+        (Section(0.1571), Section(0.1429)),
+        (ImuPlacement(0), ImuPlacement(1, mount_rpy=(0.0, 0.0, 30.0))),
+    )
+    formulation = make_formulation("bend", mounted)
+    with pytest.warns(RobotWarning, match=r"^robot: the mount_rpy of IMU 2 is not applied"):
+        make_estimator("ekf", formulation)
+    with warnings.catch_warnings():  # said once
+        warnings.simplefilter("error")
+        make_estimator("ekf", formulation)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        simulated = Robot(
+            (Section(0.1572), Section(0.1428)),
+            (ImuPlacement(0, mount_rpy=(0.0, 0.0, 20.0)), ImuPlacement(1)),
+        )
+        rec = simulate_robot("spatial", simulated, duration=0.5)
+        make_estimator("ekf", make_formulation("bend", simulated)).run(rec.t, rec.z)
+        converted = Robot(
+            (Section(0.1573), Section(0.1427)),
+            (ImuPlacement(0), ImuPlacement(1, mount_rpy=(0.0, 0.0, 40.0))),
+        )
+        acc = np.tile([0.0, 0.0, 9.81], (5, 2, 1))
+        z = raw_measurements(converted, np.arange(5) * 0.02, acc, np.zeros((5, 2, 3)))
+        make_estimator("ekf", make_formulation("direct", converted)).run(np.arange(5) * 0.02, z)
+
+
 @pytest.mark.parametrize(
     ("command", "said"),
     [

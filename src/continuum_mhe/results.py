@@ -80,8 +80,10 @@ class Status(str, Enum):
     )
     UNCERTAIN = (
         "uncertain",
-        "an estimate was made, but the tip position's standard deviation exceeds the "
-        "stated fraction of the robot's length (--uncertain-fraction), or the IMUs (those "
+        "an estimate was made, but it is the first of a start (the recording's first, or "
+        "a restart's, until the next reading agrees with it), or the tip position's "
+        "standard deviation exceeds the stated fraction of the robot's length "
+        "(--uncertain-fraction), or the IMUs (those "
         "that reported within the last SILENT_AFTER, 0.2 s, or --gap-reset where shorter) "
         "do not determine the robot's shape, or the "
         "estimator restarted on readings that contradicted it and they have not yet "

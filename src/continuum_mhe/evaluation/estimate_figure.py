@@ -519,7 +519,7 @@ def _backbones(
     # at the same scale as x and y
     low, high = z_drawn[0] * 1e3 - 0.05 * r, z_drawn[1] * 1e3 + 0.05 * r
     ax.set_zlim(low, high)
-    ax.set_box_aspect((2 * r, 2 * r, high - low))
+    ax.set_box_aspect((2 * r, 2 * r, high - low), zoom=0.88)  # the z label inside the figure
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")

@@ -157,9 +157,14 @@ def states_vs_time(
     handles, labels = axes[0].get_legend_handles_labels()  # truth, the methods, the bound
     keep = [j for j, lab in enumerate(labels) if not lab.startswith("phi undefined")]
     fig.axes[0].legend(
-        [handles[j] for j in keep], [labels[j] for j in keep],
-        loc="upper right", ncol=5, fontsize="small",
-    )  # fmt: skip
+        [handles[j] for j in keep],
+        [labels[j] for j in keep],
+        loc="lower right",
+        bbox_to_anchor=(1.0, 1.0),
+        ncol=5,
+        fontsize="small",
+        frameon=False,
+    )  # fmt: skip: above the axes, off the curves
     axes[-1].set_xlabel("t (s)")
     fig.suptitle(title, wrap=True)
     fig.tight_layout()

@@ -23,7 +23,7 @@ from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import shipped_robots
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.robot import ImuPlacement, Robot
+from continuum_mhe.model.robot import ImuPlacement, Robot, mount_taken
 from continuum_mhe.model.settings import check_positive
 
 
@@ -244,6 +244,7 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
             f"tilt CSV files; {units}"
         )
     mounted = [str(i) for i, imu in enumerate(robot.imus, start=1) if any(imu.mount_rpy)]
+    mount_taken(robot)  # turned by the raw readings' conversion, or said below
     if not tilt_input:
         if mount_given and len(mounted) == robot.n_imus:
             raise InputError(

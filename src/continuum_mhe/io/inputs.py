@@ -100,7 +100,7 @@ from continuum_mhe.io.tensions import (
 )
 from continuum_mhe.io.text_rows import TextRows, open_rows
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import Robot, mount_taken
 from continuum_mhe.model.tendon import TendonFormulation
 
 #: Rows validated and converted together (bounds the memory of a streamed input).
@@ -364,7 +364,9 @@ def _check_reading_range(name: str, values: FloatArray, limit: float, unit: str)
 
 def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
     """One converter per IMU of ``robot``: its robot-file mounting and gyro bias where it
-    gives them, else ``raw``'s (:func:`~continuum_mhe.io.input_options.imu_settings_for`)."""
+    gives them, else ``raw``'s (:func:`~continuum_mhe.io.input_options.imu_settings_for`);
+    the robot's readings are then in its disks' frames (:func:`mount_taken`)."""
+    mount_taken(robot)
     return [RawImuConverter(imu_settings_for(raw, imu)) for imu in robot.imus]
 
 

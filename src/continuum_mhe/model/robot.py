@@ -157,7 +157,10 @@ class ImuPlacement:
             is ``section=0`` here).
         at: fraction of that section's length from its base, in ``(0, 1]``.
         mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X, mapping
-            sensor-frame vectors into the local backbone frame (applied to raw data).
+            sensor-frame vectors into the local backbone frame: applied to raw readings
+            on their way in (``continuum_mhe.io.raw_measurements``, ``load_input``); an
+            estimator takes its readings in the disks' frames, and ``make_estimator``
+            warns where no such conversion took them.
         gyro_bias: the gyro's bias at rest ``(gx, gy, gz)``, rad/s, sensor frame
             (subtracted from raw gyro readings).
     """
@@ -606,3 +609,35 @@ def warn_slips(robot: Robot) -> None:
     for line in likely_slips(robot):
         warnings.warn(f"robot: {line}", RobotWarning, stacklevel=3)
     _SAID.add(robot)
+
+
+#: Robots whose readings are known to be in their IMUs' disk frames: turned by
+#: ``mount_rpy`` on the way in (raw readings through ``imu_converters``), said not to be
+#: (tilt input read from a file), or simulated in those frames
+_MOUNT_TAKEN: weakref.WeakSet[Robot] = weakref.WeakSet()
+
+
+def mount_taken(robot: Robot) -> None:
+    """Take ``robot``'s readings as in its IMUs' disk frames: :func:`warn_mount_not_applied`
+    says nothing of it, or of an equal robot."""
+    _MOUNT_TAKEN.add(robot)
+
+
+def warn_mount_not_applied(robot: Robot) -> None:
+    """A :class:`RobotWarning`, once per robot, where an IMU has a ``mount_rpy`` that no
+    conversion has taken: an estimator takes its readings in each IMU's disk frame (roll
+    and pitch, or the direct model's unit specific force and gyro), so a reading in the
+    sensor's own frame is read as if the board sat on its disk unturned."""
+    mounted = [str(i + 1) for i, imu in enumerate(robot.imus) if any(imu.mount_rpy)]
+    if not mounted or robot in _MOUNT_TAKEN:
+        return
+    warnings.warn(
+        f"robot: the mount_rpy of IMU {', '.join(mounted)} is not applied by the estimator, "
+        "which takes each IMU's readings in its disk's frame (as simulate_robot gives them): "
+        "raw readings in the sensor's frame go through continuum_mhe.io.raw_measurements "
+        "or load_input, which turn them by mount_rpy; roll and pitch in an IMU's own frame "
+        "need turning first (docs/formats.md#tilt)",
+        RobotWarning,
+        stacklevel=3,
+    )
+    _MOUNT_TAKEN.add(robot)

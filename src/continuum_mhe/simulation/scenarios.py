@@ -37,7 +37,7 @@ from continuum_mhe.model.imu import (
     wrap_angle,
 )
 from continuum_mhe.model.kinematics import bend_from_shape, shape_from_bend, tip_position
-from continuum_mhe.model.robot import Robot, Section
+from continuum_mhe.model.robot import Robot, Section, mount_taken
 
 NoiseModel = Literal["tilt", "tangent"]
 NOISE_MODELS: tuple[NoiseModel, ...] = ("tilt", "tangent")
@@ -232,6 +232,7 @@ def simulate_robot(
     else:
         bends = _multi_bends(scenario, t, [s.theta_max for s in robot.sections])
     f = BendFormulation(robot=robot)
+    mount_taken(robot)  # roll and pitch in each IMU's disk frame
     x = np.concatenate([bends.reshape(len(t), -1), np.zeros((len(t), bends[0].size))], axis=1)
     truth = f.output(x)
     h = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
