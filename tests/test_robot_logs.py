@@ -610,6 +610,28 @@ def test_stamps_in_bursts_are_said_as_bursts_not_as_a_unit(
     assert "come stamped in bursts" in said and "microseconds" not in said
 
 
+def test_microseconds_in_nanosec_are_refused_naming_them(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A driver that writes microseconds into ``header.stamp.nanosec``: each second's
+    stamps lie within 1 ms after its start (a median step of 20 us, a mean one of 20
+    ms), which is no burst of readings but a unit: refused in one line naming it, and
+    nothing written. Whole-second stamps with a true fraction are read."""
+    ns = recording["stamps"]
+    headers = ns // 10**9 * 10**9 + ns % 10**9 // 1000
+    log = write_mcap(tmp_path / "us.mcap", recording, headers=headers)
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(log), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert (
+        err.count("\n") == 1
+        and "microseconds in nanosec?" in err
+        and "151 messages over 3 s" in err
+    )
+    assert not out.exists()
+    assert len(read_imu_log(write_mcap(tmp_path / "ok.mcap", recording)).t) == len(ns)
+
+
 @pytest.mark.parametrize("model", ["tilt", "direct"])
 def test_a_one_imu_log_takes_the_robot_file_s_mounting_and_gyro_bias(
     tmp_path: Path, recording: dict[str, Any], model: str
@@ -1211,3 +1233,36 @@ def test_a_tendon_robots_log_without_tensions_is_told_to_give_them_with_inputs(
     csv_path = write_raw_csv(tmp_path / "run.csv", recording)
     with pytest.raises(InputError, match="or as the recording's columns tension_1"):
         _tensions(InputOptions(), robot, "tendon-two-section", csv_path)
+
+
+def test_an_options_files_topics_give_way_to_the_command_line_and_to_a_csv(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An options file is a profile: ``--topic`` on the command line replaces the file's
+    topics (it does not add to them), and a profile's log options (``topic``,
+    ``pair-tolerance``, ``orientation``) and ``degrees`` leave a CSV recording as the
+    command line without them reads it; given on the command line they are refused
+    there."""
+    log = write_mcap(tmp_path / "run.mcap", recording)
+    csv_in = write_raw_csv(tmp_path / "raw.csv", recording)
+    est = tmp_path / "est.mcap"
+    _estimate(log, est, "--method", "ekf", "--topic", "/tip/imu")
+    again = tmp_path / "again.csv"
+    _estimate(log, again, "--config", str(est), "--topic", "/tip/imu")
+    profile = tmp_path / "profile.toml"
+    profile.write_text(
+        'method = "ekf"\ntopic = ["/tip/imu"]\npair-tolerance = 0.004\norientation = false\n'
+        "degrees = true\n"
+    )
+    plain = tmp_path / "plain.csv"
+    _estimate(csv_in, plain, "--method", "ekf")
+    for config in (est, profile):
+        out = tmp_path / f"csv_{config.stem}.csv"
+        _estimate(csv_in, out, "--config", str(config))
+        np.testing.assert_array_equal(_states(out)[1], _states(plain)[1])
+    np.testing.assert_array_equal(_states(again)[1], _states(plain)[1])
+    capsys.readouterr()
+    assert (
+        main(["estimate", str(csv_in), "--topic", "/tip/imu", "-o", str(tmp_path / "x.csv")]) == 2
+    )
+    assert "--topic does not apply to this input" in capsys.readouterr().err

@@ -120,7 +120,15 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     tables: dict[str, str] = {}
     config = getattr(args, "config", None)
     if config:  # the file's options, then the command line's again
+        appending = {
+            a.dest: a.default
+            for a in command._actions
+            if isinstance(a, argparse._AppendAction) and a.dest in on_command_line
+        }
         sources, tables = apply_config(command, args.command, config)
+        # an appending option (--topic) on the command line replaces the file's list,
+        # as every other option does, instead of adding to it
+        command.set_defaults(**appending)
         args, unknown = parser.parse_known_args(argv)
         if _late_positionals(command, args, unknown):  # none: they were said above
             command.error(f"unrecognized arguments: {' '.join(unknown)}")

@@ -147,6 +147,16 @@ def input_options(args: argparse.Namespace) -> Any:
     from continuum_mhe.io.input_options import InputOptions
 
     topics = tuple(getattr(args, "topic", None) or ())
+    pair_tolerance = getattr(args, "pair_tolerance", None)
+    use_orientation = bool(getattr(args, "orientation", False))
+    profile = set(getattr(args, "config_sources", {})) - given_options(args)
+    if not _reads_robot_log(args):  # an options file's options for logs apply where they can
+        if "topic" in profile:
+            topics = ()
+        if "pair_tolerance" in profile:
+            pair_tolerance = None
+        if "orientation" in profile:
+            use_orientation = False
     gyro_std = float(getattr(args, "gyro_std", DEFAULT_GYRO_STD))
     if not (math.isfinite(gyro_std) and gyro_std > 0):
         raise InputError(f"--gyro-std must be positive, got {gyro_std}")
@@ -158,8 +168,8 @@ def input_options(args: argparse.Namespace) -> Any:
         and getattr(args, "estimate_gyro_bias", None) is False,
         topic=topics[0] if len(topics) == 1 else None,
         topics=topics,
-        pair_tolerance=getattr(args, "pair_tolerance", None),
-        use_orientation=bool(getattr(args, "orientation", False)),
+        pair_tolerance=pair_tolerance,
+        use_orientation=use_orientation,
         gyro_std=gyro_std,
         estimate_gyro_bias=getattr(args, "estimate_gyro_bias", None),
         estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
@@ -169,7 +179,17 @@ def input_options(args: argparse.Namespace) -> Any:
         skip_bad=bool(getattr(args, "skip_bad", False)),
         tensions=getattr(args, "inputs", None),
         estimate_tension_gain=bool(getattr(args, "estimate_tension_gain", False)),
+        from_profile=frozenset(profile & {"degrees", "mount_rpy", "attitude"}),
     )
+
+
+def _reads_robot_log(args: argparse.Namespace) -> bool:
+    """Whether the command reads a ROS bag or MCAP file (``estimate``'s recording; not
+    ``live``'s port)."""
+    from continuum_mhe.io.robot_logs import is_robot_log
+
+    measurements = getattr(args, "measurements", None)
+    return measurements is not None and is_robot_log(measurements)
 
 
 def input_files(args: argparse.Namespace) -> list[tuple[str, str | None]]:

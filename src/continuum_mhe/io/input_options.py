@@ -63,6 +63,9 @@ class InputOptions:
         tensions: a tendon tensions file (``--inputs``) for a robot with tendons.
         estimate_tension_gain: a tendon robot's formulation estimates a gain per
             section on the tensions given (``--estimate-tension-gain``).
+        from_profile: the options (``degrees``, ``mount_rpy``, ``attitude``) that an
+            options file set, not the command line: a profile's options apply where
+            they can, so :func:`check_options_apply` passes over them where they do not.
     """
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
@@ -82,6 +85,7 @@ class InputOptions:
     skip_bad: bool = False
     tensions: str | None = None
     estimate_tension_gain: bool = False
+    from_profile: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         """Each field of its kind (a :class:`UserError` naming it): a switch is a bool
@@ -233,7 +237,8 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
             "samples of several topics, one per IMU"
         )
     tilt_input = kind == "tilt-csv" or (kind == "log" and options.use_orientation)
-    if options.degrees and kind != "tilt-csv":
+    profile = options.from_profile
+    if options.degrees and kind != "tilt-csv" and "degrees" not in profile:
         units = (
             "the orientation is a quaternion"
             if tilt_input
@@ -246,19 +251,19 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
     mounted = [str(i) for i, imu in enumerate(robot.imus, start=1) if any(imu.mount_rpy)]
     mount_taken(robot)  # turned by the raw readings' conversion, or said below
     if not tilt_input:
-        if mount_given and len(mounted) == robot.n_imus:
+        if mount_given and len(mounted) == robot.n_imus and "mount_rpy" not in profile:
             raise InputError(
                 f"{name}: --mount-rpy applies to no IMU: the robot file gives every IMU its "
                 "own mount_rpy, which wins (leave --mount-rpy out, or edit the robot file)"
             )
         return
     why = "roll and pitch are used as they are, taken as already in the backbone's frame"
-    if mount_given:
+    if mount_given and "mount_rpy" not in profile:
         raise InputError(
             f"{name}: --mount-rpy does not apply to tilt input: it rotates raw "
             f"accelerometer and gyro vectors, and {why}"
         )
-    if raw.attitude != "accel":
+    if raw.attitude != "accel" and "attitude" not in profile:
         raise InputError(
             f"{name}: --attitude {raw.attitude} does not apply to tilt input: it fuses raw "
             f"accelerometer and gyro readings, and {why}"

@@ -132,6 +132,11 @@ def refuse_bag_metadata(path: str | os.PathLike[str]) -> None:
 MAX_STAMP_SEC = 1e11
 
 
+#: A topic's header stamps over at least this span (s), each within 1 ms after its whole
+#: second (and not all at one offset), hold microseconds in ``nanosec``: refused.
+MICROSECOND_NANOSEC_SPAN_S = 2.0
+
+
 def _header_ns(msg: Any) -> int:
     """A message's ``header.stamp`` in ns (0 where it has none). A JSON message's stamp
     is ``{sec, nanosec}`` (ROS 2), ``{secs, nsecs}`` (ROS 1 as rosbridge writes it) or
@@ -603,9 +608,19 @@ def read_imu_log(
             FrameWarning,
             stacklevel=2,
         )
+    stamp = "header.stamp must be ROS time (sec, and nanosec in ns)"
+    if stamped:  # each second's stamps bunched after its start: nanosec read in microseconds
+        ns = np.array(stamps, dtype=np.int64)
+        within = ns % 1_000_000_000
+        span = float(ns[-1] - ns[0]) / 1e9
+        if span >= MICROSECOND_NANOSEC_SPAN_S and within.min() < within.max() < 1_000_000:
+            raise InputError(
+                f"{p}: topic {name}: every header stamp of its {len(stamps)} messages over "
+                f"{span:.3g} s lies within 1 ms after its whole second: microseconds in "
+                f"nanosec? {stamp}"
+            )
     t0 = stamps[0]
     t = (np.array(stamps, dtype=np.int64) - t0) / 1e9
-    stamp = "header.stamp must be ROS time (sec, and nanosec in ns)"
     check_time_steps(
         f"{p}: topic {name}", "header stamps advance", t,
         f"{stamp}: milliseconds in sec?", f"{stamp}: microseconds in nanosec?",
