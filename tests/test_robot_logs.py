@@ -936,8 +936,10 @@ def test_a_clock_that_steps_back_is_refused_unless_skip_bad(
     """Stamps that step back by 2 s at message 101 (a sensor clock that restarted): an
     error naming the message and the step, not the rest of the log silently dropped (or
     joined across the jump); with ``skip_bad`` the messages until the times pass the
-    last one kept (here the other 51) are left out and counted. One message 1 ms out of order is
-    left out and counted either way."""
+    last one kept (here the other 51) are left out and counted, none put among the
+    messages before the step. One message stamped 1 ms before the one logged before it
+    (delivered late) is put in its place by its stamp; one stamped as the one before it
+    is left out and counted."""
     headers = recording["stamps"].copy()
     headers[100:] -= 2 * 10**9
     path = write_mcap(tmp_path / "back.mcap", recording, headers=headers)
@@ -953,7 +955,14 @@ def test_a_clock_that_steps_back_is_refused_unless_skip_bad(
     jitter = recording["stamps"].copy()
     jitter[50] = jitter[49] - 1_000_000
     log = read_imu_log(write_mcap(tmp_path / "jitter.mcap", recording, headers=jitter))
-    assert log.skipped == [f"message 51: time {int(jitter[50])} ns does not increase"]
+    assert log.skipped == [] and log.reordered == 1 and len(log.t) == len(jitter)
+    assert list(log.numbers[48:52]) == [49, 51, 50, 52]
+    np.testing.assert_array_equal(log.acc[49], recording["acc"][50])
+    twice = recording["stamps"].copy()
+    twice[50] = twice[49]
+    log = read_imu_log(write_mcap(tmp_path / "twice.mcap", recording, headers=twice))
+    assert log.skipped == [f"message 51: time {int(twice[50])} ns does not increase"]
+    assert log.reordered == 0 and len(log.t) == len(twice) - 1
 
 
 def test_a_ros2_bag_stored_as_mcap_cut_short_is_read_up_to_the_cut_with_skip_bad(
@@ -1266,3 +1275,31 @@ def test_an_options_files_topics_give_way_to_the_command_line_and_to_a_csv(
         main(["estimate", str(csv_in), "--topic", "/tip/imu", "-o", str(tmp_path / "x.csv")]) == 2
     )
     assert "--topic does not apply to this input" in capsys.readouterr().err
+
+
+def test_messages_delivered_late_are_put_in_place_by_their_stamps(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every tenth message logged 30 ms late (after the next one, its header stamp
+    true): the estimate equals the one of the log in order, and a note counts them."""
+    n = len(recording["stamps"])
+    order = np.arange(n)
+    for k in range(5, n - 1, 10):
+        order[k], order[k + 1] = order[k + 1], order[k]
+    late = {
+        **recording,
+        "acc": recording["acc"][order],
+        "gyr": recording["gyr"][order],
+    }
+    log = write_mcap(tmp_path / "late.mcap", late, headers=recording["stamps"][order])
+    in_order = write_mcap(tmp_path / "in_order.mcap", recording)
+    _estimate(in_order, tmp_path / "a.csv", "--method", "ekf")
+    capsys.readouterr()
+    _estimate(log, tmp_path / "b.csv", "--method", "ekf")
+    swapped = len(range(5, n - 1, 10))
+    assert f"{swapped} message(s) logged after one stamped later" in capsys.readouterr().err
+    t_a, x_a, s_a = _states(tmp_path / "a.csv")
+    t_b, x_b, s_b = _states(tmp_path / "b.csv")
+    np.testing.assert_array_equal(t_b, t_a)
+    np.testing.assert_array_equal(x_b, x_a)
+    assert list(s_b) == list(s_a)

@@ -211,7 +211,7 @@ def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
         skipped=log.skipped, clock=log.clock, cut=log.cut,
         stamp_offset_s=log.stamp_offset_s, frames=log.frames,
         numbers=None if log.numbers is None else np.where(has, log.numbers[take], 0),
-        stale_stamps=log.stale_stamps,
+        stale_stamps=log.stale_stamps, reordered=log.reordered,
     )  # fmt: skip
 
 

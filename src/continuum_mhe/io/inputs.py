@@ -938,6 +938,12 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         if log.clock == "log times"
     )
     notes += tuple(f"{p}: {log.topic}: {log.cut}" for log in logs if log.cut)
+    notes += tuple(
+        f"{p}: {log.topic}: {log.reordered} message(s) logged after one stamped later "
+        "(delivered late): put in their place by their header stamps"
+        for log in logs
+        if log.reordered
+    )
     return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes, clock)
 
 

@@ -19,6 +19,7 @@ Estimates written as MCAP: :mod:`continuum_mhe.io.mcap_estimates`.
 
 from __future__ import annotations
 
+import bisect
 import errno
 import json
 import math
@@ -69,6 +70,10 @@ class ImuLog:
             they first came (empty ones left out).
         numbers: (n,) each sample's message number in its topic (from 1; None where not
             known): the place an error names.
+        stale_stamps: messages whose stamps did not advance where the log's times were
+            taken instead (``clock`` ``"log times"``).
+        reordered: messages logged after one stamped later (delivered late), put in
+            their place by their header stamps.
     """
 
     topic: str
@@ -84,6 +89,7 @@ class ImuLog:
     frames: tuple[str, ...] = ()
     numbers: NDArray[np.int64] | None = None
     stale_stamps: int = 0
+    reordered: int = 0
 
 
 #: The first bytes of an MCAP file and of a ROS 1 bag: a log named otherwise (a ROS 1
@@ -475,6 +481,10 @@ def read_imu_log(
     name = topic or ""
     frames: dict[str, int] = {}  # each frame_id and the message (from 1) it came first in
     late = 0  # messages left out as their time did not pass the one kept before them
+    reordered = 0  # messages logged late, put in their place by their stamps
+    # a clock that stepped back (skip_bad): its messages are left out until their times
+    # pass the last one kept, none put among the messages before the step
+    stepped_back = False
 
     def keep(
         i: int, ns: int, row: tuple[list[float], list[float], list[float]], log_ns: int
@@ -488,7 +498,7 @@ def read_imu_log(
                 )
                 for kept in (stamps, numbers, offsets, rows):
                     kept.pop()
-        nonlocal late
+        nonlocal late, reordered, stepped_back
         if stamps and ns <= stamps[-1]:
             back = (stamps[-1] - ns) / 1e9
             if back > MAX_STAMP_STEP_BACK_S and not skip_bad:
@@ -498,11 +508,22 @@ def read_imu_log(
                     "there, or --skip-bad leaves out the messages until the times pass the "
                     "last one"
                 )
+            stepped_back = stepped_back or back > MAX_STAMP_STEP_BACK_S
+            place = bisect.bisect_left(stamps, ns)
+            if not (stepped_back or by_log_time) and stamps[place] != ns:
+                # logged after a message stamped later (delivered late): its stamp says
+                # when it was taken, so it goes in its place
+                for kept, value in ((stamps, ns), (numbers, i + 1), (offsets, ns - log_ns)):
+                    kept.insert(place, value)
+                rows.insert(place, row)
+                reordered += 1
+                return
             if not by_log_time:
                 stale.append((i, log_ns, row, len(skipped)))
             skipped.append(f"message {i + 1}: time {ns} ns does not increase")
             late += 1
             return
+        stepped_back = False
         stamps.append(ns)
         numbers.append(i + 1)
         offsets.append(ns - log_ns)
@@ -574,7 +595,7 @@ def read_imu_log(
         skipped[:] = [line for at, line in enumerate(skipped) if at not in said]
         for kept in (stamps, numbers, offsets, rows):
             kept.clear()
-        late = 0
+        late = reordered = 0
         for i, log_ns, row in sorted(logged, key=lambda m: m[0]):
             keep(i, log_ns, row, log_ns)
         stamped = False
@@ -641,6 +662,7 @@ def read_imu_log(
         frames=tuple(named),
         numbers=np.array(numbers, dtype=np.int64),
         stale_stamps=stale_stamps,
+        reordered=reordered,
     )
 
 
