@@ -3458,3 +3458,16 @@ def test_no_frame_is_claimed_for_a_truth_along_a_line() -> None:
     turned = Rotation.from_euler("x", 90, degrees=True).apply(bent)
     fit = frame_fit(bent, turned, length)
     assert fit is not None and abs(fit.angle_deg - 90.0) < 1e-6
+
+
+def test_a_robot_or_formulation_given_before_the_name_is_told_the_order() -> None:
+    """``make_formulation(robot)`` and ``make_estimator(formulation, "ekf")``, the
+    arguments swapped: one line each saying which comes first, not the name check's
+    message with the object's whole repr."""
+    robot = Robot((Section(0.2),), (ImuPlacement(0),))
+    with pytest.raises(UserError, match=r"^make_formulation takes the formulation's name first"):
+        make_formulation(robot)  # type: ignore[arg-type]
+    formulation = make_formulation("bend", robot)
+    with pytest.raises(UserError, match=r"^make_estimator takes the method first") as info:
+        make_estimator(formulation, "ekf")  # type: ignore[arg-type]
+    assert len(str(info.value)) < 200

@@ -68,8 +68,13 @@ def make_estimator(
     ``MHESettings(solver="ipopt")`` (the fast MHE cannot take it) is
     :class:`LoadHypothesesHorizonEstimator`, the same two hypotheses as two windows.
     """
+    if isinstance(method, Formulation):  # the formulation given first
+        raise UserError(
+            "make_estimator takes the method first: make_estimator('mhe', formulation) "
+            f"(one of {', '.join(METHODS)}), got a formulation as the method"
+        )
     if method not in METHODS:
-        raise UserError(f"method must be one of {METHODS}, got {method!r}")
+        raise UserError(f"method must be one of {METHODS}, got {method!r:.60}")
     expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
     expect_type("mhe", mhe, (MHESettings, type(None)), "MHESettings or None")
     expect_type("recovery", recovery, (RecoverySettings, type(None)), "RecoverySettings or None")

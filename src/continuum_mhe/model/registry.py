@@ -45,7 +45,12 @@ def make_formulation(
     have a calibrated ``gyro_bias``: held at it), as the command line and
     :func:`~continuum_mhe.io.inputs.load_input` do.
     """
-    cls = REGISTRY.get(name)
+    if isinstance(name, (Robot, RobotSettings)):  # the robot given first
+        raise UserError(
+            "make_formulation takes the formulation's name first: make_formulation('bend', "
+            f"robot) (or 'direct' for raw IMUs), got a {type(name).__name__} as the name"
+        )
+    cls = REGISTRY.get(name) if isinstance(name, str) else None
     # raw IMUs: their gyro biases are states, as the command line has them
     if name == "direct" or (name == "tendon" and options.get("imu_model") == "direct"):
         # with the IMUs' twist a bias about z turns the bending plane: held at a calibration
