@@ -134,7 +134,8 @@ def _estimate_block(
     if tally.ticks is not None:  # the bar moves per sample
         for _ in range(done):
             next(tally.ticks)
-    statuses = batch.statuses()
+    codes = batch.status_strings()
+    statuses: list[str] = codes.tolist()
     for status, k in Counter(statuses).items():
         tally.counts[status] = tally.counts.get(status, 0) + k
     for i in np.flatnonzero(batch.frozen).tolist():
@@ -143,14 +144,14 @@ def _estimate_block(
     if note:
         print(f"{PROG}: note: {note}", file=sys.stderr)
     tally.outliers += int(batch.outlier.sum())
-    inconsistent = np.asarray(statuses) == "inconsistent"
+    inconsistent = codes == "inconsistent"
     tally.rejected_inconsistent += int((inconsistent & batch.outlier.astype(bool)).sum())
     tally.bound.add(batch.output, statuses, z)
     tally.beyond.add(batch.output)
     tally.force.add(z, batch.output)
     tally.twist.add(batch.output)
     tally.gain.add(batch.output, batch.output_std)
-    tally.wide.add(batch.output_std, statuses)
+    tally.wide.add(batch.output_std, codes)
     tally.readings += int(np.isfinite(z).any(axis=1).sum())
     behind.submit(sink.write_batch, t, batch.output, batch.output_std, batch.outlier,
                   statuses, batch.solve_ms)  # fmt: skip

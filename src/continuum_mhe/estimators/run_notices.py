@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -311,7 +312,7 @@ class WideUncertain:
         self.fraction = fraction
         self.count = 0
 
-    def add(self, output_std: FloatArray, statuses: Sequence[str]) -> None:
+    def add(self, output_std: FloatArray, statuses: Sequence[str] | NDArray[Any]) -> None:
         """Count the standard deviations ``output_std`` (n, ny) of rows ``statuses``."""
         if len(self._tip) != 3 or not len(output_std):
             return

@@ -1039,3 +1039,11 @@ class Batch:
     def statuses(self) -> list[Status]:
         """The statuses as :class:`~continuum_mhe.results.Status` values."""
         return [STATUSES[c] for c in self.status.tolist()]
+
+    def status_strings(self) -> NDArray[np.str_]:
+        """The statuses' strings, an array (compared as one, not sample by sample)."""
+        return _STATUS_STRINGS[self.status]
+
+
+#: Each status code's string (:data:`STATUSES`), indexed by code
+_STATUS_STRINGS = np.array([str(s) for s in STATUSES])

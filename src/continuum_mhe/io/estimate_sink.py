@@ -28,6 +28,9 @@ from continuum_mhe.io.output_files import atomic_binary_writer, atomic_writer
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.results import Estimate, Status
 
+#: Each status by its string
+_STATUS_BY_NAME = {str(m): m for m in Status}
+
 
 class EstimateSink:
     """Estimates written one at a time to a CSV (or an MCAP for ``.mcap``), atomically:
@@ -125,7 +128,7 @@ class EstimateSink:
         output: FloatArray,
         output_std: FloatArray,
         outlier: NDArray[np.bool_],
-        status: Sequence[Status],
+        status: Sequence[str],
         solve_ms: FloatArray,
     ) -> None:
         """Rows of several samples (``t`` (n,) s, ``output`` and ``output_std`` (n, ny),
@@ -138,7 +141,8 @@ class EstimateSink:
         for i, st in enumerate(status):
             y = None if st == Status.NO_ESTIMATE or np.isnan(output[i]).all() else output[i]
             s = None if y is None or np.isnan(output_std[i]).all() else output_std[i]
-            self.write(Estimate(float(t[i]), None, y, None, st, float(solve_ms[i]), s,
+            status_i = _STATUS_BY_NAME[str(st)]
+            self.write(Estimate(float(t[i]), None, y, None, status_i, float(solve_ms[i]), s,
                                 outlier=bool(outlier[i])))  # fmt: skip
 
     def write(self, estimate: Estimate) -> None:
