@@ -703,6 +703,17 @@ def test_a_rest_in_which_every_imu_reads_tilted_warns(
     _two_imu_rest(path, (12.0, 1.0))
     code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
     assert code == 0 and err == ""
+    # a board upside down counts from its pose: at 180 degrees it is not tilted, at 173
+    # it is (as a robot bent, or a base not level, tilts every board off its pose)
+    _two_imu_rest(path, (5.8, 180.0))
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0 and "upside down" in err and "every IMU reads" not in err
+    _two_imu_rest(path, (8.0, 173.0))
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0 and (
+        "every IMU reads more than 5 degrees from the straight robot's gravity direction (a "
+        "board on its side or upside down: from that pose) (IMU 1 8.0, IMU 2 7.0 degrees)"
+    ) in " ".join(err.split())
 
 
 def test_a_rest_in_which_an_imu_reads_far_off_straight_warns(

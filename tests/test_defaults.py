@@ -448,6 +448,42 @@ def test_one_imu_upside_down_is_named_as_that_imus_mounting(tmp_path, capsys) ->
     assert not est.exists()
 
 
+def test_swapped_columns_of_a_board_declared_upside_down_name_the_order(tmp_path, capsys) -> None:
+    """IMU 2's board mounted upside down (rolled 180 degrees), its robot file saying so
+    (``mount_rpy = [180, 0, 0]``), and the two IMUs' columns swapped: both read upside
+    down at the start, and the refusal names the columns' order as well as the
+    mounting (following the mounting alone gives estimates far off)."""
+    text = (ROD / "spatial_raw.csv").read_text(encoding="utf-8").splitlines()
+    header = text[0].split(",")
+    flip = {header.index(c) for c in ("ay_2", "az_2", "gy_2", "gz_2")}
+    swap = {
+        header.index(f"{c}_1"): header.index(f"{c}_2") for c in ("ax", "ay", "az", "gx", "gy", "gz")
+    }
+    swap.update({j: i for i, j in swap.items()})
+    rows = []
+    for line in text[1:]:
+        v = [f"{-float(x)!r}" if i in flip else x for i, x in enumerate(line.split(","))]
+        rows.append(",".join(v[swap.get(i, i)] for i in range(len(v))))
+    meas, est = tmp_path / "swapped.csv", tmp_path / "e.csv"
+    meas.write_text("\n".join([text[0], *rows]) + "\n", encoding="utf-8")
+    robot = tmp_path / "robot.toml"
+    robot.write_text(
+        TWO_SECTIONS.format(bound="", mounting="z-up") + "mount_rpy = [180, 0, 0]\n",
+        encoding="utf-8",
+    )
+    capsys.readouterr()
+    argv = ["estimate", str(meas), "--method", "ekf", "--robot", str(robot), "-o", str(est)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "mounting: the robot is described as z-up" in err
+    assert err.rstrip().endswith(
+        "(or the IMUs in another order? IMU 1 is the one nearest the base: the columns' "
+        "order, or the --topic order of a bag; IMU 2 is mounted upside down in the robot "
+        "file's mount_rpy, so another IMU's readings in its columns read upside down too)"
+    )
+    assert not est.exists()
+
+
 def test_an_imu_further_out_upside_down_is_named(tmp_path) -> None:
     """IMU 2 mounted upside down (rolled 180 degrees: y and z of its accelerometer and
     gyro reversed) on a robot that starts straight, IMU 1 upright: the estimate is made

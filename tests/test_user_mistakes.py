@@ -3381,8 +3381,19 @@ def test_evaluate_and_plot_warn_of_a_truth_in_a_y_up_motion_capture_frame(
     err = capsys.readouterr().err
     assert f"warning: {paths['yup']}: {said}" in err
     assert "its x, y and z lie along the estimate's x, z, -y" in err
+    assert "an IMU's yaw" not in err  # a turn about x: no yaw of an IMU's does that
     assert main(["plot", e, "--truth", str(paths["yup"]), "-o", str(tmp_path / "f.png")]) == 0
     assert said in capsys.readouterr().err  # as evaluate
+    # turned about z: the frame, or an IMU's yaw that a rest calibration kept
+    about_z = tmp_path / "about_z.csv"
+    _tip_truth_turned(paper3d_pair["t"], about_z, np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]))
+    assert main(["evaluate", e, str(about_z)]) == 0
+    err = capsys.readouterr().err
+    (line,) = [ln for ln in err.splitlines() if said in ln]
+    assert line.endswith(
+        "; or, turned about z, is an IMU's yaw in the robot file wrong (its mount_rpy: a "
+        "calibration at rest keeps the file's yaw, calibrate --bend measures it)?"
+    )
     for k in ("base", "small"):
         assert main(["evaluate", e, str(paths[k])]) == 0
         assert "fits the estimate far better" not in capsys.readouterr().err, k

@@ -247,7 +247,10 @@ def rest_tilt_warning(
             return None
         roll, pitch = (math.radians(a) for a in imu.mount_rpy[:2])
         tilts.append(math.degrees(math.acos(min(1.0, math.cos(roll) * math.cos(pitch)))))
-    if len(tilts) < 2 or min(tilts) <= REST_TILT_WARN_DEG:
+    # each IMU's angle from the nearest pose a board is mounted in (flat, on its side,
+    # upside down): a robot bent, or its base not level, turns every board off its pose
+    off_pose = [min(a, abs(a - 90.0), abs(a - 180.0)) for a in tilts]
+    if len(tilts) < 2 or min(off_pose) <= REST_TILT_WARN_DEG:
         far = [
             (i + 1, a)
             for i, a in enumerate(tilts)
@@ -265,10 +268,12 @@ def rest_tilt_warning(
             "base level at rest? If not, every estimate is off by as much; record the rest "
             "again (an IMU that is mounted so is calibrated right)"
         )
-    each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(tilts))
+    each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(off_pose))
+    posed = off_pose != tilts  # a board on its side or upside down among them
+    pose = " (a board on its side or upside down: from that pose)" if posed else ""
     return (
         f"every IMU reads more than {REST_TILT_WARN_DEG:g} degrees from the straight robot's "
-        f"gravity direction ({each} degrees), and mount_rpy takes that as its mounting: "
+        f"gravity direction{pose} ({each} degrees), and mount_rpy takes that as its mounting: "
         "was the robot straight and its base level at rest? If not, every estimate is off "
         "by as much; record the rest again (IMUs mounted tilted on their disks are "
         "calibrated right)"

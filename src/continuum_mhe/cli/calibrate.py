@@ -216,7 +216,9 @@ def _write_robot(
     whence = (
         "from --bend"
         if bend
-        else "kept from the robot file (gravity does not show it)"
+        else "kept from the robot file: gravity does not show it, --bend measures it; a "
+        "board turned about the backbone by a yaw the file does not give reads its "
+        "section's bending plane turned by as much"
         if args.robot
         else "0: gravity does not show it, --bend measures it"
     )

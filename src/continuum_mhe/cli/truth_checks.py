@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from continuum_mhe.errors import InputError
 from continuum_mhe.evaluation.metrics import (
@@ -184,13 +185,25 @@ def frame_fit_warning(path: str, fit: FrameRotation | None, length: float) -> st
         how.append(f"moved by ({shown}) mm")
     where = " and ".join(how) if moved else f"{how[0]} about the base"
     origin = "; about another origin than the robot's base" if moved else ""
+    # a turn about the base's z axis is also what an IMU's wrong yaw makes of the
+    # estimate (the bending plane it reads turned with it)
+    axis = Rotation.from_matrix(fit.matrix).as_rotvec()
+    about_z = fit.angle_deg >= TURN_MIN_DEG and abs(axis[2]) >= math.cos(
+        math.radians(AXIS_NAMED_DEG)
+    ) * float(np.linalg.norm(axis))
+    yaw = (
+        "; or, turned about z, is an IMU's yaw in the robot file wrong (its mount_rpy: a "
+        "calibration at rest keeps the file's yaw, calibrate --bend measures it)?"
+        if about_z and not moved
+        else ""
+    )
     return (
         f"{path}: the truth's tip fits the estimate far better {where} (mean tip error "
         f"{fit.error * 1e3:.3g} mm against {fit.unturned * 1e3:.3g} mm as given){axes}: are "
         "its positions in another frame than the robot's base frame (a motion capture's: "
         f"y up, axes swapped, a sign flipped{origin})? The scores compare them as given: "
         "express the truth in the base frame (its origin at the base, z along the unbent "
-        "backbone for mounting z-up, x where the bend angle phi is 0)"
+        f"backbone for mounting z-up, x where the bend angle phi is 0){yaw}"
     )
 
 

@@ -652,6 +652,20 @@ def _check_base_mounting(
             f" (IMU {', '.join(map(str, upright))} {reads} upright: is IMU {k + 1} alone "
             f"mounted upside down? its mount_rpy; {ORDER_HINT}{bent})"
         )
+    # a board the robot file mounts upside down (its mount_rpy turns it past 90
+    # degrees): another IMU's readings in its columns read upside down too
+    turned = [
+        j + 1
+        for j, place in enumerate(robot.imus)
+        if math.cos(math.radians(place.mount_rpy[0])) * math.cos(math.radians(place.mount_rpy[1]))
+        < 0.0
+    ]
+    if turned and not upright:
+        boards = "IMU " + ", ".join(map(str, turned))
+        alone = (
+            f" ({ORDER_HINT}; {boards} is mounted upside down in the robot file's mount_rpy, "
+            "so another IMU's readings in its columns read upside down too)"
+        )
     fix = robot_fix("mounting", robot_file, other, python)
     # an IMU beyond the first section of a robot whose IMUs do not determine its shape:
     # the sections before it may have bent it this far, within their theta_max (a start
