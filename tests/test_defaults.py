@@ -422,6 +422,17 @@ def test_raw_readings_of_a_hanging_rod_are_checked_against_the_robot_files_mount
     assert main([*args, "--robot", str(_robot(tmp_path, mounting="z-down"))]) == 0
 
 
+def _mounting_refusal(capsys, meas: Path, robot: Path, est: Path) -> str:  # type: ignore[no-untyped-def]
+    """The one line of ``estimate``'s refusal of ``meas`` on ``robot`` (z-up) for its
+    mounting, the EKF writing ``est``."""
+    capsys.readouterr()
+    argv = ["estimate", str(meas), "--method", "ekf", "--robot", str(robot), "-o", str(est)]
+    assert main(argv) == 2
+    err: str = capsys.readouterr().err
+    assert err.count("\n") == 1 and "mounting: the robot is described as z-up" in err
+    return err
+
+
 def test_one_imu_upside_down_is_named_as_that_imus_mounting(tmp_path, capsys) -> None:
     """IMU 1 alone mounted upside down (its specific force reversed, IMU 2 upright):
     the refusal names mounting and asks whether IMU 1 alone is upside down (its
@@ -434,11 +445,7 @@ def test_one_imu_upside_down_is_named_as_that_imus_mounting(tmp_path, capsys) ->
             for ln in text[1:]]  # fmt: skip
     meas, est = tmp_path / "imu1_flipped.csv", tmp_path / "e.csv"
     meas.write_text("\n".join([text[0], *rows]) + "\n", encoding="utf-8")
-    capsys.readouterr()
-    argv = ["estimate", str(meas), "--method", "ekf", "--robot", str(_robot(tmp_path))]
-    assert main([*argv, "-o", str(est)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "mounting: the robot is described as z-up" in err
+    err = _mounting_refusal(capsys, meas, _robot(tmp_path), est)
     assert err.rstrip().endswith(
         "(IMU 2 reads upright: is IMU 1 alone mounted upside down? its mount_rpy; or the "
         "IMUs in another order? IMU 1 is the one nearest the base: the columns' order, or "
@@ -471,11 +478,7 @@ def test_swapped_columns_of_a_board_declared_upside_down_name_the_order(tmp_path
         TWO_SECTIONS.format(bound="", mounting="z-up") + "mount_rpy = [180, 0, 0]\n",
         encoding="utf-8",
     )
-    capsys.readouterr()
-    argv = ["estimate", str(meas), "--method", "ekf", "--robot", str(robot), "-o", str(est)]
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "mounting: the robot is described as z-up" in err
+    err = _mounting_refusal(capsys, meas, robot, est)
     assert err.rstrip().endswith(
         "(or the IMUs in another order? IMU 1 is the one nearest the base: the columns' "
         "order, or the --topic order of a bag; IMU 2 is mounted upside down in the robot "
