@@ -68,6 +68,7 @@ def test_calibrate_from_a_recording_of_two_imus(
     assert "IMU 1: mounting with the robot straight: --mount-rpy 12.00,-7.00,0" in out
     assert "IMU 2: mounting with the robot straight: --mount-rpy -3.00,25.00,0" in out
     assert "IMU 2: gyro bias (rad/s) gx=0.02000 gy=-0.02000 gz=0.00300" in out
+    assert "(robot file: gyro_bias = [0.02000, -0.02000, 0.00300])" in out  # to paste
     # the noise at rest as tilt (the x axis' alone), said not to be estimate's --noise-deg
     tilt_noise = math.degrees(d * math.sqrt(n / (n - 1)) / G)
     assert (

@@ -873,3 +873,25 @@ def test_the_gravity_check_of_gyro_units_finds_a_whole_turn_at_1_hz() -> None:
     for bias in (1.4, 1.6, 3.1, 4.6):
         deg_s = np.array([bias, 0.0, 0.0]) + rng.normal(0.0, 0.05, (len(t), 3))
         assert gyro_gravity_problem(t, acc, deg_s) is not None, bias
+
+
+def test_one_imu_of_several_in_g_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A two-IMU raw recording whose second accelerometer is in g: refused in one line
+    naming that IMU (as a gyro in deg/s is), with the factor to m/s^2."""
+    raw = tmp_path / "raw.csv"
+    assert main(["simulate", "s-curve", "--robot", "two-section", "--imu", "raw",
+                 "--duration", "1", "-o", str(raw)]) == 0  # fmt: skip
+    lines = raw.read_text().splitlines()
+    header = lines[0].split(",")
+    in_g = {header.index(c) for c in ("ax_2", "ay_2", "az_2")}
+    rows = [",".join(repr(float(v) / 9.80665) if i in in_g else v
+                     for i, v in enumerate(ln.split(","))) for ln in lines[1:]]  # fmt: skip
+    raw.write_text("\n".join([lines[0], *rows]) + "\n")
+    capsys.readouterr()
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(raw), "--robot", "two-section", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{raw}: IMU 2: accelerometer magnitude is about 1.00" in err
+    assert not out.exists()

@@ -542,8 +542,9 @@ def format_report(
             lines += [
                 f"IMU {i}: accelerometer mean (m/s^2) ax={m[0]:.4f} ay={m[1]:.4f} az={m[2]:.4f} "
                 f"(|a| = {g:.4f}); noise std ax={s[0]:.4f} ay={s[1]:.4f} az={s[2]:.4f}",
-                f"IMU {i}: gyro bias (rad/s) gx={m[3]:.5f} gy={m[4]:.5f} gz={m[5]:.5f}; "
-                f"noise std gx={s[3]:.5f} gy={s[4]:.5f} gz={s[5]:.5f}",
+                f"IMU {i}: gyro bias (rad/s) gx={m[3]:.5f} gy={m[4]:.5f} gz={m[5]:.5f} (robot "
+                f"file: gyro_bias = [{m[3]:.5f}, {m[4]:.5f}, {m[5]:.5f}]); noise std "
+                f"gx={s[3]:.5f} gy={s[4]:.5f} gz={s[5]:.5f}",
             ]
             assert imu.mount_rpy is not None
             r, p, _ = imu.mount_rpy

@@ -440,7 +440,7 @@ def raw_blocks(
                 skipped.append(msg)
         acc[zero] = np.nan
         block[huge] = np.nan
-        check_accel_units(name, acc)
+        check_accel_units(label, acc)
         # the times first: times a thousand times too long would make the gyro's
         # gravity check below read a rad/s gyro as deg/s
         if has_gyro and t is not None and time_watch is not None:
