@@ -712,8 +712,8 @@ def test_a_rest_in_which_every_imu_reads_tilted_warns(
     _two_imu_rest(path, (8.0, 173.0))
     code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
     assert code == 0 and (
-        "every IMU reads more than 5 degrees from the straight robot's gravity direction (a "
-        "board on its side or upside down: from that pose) (IMU 1 8.0, IMU 2 7.0 degrees)"
+        "every IMU reads more than 5 degrees from the straight robot's gravity direction (IMU "
+        "1 8.0, IMU 2 7.0 degrees; a board on its side or upside down from that pose)"
     ) in " ".join(err.split())
 
 

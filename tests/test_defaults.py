@@ -487,6 +487,22 @@ def test_swapped_columns_of_a_board_declared_upside_down_name_the_order(tmp_path
     assert not est.exists()
 
 
+def test_a_lone_imu_declared_upside_down_gets_no_column_order_hint(tmp_path, capsys) -> None:
+    """A one-IMU robot whose file mounts its board upside down, fed readings of a board
+    mounted upright: refused for its mounting, with no word of the columns' order (one
+    IMU has no other columns)."""
+    raw = tmp_path / "raw.csv"
+    assert main(["simulate", "paper3d", "--imu", "raw", "--duration", "2", "-o", str(raw)]) == 0
+    robot = tmp_path / "one.toml"
+    robot.write_text(
+        'mounting = "z-up"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n'
+        "mount_rpy = [180, 0, 0]\n",
+        encoding="utf-8",
+    )
+    err = _mounting_refusal(capsys, raw, robot, tmp_path / "e.csv")
+    assert "another order" not in err and "columns" not in err
+
+
 def test_an_imu_further_out_upside_down_is_named(tmp_path) -> None:
     """IMU 2 mounted upside down (rolled 180 degrees: y and z of its accelerometer and
     gyro reversed) on a robot that starts straight, IMU 1 upright: the estimate is made

@@ -963,6 +963,16 @@ def test_a_clock_that_steps_back_is_refused_unless_skip_bad(
     log = read_imu_log(write_mcap(tmp_path / "twice.mcap", recording, headers=twice))
     assert log.skipped == [f"message 51: time {int(twice[50])} ns does not increase"]
     assert log.reordered == 0 and len(log.t) == len(twice) - 1
+    # a clock that steps back by 0.49 s (under the restart's 1 s): its messages are left
+    # out until the times pass the last one kept, none put among those before; a stamp
+    # that wraps every 0.655 s is no clock: the log's times
+    step = recording["stamps"].copy()
+    step[100:] -= 490_000_000
+    log = read_imu_log(write_mcap(tmp_path / "step.mcap", recording, headers=step))
+    assert log.reordered == 0 and len(log.skipped) == 24 and np.all(np.diff(log.t) > 0)
+    wrap = T0_NS + (recording["stamps"] - T0_NS) % 655_000_000
+    log = read_imu_log(write_mcap(tmp_path / "wrap.mcap", recording, headers=wrap))
+    assert log.clock == "log times" and log.reordered == 0 and len(log.t) == len(wrap)
 
 
 def test_a_ros2_bag_stored_as_mcap_cut_short_is_read_up_to_the_cut_with_skip_bad(
@@ -1280,8 +1290,10 @@ def test_an_options_files_topics_give_way_to_the_command_line_and_to_a_csv(
 def test_messages_delivered_late_are_put_in_place_by_their_stamps(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Every tenth message logged 30 ms late (after the next one, its header stamp
-    true): the estimate equals the one of the log in order, and a note counts them."""
+    """Every tenth message logged 20 ms late (after the next one, its header stamp
+    true): the estimate equals the one of the log in order, and a note counts them. At
+    10 Hz a message logged after the next one (100 ms ahead of the one before it) is put
+    in its place too, not taken for a glitch of the one logged before it."""
     n = len(recording["stamps"])
     order = np.arange(n)
     for k in range(5, n - 1, 10):
@@ -1303,3 +1315,10 @@ def test_messages_delivered_late_are_put_in_place_by_their_stamps(
     np.testing.assert_array_equal(t_b, t_a)
     np.testing.assert_array_equal(x_b, x_a)
     assert list(s_b) == list(s_a)
+    slow = {**recording, "stamps": T0_NS + np.arange(n, dtype=np.int64) * 100_000_000}
+    order = np.arange(n)
+    order[50], order[51] = 51, 50
+    swapped = {**slow, "acc": slow["acc"][order], "gyr": slow["gyr"][order]}
+    log = read_imu_log(write_mcap(tmp_path / "slow.mcap", swapped, headers=slow["stamps"][order]))
+    assert log.reordered == 1 and log.skipped == [] and len(log.t) == n
+    np.testing.assert_array_equal(log.acc, slow["acc"])

@@ -2835,6 +2835,15 @@ def test_an_estimator_of_a_robot_built_with_a_mount_rpy_says_that_it_is_not_appl
     with warnings.catch_warnings():  # said once
         warnings.simplefilter("error")
         make_estimator("ekf", formulation)
+    from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
+
+    built = Robot(  # an estimator built directly says it too, naming the caller's line
+        (Section(0.1574), Section(0.1426)),
+        (ImuPlacement(0), ImuPlacement(1, mount_rpy=(0.0, 0.0, 30.0))),
+    )
+    with pytest.warns(RobotWarning, match=r"IMU 2 is not applied") as said:
+        ExtendedKalmanFilter(make_formulation("bend", built))
+    assert said[0].filename == __file__
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         simulated = Robot(

@@ -270,10 +270,10 @@ def rest_tilt_warning(
         )
     each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(off_pose))
     posed = off_pose != tilts  # a board on its side or upside down among them
-    pose = " (a board on its side or upside down: from that pose)" if posed else ""
+    pose = "; a board on its side or upside down from that pose" if posed else ""
     return (
         f"every IMU reads more than {REST_TILT_WARN_DEG:g} degrees from the straight robot's "
-        f"gravity direction{pose} ({each} degrees), and mount_rpy takes that as its mounting: "
+        f"gravity direction ({each} degrees{pose}), and mount_rpy takes that as its mounting: "
         "was the robot straight and its base level at rest? If not, every estimate is off "
         "by as much; record the rest again (IMUs mounted tilted on their disks are "
         "calibrated right)"

@@ -179,7 +179,7 @@ def input_options(args: argparse.Namespace) -> Any:
         skip_bad=bool(getattr(args, "skip_bad", False)),
         tensions=getattr(args, "inputs", None),
         estimate_tension_gain=bool(getattr(args, "estimate_tension_gain", False)),
-        from_profile=frozenset(profile & {"degrees", "mount_rpy", "attitude"}),
+        from_profile=frozenset(profile & {"degrees", "mount_rpy", "attitude", "pair_tolerance"}),
     )
 
 

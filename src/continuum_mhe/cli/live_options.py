@@ -37,7 +37,8 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
         "--record",
         metavar="RAW.csv",
         help="write every valid sample as received (the raw or tilt CSV that 'estimate' "
-        "reads, t in s of the device clock), row by row",
+        "reads, t in s of the device clock, continued past a device clock restart), row "
+        "by row",
     )
     add_overwrite_option(p, "-o, --record or --view FILE.rrd")
 

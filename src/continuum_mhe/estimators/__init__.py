@@ -29,7 +29,6 @@ from continuum_mhe.estimators.load_hypotheses import (
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.sensor_health import Diagnostics, Estimator
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.robot import warn_mount_not_applied
 from continuum_mhe.settings import MHESettings, RecoverySettings
 
 Method = Literal["mhe", "ekf", "ukf"]
@@ -84,7 +83,6 @@ def make_estimator(
             f"cost: method='mhe' for the robust loss, or mhe=None (or loss='l2') for the "
             f"{method}"
         )
-    warn_mount_not_applied(formulation.robot)
     return _make(method, formulation, mhe, recovery)
 
 

@@ -74,7 +74,7 @@ from continuum_mhe.model.descriptions import tip_position_indices, wrapped_indic
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import Robot, warn_mount_not_applied
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import (
     FREEZE_TOLERANCE,
@@ -263,6 +263,9 @@ class Estimator(Generic[InferenceT]):
         self.inference: InferenceT = inference
         formulation = inference.formulation
         refuse_tendons_ignored(formulation)
+        # readings in the sensors' frames, handed over without the conversion that turns
+        # them by mount_rpy (the user's line named)
+        warn_mount_not_applied(formulation.robot, stacklevel=_outside_stacklevel() + 1)
         self.formulation: Formulation = formulation
         #: the estimator's name (``mhe``, ``ekf``, ``ukf``)
         self.name: str = inference.name

@@ -63,9 +63,10 @@ class InputOptions:
         tensions: a tendon tensions file (``--inputs``) for a robot with tendons.
         estimate_tension_gain: a tendon robot's formulation estimates a gain per
             section on the tensions given (``--estimate-tension-gain``).
-        from_profile: the options (``degrees``, ``mount_rpy``, ``attitude``) that an
-            options file set, not the command line: a profile's options apply where
-            they can, so :func:`check_options_apply` passes over them where they do not.
+        from_profile: the options (``degrees``, ``mount_rpy``, ``attitude``,
+            ``pair_tolerance``) that an options file set, not the command line: a
+            profile's options apply where they can, so :func:`check_options_apply`
+            passes over them where they do not.
     """
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
@@ -231,7 +232,12 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
                     f"{name}: {flag} does not apply to this input: it is for ROS bags and "
                     "MCAP files (sensor_msgs/Imu topics), and this is a CSV file"
                 )
-    if options.pair_tolerance is not None and robot.n_imus == 1 and len(options.topics) < 2:
+    if (
+        options.pair_tolerance is not None
+        and robot.n_imus == 1
+        and len(options.topics) < 2
+        and "pair_tolerance" not in options.from_profile
+    ):
         raise InputError(
             f"{name}: --pair-tolerance does not apply to one IMU's topic: it pairs the "
             "samples of several topics, one per IMU"
@@ -660,7 +666,7 @@ def _check_base_mounting(
         if math.cos(math.radians(place.mount_rpy[0])) * math.cos(math.radians(place.mount_rpy[1]))
         < 0.0
     ]
-    if turned and not upright:
+    if turned and not upright and len(turned) < robot.n_imus:
         boards = "IMU " + ", ".join(map(str, turned))
         alone = (
             f" ({ORDER_HINT}; {boards} is mounted upside down in the robot file's mount_rpy, "

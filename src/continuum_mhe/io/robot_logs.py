@@ -485,11 +485,23 @@ def read_imu_log(
     # a clock that stepped back (skip_bad): its messages are left out until their times
     # pass the last one kept, none put among the messages before the step
     stepped_back = False
+    # a message stamped at or before the last one kept waits for the next message: where
+    # that one goes on past the last one kept, the waiting one alone was delivered late
+    # (put in its place by its stamp); where it does not (a clock that stepped back, a
+    # counter that wrapped), the waiting one is left out, and so is each message of the
+    # same run back
+    waiting: list[tuple[int, int, tuple[list[float], list[float], list[float]], int]] = []
+    run_back = False  # a waiting message was left out, and no message kept since
 
     def keep(
-        i: int, ns: int, row: tuple[list[float], list[float], list[float]], log_ns: int
+        i: int,
+        ns: int,
+        row: tuple[list[float], list[float], list[float]],
+        log_ns: int,
+        delivered_late: bool = False,
     ) -> None:
-        if len(stamps) > 1 and stamps[-2] < ns <= stamps[-1]:
+        # (a message delivered late: the next one confirmed the last one kept's time)
+        if not delivered_late and len(stamps) > 1 and stamps[-2] < ns <= stamps[-1]:
             ahead = (stamps[-1] - stamps[-2]) / 1e9
             if ahead > STAMP_JUMP_AHEAD_S:  # the last one kept jumped ahead of both
                 skipped.append(
@@ -510,9 +522,9 @@ def read_imu_log(
                 )
             stepped_back = stepped_back or back > MAX_STAMP_STEP_BACK_S
             place = bisect.bisect_left(stamps, ns)
-            if not (stepped_back or by_log_time) and stamps[place] != ns:
-                # logged after a message stamped later (delivered late): its stamp says
-                # when it was taken, so it goes in its place
+            if delivered_late and not stepped_back and stamps[place] != ns:
+                # logged after a message stamped later: its stamp says when it was taken,
+                # so it goes in its place
                 for kept, value in ((stamps, ns), (numbers, i + 1), (offsets, ns - log_ns)):
                     kept.insert(place, value)
                 rows.insert(place, row)
@@ -528,6 +540,21 @@ def read_imu_log(
         numbers.append(i + 1)
         offsets.append(ns - log_ns)
         rows.append(row)
+
+    def offer(
+        i: int, ns: int, row: tuple[list[float], list[float], list[float]], log_ns: int
+    ) -> None:
+        """A stamped message, in the log's order (see ``waiting``)."""
+        nonlocal run_back
+        if waiting:
+            alone = not run_back and bool(stamps) and ns > stamps[-1]
+            keep(*waiting.pop(), delivered_late=alone)
+            run_back = not alone
+        if stamps and ns <= stamps[-1]:
+            waiting.append((i, ns, row, log_ns))
+        else:
+            keep(i, ns, row, log_ns)
+            run_back = False
 
     try:
         storage = _single_mcap(p)
@@ -555,7 +582,7 @@ def read_imu_log(
                 skipped += [f"message {j + 1}: header stamp is zero (the others' clock)"
                             for j, _, _ in unstamped]  # fmt: skip
                 unstamped = []
-            keep(i, header_ns, _row(msg), int(log_ns))
+            offer(i, header_ns, _row(msg), int(log_ns))
             done = at
     except (InputError, MissingExtraError):  # said in one line already
         raise
@@ -582,6 +609,8 @@ def read_imu_log(
                 f"{p}: {where}cannot read robot log ({_why_unreadable(exc)}{hint})"
             ) from None
         cut = f"the file ends inside a record after message {done}: read up to there"
+    if waiting:  # the last message, stamped before the one kept before it: no next one
+        keep(*waiting.pop())
     for i, log_ns, row in unstamped:  # no message (up to a cut) has a stamp: the log's times
         keep(i, log_ns, row, log_ns)
     stale_stamps = 0

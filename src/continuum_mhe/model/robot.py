@@ -623,7 +623,7 @@ def mount_taken(robot: Robot) -> None:
     _MOUNT_TAKEN.add(robot)
 
 
-def warn_mount_not_applied(robot: Robot) -> None:
+def warn_mount_not_applied(robot: Robot, stacklevel: int = 3) -> None:
     """A :class:`RobotWarning`, once per robot, where an IMU has a ``mount_rpy`` that no
     conversion has taken: an estimator takes its readings in each IMU's disk frame (roll
     and pitch, or the direct model's unit specific force and gyro), so a reading in the
@@ -638,6 +638,6 @@ def warn_mount_not_applied(robot: Robot) -> None:
         "or load_input, which turn them by mount_rpy; roll and pitch in an IMU's own frame "
         "need turning first (docs/formats.md#tilt)",
         RobotWarning,
-        stacklevel=3,
+        stacklevel=stacklevel,
     )
     _MOUNT_TAKEN.add(robot)
