@@ -832,3 +832,35 @@ def test_a_status_has_one_colour_in_every_estimate_figure() -> None:
         colours.append(next(ln for ln in strip.get_lines() if ln.get_ydata()[0] == row).get_color())
         plotting.close(fig)
     assert colours[0] == colours[1]
+
+
+def test_a_hanging_robot_is_drawn_turned_over_not_mirrored(tmp_path: Path) -> None:
+    """A robot hanging from its base (mounting z-down) is drawn as it hangs, its base
+    frame turned half a turn about x in every 3D panel (``plot``'s and the demo's): z
+    and y reversed, x not, so the frame stays right-handed and a bend to +y is not
+    drawn as one to -y."""
+    from continuum_mhe import Section, make_estimator, make_formulation
+    from continuum_mhe.evaluation import plotting
+    from continuum_mhe.evaluation.estimate_figure import estimate_figure
+    from continuum_mhe.model.robot import ImuPlacement
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = Robot((Section(0.16), Section(0.14)), (ImuPlacement(0), ImuPlacement(1)), "z-down")
+    rec = simulate_robot("spatial", robot, duration=1.0)
+    series = make_estimator("ekf", make_formulation("bend", robot)).run(rec.t, rec.z)
+    views = [
+        plotting.trajectory_3d(rec.truth, [series], z_down=True).axes[0],
+        *plotting.backbone_snapshots(rec.t, rec.truth, [series], robot.lengths, z_down=True).axes,
+    ]
+    m, t = str(tmp_path / "m.csv"), str(tmp_path / "t.csv")
+    assert main(["simulate", "paper3d", "--duration", "2", "--mounting", "z-down",
+                 "-o", m, "--truth", t]) == 0  # fmt: skip
+    assert main(["estimate", str(tmp_path / "m.csv"), "--method", "ekf", "--mounting",
+                 "z-down", "-o", str(tmp_path / "e.csv")]) == 0  # fmt: skip
+    est, truth = read_state_table(tmp_path / "e.csv"), read_state_table(tmp_path / "t.csv")
+    views += [a for a in estimate_figure(est, truth, z_down=True).axes if a.name == "3d"]
+    assert len(views) == 6
+    for ax in views:
+        assert ax.zaxis_inverted() and ax.yaxis_inverted() and not ax.xaxis_inverted()
+    upright = plotting.trajectory_3d(rec.truth, [series]).axes[0]
+    assert not (upright.zaxis_inverted() or upright.yaxis_inverted())

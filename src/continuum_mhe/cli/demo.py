@@ -127,17 +127,18 @@ def _demo_figures(
         written.extend(plotting.save(fig, out / name, ("png",)))  # atomic: saved or not
 
     where = f"simulated {scenario} recording, {what}"
-    save(
-        plotting.trajectory_3d(rec.truth, all_series, f"Tip path: truth and estimates ({where})"),
-        "demo_trajectory_3d",
-    )
+    z_down = robot.mounting == "z-down"  # drawn as it hangs
+    path_title = f"Tip path: truth and estimates ({where})"
+    save(plotting.trajectory_3d(rec.truth, all_series, path_title, z_down), "demo_trajectory_3d")
     bounds = [sec.theta_max for sec in robot.sections]
     title = f"Tip error, position and bend over time ({where})"
     save(plotting.states_vs_time(rec.t, rec.truth, all_series, title, bounds), "demo_states")
     if not robot.is_single:
         title = f"Backbone at four instants: truth and estimates ({where})"
         save(
-            plotting.backbone_snapshots(rec.t, rec.truth, all_series, robot.lengths, title),
+            plotting.backbone_snapshots(
+                rec.t, rec.truth, all_series, robot.lengths, title, z_down=z_down
+            ),
             "demo_backbone",
         )
 

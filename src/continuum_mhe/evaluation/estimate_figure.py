@@ -16,7 +16,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.evaluation.metrics import INTERPOLATE_GAP, Z95, IndexArray, match_rows
-from continuum_mhe.evaluation.plotting import Figure, plt
+from continuum_mhe.evaluation.plotting import Figure, hang, plt
 from continuum_mhe.io.state_tables import SECTION_FIELDS, StateTable, tip_section
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
@@ -377,9 +377,8 @@ def estimate_figure(
         ax.tick_params(labelbottom=False)
     view = fig.add_subplot(grid[:, 1], projection="3d")
     _backbones(view, est, truth, matched, lengths, backbone, in_truth)
-    if z_down:  # the base frame's z points down in the world: drawn so
-        view.invert_zaxis()
-        view.set_zlabel("z (mm, base z down)")
+    if z_down:
+        hang(view)
     fig.suptitle(title, wrap=True)
     fig.tight_layout()
     return fig

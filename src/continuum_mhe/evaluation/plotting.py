@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -62,10 +63,23 @@ def _breaks(name: str, t: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.insert(np.asarray(t, float), np.flatnonzero(jump) + 1, np.nan)
 
 
+def hang(ax: Any) -> None:
+    """Draw the 3D axes ``ax`` of a robot whose base frame's z points down in the world
+    (mounting ``z-down``) as it hangs: turned half a turn about x (z and y both
+    reversed, so the frame stays right-handed and a bend is not mirrored)."""
+    ax.invert_zaxis()
+    ax.invert_yaxis()
+    ax.set_zlabel("z (mm, base z down)")
+
+
 def trajectory_3d(
-    truth: np.ndarray, series: Sequence[EstimateSeries], title: str = "Tip trajectory"
+    truth: np.ndarray,
+    series: Sequence[EstimateSeries],
+    title: str = "Tip trajectory",
+    z_down: bool = False,
 ) -> Figure:
-    """3D tip trajectory (mm): truth against each estimate."""
+    """3D tip trajectory (mm): truth against each estimate; ``z_down``: a hanging
+    robot's, drawn as it hangs (:func:`hang`)."""
     fig = plt.figure(figsize=(6.4, 5.2))
     ax = fig.add_subplot(projection="3d")
     ax.plot(*(truth[:, :3].T * 1e3), "k-", lw=2.0, label="truth")
@@ -75,6 +89,8 @@ def trajectory_3d(
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
+    if z_down:
+        hang(ax)
     ax.set_title(title, wrap=True)  # a robot's long description: wrapped, not cut
     ax.legend(loc="upper left")
     fig.tight_layout()
@@ -178,9 +194,11 @@ def backbone_snapshots(
     lengths: Sequence[float],
     title: str = "Backbone",
     count: int = 4,
+    z_down: bool = False,
 ) -> Figure:
     """The whole backbone (every section, mm) at ``count`` instants: truth (black)
-    against each estimate, with the section ends marked."""
+    against each estimate, with the section ends marked; ``z_down``: a hanging robot's,
+    drawn as it hangs (:func:`hang`)."""
     from continuum_mhe.model.descriptions import section_bends
     from continuum_mhe.model.pcc import backbone
 
@@ -208,6 +226,9 @@ def backbone_snapshots(
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
         ax.set_zlabel("z (mm)")
+        if z_down:
+            hang(ax)
+        ax.set_box_aspect(None, zoom=0.85)  # the z label inside the figure
         if j == 0:
             ax.legend(loc="upper left", fontsize="small")
     fig.suptitle(title, wrap=True)
