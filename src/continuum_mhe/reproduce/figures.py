@@ -112,16 +112,24 @@ def exp3_figures(d: dict[str, Any]) -> dict[str, Figure]:
     return {"exp3_rod": fig}
 
 
+def _mean_and_interval(
+    blocks: list[dict[str, Any]], method: str, key: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each block's mean of ``method``'s ``key`` and its interval as errorbar lengths
+    (2, n): below and above the mean."""
+    mean = np.array([b[method][key]["mean"] for b in blocks], dtype=float)
+    lo = np.array([b[method][key]["lo"] for b in blocks], dtype=float)
+    hi = np.array([b[method][key]["hi"] for b in blocks], dtype=float)
+    return mean, np.vstack([mean - lo, hi - mean])
+
+
 def _bars(
     ax: Any, labels: list[str], blocks: list[dict[str, Any]], methods: tuple[str, ...], key: str
 ) -> None:
     x = np.arange(len(labels))
     w = 0.8 / len(methods)
     for j, m in enumerate(methods):
-        mean = np.array([b[m][key]["mean"] for b in blocks], dtype=float)
-        lo = np.array([b[m][key]["lo"] for b in blocks], dtype=float)
-        hi = np.array([b[m][key]["hi"] for b in blocks], dtype=float)
-        err = np.vstack([mean - lo, hi - mean])
+        mean, err = _mean_and_interval(blocks, m, key)
         ax.bar(
             x + (j - (len(methods) - 1) / 2) * w,
             mean,
@@ -144,12 +152,10 @@ def _points(
     x = np.arange(len(labels))
     w = 0.6 / len(methods)
     for j, m in enumerate(methods):
-        mean = np.array([b[m][key]["mean"] for b in blocks], dtype=float)
-        lo = np.array([b[m][key]["lo"] for b in blocks], dtype=float)
-        hi = np.array([b[m][key]["hi"] for b in blocks], dtype=float)
+        mean, err = _mean_and_interval(blocks, m, key)
         ax.errorbar(
             x + (j - (len(methods) - 1) / 2) * w, mean,
-            yerr=np.nan_to_num(np.vstack([mean - lo, hi - mean])), fmt="o", capsize=3,
+            yerr=np.nan_to_num(err), fmt="o", capsize=3,
             color=_COLORS[m], label=m.upper(),
         )  # fmt: skip
     ax.set_xticks(x)
