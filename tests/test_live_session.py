@@ -328,6 +328,33 @@ def test_a_restart_without_a_banner_keeps_its_first_sample() -> None:
     assert sum("device clock restarted (2990 ms -> 0 ms)" in m for m in said) == 1
 
 
+def test_a_restart_within_the_clock_s_first_second_is_a_restart() -> None:
+    """A board that resets 780 ms into its clock, with no banner, steps back by less
+    than a second: the next line follows the held one, so it is the device's restart
+    (the time axis goes on), not 0.8 s of lines out of order until the new clock passes
+    the old; a line 200 ms late, the next going on from the old clock, is still one
+    line out of order."""
+    s, said = _session()
+    stamps = list(range(0, 790, 10)) + list(range(0, 2000, 10))
+    _feed(s, stamps)
+    s.finish()
+    assert (s.counts.estimates, s.counts.out_of_order, s.counts.clock_restarts) == (
+        len(stamps),
+        0,
+        1,
+    )
+    assert sum("device clock restarted (780 ms -> 0 ms)" in m for m in said) == 1
+    s, said = _session()
+    late = [*range(0, 1000, 10), 800, *range(1000, 2000, 10)]
+    _feed(s, late)
+    s.finish()
+    assert (s.counts.estimates, s.counts.out_of_order, s.counts.clock_restarts) == (
+        len(late) - 1,
+        1,
+        0,
+    )
+
+
 def test_bytes_without_a_line_end_for_3_s_stop_the_session_in_one_line() -> None:
     """A device whose lines end otherwise (or another baud rate): the splitter tells the
     bytes of the line that never ends, and 3 s of them stop the session with the cause;

@@ -688,7 +688,7 @@ def collect(
             if jumped is not None:  # the held sample: the device's restart, or corrupted
                 (held, held_arrival), jumped = jumped, None
                 if clock.confirms_jump(held.t_ms, sample.t_ms):
-                    restart = clock.place(held.t_ms, held_arrival, None)
+                    restart = clock.place(held.t_ms, held_arrival, None, confirmed=True)
                     say(f"device clock restart at t_ms={held.t_ms:.0f}: starting over")
                     t, rows = [restart.t], [held.values]
                     host_first = host_last = held_arrival

@@ -354,8 +354,8 @@ class LiveSession:
         be cut. A line held for jumping back before it went away is settled first, as
         the device's restart (no line after it can say otherwise)."""
         if self._jumped is not None and self.fatal is None:
-            (held, arrival, ahead), self._jumped = self._jumped, None
-            self._handle_sample(held, arrival, confirmed=ahead)
+            (held, arrival, _), self._jumped = self._jumped, None
+            self._handle_sample(held, arrival, confirmed=True)
         self.clock.expect_restart()
         self._joined = True
 
@@ -558,7 +558,7 @@ class LiveSession:
                 )
             return
         if following is not None and self.clock.confirms_jump(held.t_ms, following.t_ms):
-            self._handle_sample(held, arrival)
+            self._handle_sample(held, arrival, confirmed=True)
         else:
             self._out_of_order(
                 held,
@@ -716,7 +716,8 @@ class LiveSession:
 
     def _handle_sample(self, s: Sample, arrival: float, confirmed: bool = False) -> Estimate | None:
         """Estimate the sample ``s`` (arrived at ``arrival``, monotonic s), placed on the
-        device clock's axis (``confirmed``: a jump ahead the next sample confirmed)."""
+        device clock's axis (``confirmed``: a jump ahead or back that the next sample
+        confirmed)."""
         c = self.counts
         if s.problems:
             if c.imu_dropouts == 0:

@@ -7,9 +7,11 @@
   :meth:`DeviceClock.expect_restart` was called. The time base is broken there: the
   axis continues after the wall-clock time the device was silent, and the caller
   restarts the estimator. A caller that can hold a sample asks :meth:`jumps_back`
-  first and keeps such a sample until the next one says whether the device restarted
-  (:meth:`confirms_jump`: it follows the held one, within :data:`CONFIRM_MS`, instead
-  of the old clock) or the held one's ``t_ms`` was corrupted (an out-of-order sample).
+  first (a step back of more than :data:`HELD_BACK_S`: a board reset within its
+  clock's first second steps back by less than ``restart_jump_s``) and keeps such a
+  sample until the next one says whether the device restarted (:meth:`confirms_jump`:
+  it follows the held one, within :data:`CONFIRM_MS`, instead of the old clock; placed
+  with ``confirmed``) or the held one's ``t_ms`` was corrupted (an out-of-order sample).
 * A smaller backwards step is an out-of-order sample, dropped by the caller, and so is
   a step forward of more than :data:`FORWARD_JUMP_S` beyond the time the host saw pass
   since the last sample (a corrupted ``t_ms`` would move the whole axis and make the
@@ -49,6 +51,11 @@ FORWARD_JUMP_S = 2.0
 #: A sample this soon after one dropped for jumping ahead or behind (ms of device time)
 #: confirms that jump.
 CONFIRM_MS = 10_000.0
+#: A step back of more than this (s) is held by a caller that can hold
+#: (:meth:`DeviceClock.jumps_back`) until the next sample says whether the device
+#: restarted: a reset within the first second of its clock steps back by less than
+#: ``restart_jump_s``; a line sent again, or late, a period or two back is no restart.
+HELD_BACK_S = 0.05
 
 #: Equal stamps are samples of one millisecond while the usual period is below this, s.
 SUB_MS_PERIOD_S = 1.5e-3
@@ -99,16 +106,17 @@ class DeviceClock:
         self._restart_armed = True
 
     def jumps_back(self, t_ms: float) -> bool:
-        """Whether :meth:`place` would take the device time ``t_ms`` (ms) as a restart
-        that no reconnect or banner announced: a jump back of more than
-        ``restart_jump_s``, not a wrap."""
+        """Whether the device time ``t_ms`` (ms) steps back far enough to be a restart
+        that no reconnect or banner announced, which the next sample may confirm
+        (:meth:`confirms_jump`; then placed with ``confirmed``): a jump back of more than
+        :data:`HELD_BACK_S`, not a wrap."""
         last = self._last_ms
         if last is None or t_ms >= last or self._restart_armed:
             return False
         wrapped = t_ms + MILLIS_WRAP - last
         if last >= MILLIS_WRAP - WRAP_WINDOW_MS and 0 < wrapped <= WRAP_WINDOW_MS:
             return False
-        return last - t_ms > self.restart_jump_s * 1e3
+        return last - t_ms > HELD_BACK_S * 1e3
 
     def confirms_jump(self, held_ms: float, t_ms: float) -> bool:
         """Whether the device time ``t_ms`` (ms) of the sample after one held for jumping
@@ -140,7 +148,7 @@ class DeviceClock:
     ) -> Placed:
         """Place one sample (device ``t_ms``, monotonic ``arrival`` in s); the usual
         ``period_s`` spaces a restarted axis. Out-of-order samples do not move the clock.
-        ``confirmed``: a jump ahead that the next sample confirmed
+        ``confirmed``: a jump ahead or back that the next sample confirmed
         (:meth:`confirms_ahead`), placed as the gap it is."""
         last = self._last_ms
         event: ClockEvent = "first" if last is None else "next"
@@ -149,7 +157,7 @@ class DeviceClock:
             if last >= MILLIS_WRAP - WRAP_WINDOW_MS and 0 < wrapped <= WRAP_WINDOW_MS:
                 self._epoch_ms += MILLIS_WRAP
                 event = "wrap"
-            elif self._restart_armed or last - t_ms > self.restart_jump_s * 1e3:
+            elif self._restart_armed or confirmed or last - t_ms > self.restart_jump_s * 1e3:
                 assert self._t_last is not None
                 away = max(arrival - self._arrival_last, period_s or 0.0, 1e-3)
                 self._offset_s = self._t_last + away - (t_ms + self._epoch_ms) / 1e3
