@@ -313,18 +313,21 @@ def test_one_corrupted_t_ms_is_one_out_of_order_line_and_the_time_axis_goes_on(
     assert not any("restarted" in m or "gap" in m for m in said), said
 
 
+def _fed_to_the_end(stamps: list[int]) -> tuple[tuple[int, int, int], list[str]]:
+    """A session fed lines at ``stamps`` (t_ms) to the stream's end: its estimates,
+    out-of-order lines and clock restarts, and what it said."""
+    s, said = _session()
+    _feed(s, stamps)
+    s.finish()
+    return (s.counts.estimates, s.counts.out_of_order, s.counts.clock_restarts), said
+
+
 def test_a_restart_without_a_banner_keeps_its_first_sample() -> None:
     """A board that restarts its clock with no banner: the first line after the jump is
     held until the next follows it, and then estimated as the restart's first sample."""
-    s, said = _session()
     stamps = list(range(0, 3000, 10)) + list(range(0, 1000, 10))
-    _feed(s, stamps)
-    s.finish()
-    assert (s.counts.estimates, s.counts.out_of_order, s.counts.clock_restarts) == (
-        len(stamps),
-        0,
-        1,
-    )
+    counts, said = _fed_to_the_end(stamps)
+    assert counts == (len(stamps), 0, 1)
     assert sum("device clock restarted (2990 ms -> 0 ms)" in m for m in said) == 1
 
 
@@ -334,25 +337,12 @@ def test_a_restart_within_the_clock_s_first_second_is_a_restart() -> None:
     (the time axis goes on), not 0.8 s of lines out of order until the new clock passes
     the old; a line 200 ms late, the next going on from the old clock, is still one
     line out of order."""
-    s, said = _session()
     stamps = list(range(0, 790, 10)) + list(range(0, 2000, 10))
-    _feed(s, stamps)
-    s.finish()
-    assert (s.counts.estimates, s.counts.out_of_order, s.counts.clock_restarts) == (
-        len(stamps),
-        0,
-        1,
-    )
+    counts, said = _fed_to_the_end(stamps)
+    assert counts == (len(stamps), 0, 1)
     assert sum("device clock restarted (780 ms -> 0 ms)" in m for m in said) == 1
-    s, said = _session()
     late = [*range(0, 1000, 10), 800, *range(1000, 2000, 10)]
-    _feed(s, late)
-    s.finish()
-    assert (s.counts.estimates, s.counts.out_of_order, s.counts.clock_restarts) == (
-        len(late) - 1,
-        1,
-        0,
-    )
+    assert _fed_to_the_end(late)[0] == (len(late) - 1, 1, 0)
 
 
 def test_bytes_without_a_line_end_for_3_s_stop_the_session_in_one_line() -> None:
