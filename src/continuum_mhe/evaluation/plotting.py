@@ -89,6 +89,7 @@ def trajectory_3d(
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
+    ax.set_aspect("equal")  # a path's shape as it is: one mm as long on every axis
     if z_down:
         hang(ax)
     ax.set_title(title, wrap=True)  # a robot's long description: wrapped, not cut
