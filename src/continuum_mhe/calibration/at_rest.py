@@ -15,7 +15,7 @@ import math
 import queue
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -95,6 +95,34 @@ def mounting_from_gravity(mean_acc: FloatArray, mounting: Mounting) -> tuple[flo
     roll = math.atan2(m[1], m[2])
     pitch = math.atan2(-m[0], math.hypot(m[1], m[2]))
     return (math.degrees(roll), math.degrees(pitch), 0.0)
+
+
+#: A board's roll is taken as unseen at rest where gravity's component across its x axis
+#: (the roll turns it about that axis) is so small that its mean's noise turns the roll
+#: by more than this (deg): a board on its side, its x axis along gravity.
+ROLL_UNSEEN_DEG = 1.0
+
+
+def rolls_kept(cal: Calibration, file_rolls: Sequence[float]) -> tuple[Calibration, list[int]]:
+    """``cal`` with the roll of each IMU whose roll gravity does not show (its x axis
+    within a hair of vertical, so that the mean's noise turns the measured roll by over
+    :data:`ROLL_UNSEEN_DEG`) taken from ``file_rolls`` (deg, the robot file's), and
+    those IMUs (1-based): about gravity a rest recording sees no turn, and such a
+    board's roll is one."""
+    imus, kept = [], []
+    for i, imu in enumerate(cal.imus):
+        if imu.mount_rpy is None:
+            imus.append(imu)
+            continue
+        across = float(np.hypot(imu.mean[1], imu.mean[2]))  # gravity's part the roll turns
+        noise = float(np.hypot(imu.std[1], imu.std[2])) / math.sqrt(max(cal.n, 1))
+        if noise <= across * math.radians(ROLL_UNSEEN_DEG):
+            imus.append(imu)
+            continue
+        _, pitch, yaw = imu.mount_rpy
+        imus.append(replace(imu, mount_rpy=(float(file_rolls[i]), pitch, yaw)))
+        kept.append(i + 1)
+    return replace(cal, imus=imus), kept
 
 
 def check_rest_mounting(

@@ -24,6 +24,7 @@ from continuum_mhe.calibration.at_rest import (
     motion_at_rest,
     rest_gravity_problem,
     rest_tilt_warning,
+    rolls_kept,
 )
 from continuum_mhe.calibration.bend import YawCalibration, tilt_order_warning
 from continuum_mhe.cli.options import add_overwrite_option, given_options
@@ -156,6 +157,18 @@ def run(args: argparse.Namespace) -> int:
     tilted = rest_tilt_warning(cal, robot.mounting, fix)
     if tilted:
         print(f"{PROG}: warning: {source}: {tilted}", file=sys.stderr)
+    if fmt == "raw":
+        cal, kept = rolls_kept(cal, [imu.mount_rpy[0] for imu in robot.imus])
+        for i in kept:
+            imu = cal.imus[i - 1]
+            assert imu.mount_rpy is not None
+            print(
+                f"{PROG}: note: {source}: IMU {i}'s x axis lies along gravity at rest (pitch "
+                f"{imu.mount_rpy[1]:.2f} degrees): its roll turns it about gravity, which a "
+                f"rest does not show, so the robot file's roll ({imu.mount_rpy[0]:g} degrees) "
+                "is kept with it (--bend measures the turn about gravity)",
+                file=sys.stderr,
+            )
     bend = None
     if args.bend:
         phi = 0.0 if args.bend_phi is None else args.bend_phi
