@@ -115,7 +115,9 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
         "gravity-direction reading, carried in the standard deviations until the "
         "readings show a larger one (default %(default).2g); 0 for data the model "
         "generated (continuum-mhe simulate), where the default makes the intervals too "
-        "wide (docs/uncertainty.md)",
+        "wide, and for simulate's raw readings with --own-acceleration too, as they "
+        "carry the IMUs' own acceleration (without it rows are ok far outside their "
+        "intervals; docs/uncertainty.md)",
     )
     g.add_argument(
         "--reading-bias-deg",
