@@ -864,3 +864,21 @@ def test_a_hanging_robot_is_drawn_turned_over_not_mirrored(tmp_path: Path) -> No
         assert ax.zaxis_inverted() and ax.yaxis_inverted() and not ax.xaxis_inverted()
     upright = plotting.trajectory_3d(rec.truth, [series]).axes[0]
     assert not (upright.zaxis_inverted() or upright.yaxis_inverted())
+
+
+def test_a_key_at_the_options_files_top_applies_where_it_can(tmp_path: Path, capsys) -> None:
+    """A key at an options file's top is for both commands: one that only the other
+    command takes (``topic``, for a bag, in ``live``; ``baud`` in ``estimate``) is left
+    out there, not refused; under the command's own table it is refused."""
+    from continuum_mhe.cli.app import _parse
+
+    profile = tmp_path / "profile.toml"
+    profile.write_text('method = "ekf"\ntopic = ["/imu1"]\nbaud = 9600\n')
+    args = _parse(["live", "--port", "/dev/null", "--config", str(profile)])
+    assert args.baud == 9600 and args.method == "ekf"
+    args = _parse(["estimate", "m.csv", "-o", "e.csv", "--config", str(profile)])
+    assert args.topic == ["/imu1"] and args.method == "ekf"
+    own = tmp_path / "own.toml"
+    own.write_text('[live]\ntopic = ["/imu1"]\n')
+    assert main(["live", "--port", "/dev/null", "--config", str(own)]) == 2
+    assert "line 2: topic is not an option of live" in capsys.readouterr().err

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import importlib
 import os
 import re
 import sys
@@ -83,6 +84,19 @@ def option_key(action: argparse.Action) -> str:
 def _by_key(options: dict[str, argparse.Action]) -> dict[str, argparse.Action]:
     """``options`` by :func:`option_key`, with underscores for dashes."""
     return {option_key(a).replace("-", "_"): a for a in options.values()}
+
+
+def _other_commands_option(command: str, dest: str) -> bool:
+    """Whether ``dest`` (underscores for dashes) is an option of the other command that
+    an options file serves (``live`` for ``estimate``, and the reverse): a key at the
+    file's top applies to both, where it can."""
+    other = {"estimate": "live", "live": "estimate"}.get(command)
+    if other is None:
+        return False
+    parser = argparse.ArgumentParser(add_help=False)
+    importlib.import_module(f"continuum_mhe.cli.{other}").add_arguments(parser)
+    by_key = _by_key(_options(parser))
+    return dest in by_key or _negated(dest, by_key) is not None
 
 
 def _negated(key: str, by_key: dict[str, argparse.Action]) -> argparse.Action | None:
@@ -269,6 +283,8 @@ def apply_config(
         if action is None and recorded:
             left_out.append(key)
             continue
+        if action is None and key not in own_keys and _other_commands_option(command, dest):
+            continue  # a key at the top is for both commands: it applies where it can
         if action is None and isinstance(value, dict):
             table = f"{command}.{key}" if key in own_keys else key  # [estimate.noise]
             raise InputError(
