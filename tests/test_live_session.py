@@ -343,6 +343,17 @@ def test_a_restart_within_the_clock_s_first_second_is_a_restart() -> None:
     assert sum("device clock restarted (780 ms -> 0 ms)" in m for m in said) == 1
     late = [*range(0, 1000, 10), 800, *range(1000, 2000, 10)]
     assert _fed_to_the_end(late)[0] == (len(late) - 1, 1, 0)
+    # lines that step back but land near the last one are no restart, whatever follows:
+    # two corrupted lines in a row, the last 200 ms sent again, two lines repeated at
+    # 10 Hz: each line out of order, the time axis as it was
+    head = list(range(0, 1300, 10))
+    for back, tail in (
+        ([1100, 1110], list(range(1300, 2000, 10))),
+        (list(range(1100, 1300, 10)), list(range(1300, 2000, 10))),
+    ):
+        assert _fed_to_the_end([*head, *back, *tail])[0] == (len(head) + len(tail), len(back), 0)
+    slow = list(range(0, 2000, 100))
+    assert _fed_to_the_end([*slow, 1800, 1900, *range(2000, 3000, 100)])[0] == (30, 2, 0)
 
 
 def test_bytes_without_a_line_end_for_3_s_stop_the_session_in_one_line() -> None:

@@ -99,8 +99,9 @@ def mounting_from_gravity(mean_acc: FloatArray, mounting: Mounting) -> tuple[flo
 
 #: A board's roll is taken as unseen at rest where gravity's component across its x axis
 #: (the roll turns it about that axis) is so small that its mean's noise turns the roll
-#: by more than this (deg): a board on its side, its x axis along gravity.
-ROLL_UNSEEN_DEG = 1.0
+#: by more than this (deg): a board on its side, its x axis within a degree or so of
+#: gravity.
+ROLL_UNSEEN_DEG = 10.0
 
 
 def rolls_kept(cal: Calibration, file_rolls: Sequence[float]) -> tuple[Calibration, list[int]]:

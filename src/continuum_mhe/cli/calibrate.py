@@ -162,11 +162,16 @@ def run(args: argparse.Namespace) -> int:
         for i in kept:
             imu = cal.imus[i - 1]
             assert imu.mount_rpy is not None
+            roll_from = (
+                f"the robot file's roll ({imu.mount_rpy[0]:g} degrees) is kept"
+                if args.robot
+                else f"its roll is taken as {imu.mount_rpy[0]:g} (no robot file gives one)"
+            )
             print(
-                f"{PROG}: note: {source}: IMU {i}'s x axis lies along gravity at rest (pitch "
+                f"{PROG}: note: {source}: IMU {i}'s x axis lies within "
+                f"{90 - abs(imu.mount_rpy[1]):.1f} degrees of gravity at rest (pitch "
                 f"{imu.mount_rpy[1]:.2f} degrees): its roll turns it about gravity, which a "
-                f"rest does not show, so the robot file's roll ({imu.mount_rpy[0]:g} degrees) "
-                "is kept with it (--bend measures the turn about gravity)",
+                f"rest does not show, so {roll_from} (--bend measures the turn about gravity)",
                 file=sys.stderr,
             )
     bend = None

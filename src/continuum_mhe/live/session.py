@@ -114,7 +114,9 @@ class LiveSettings:
         gap_factor: a step longer than this many usual periods is a gap.
         behind_s: report falling behind when a line waits longer than this, s.
         retry_max_s: longest wait between attempts to reopen a lost device, s.
-        restart_jump_s: a device clock that jumps back by more than this (s) restarted.
+        restart_jump_s: a device clock that jumps back by more than this (s) restarted;
+            so did one that jumps back by less to under half its last time, where the
+            next line follows it (:data:`~continuum_mhe.stream.clock.HELD_BACK_S`).
         repeat_every_s: a device message that repeats is shown at most this often, s.
 
     After a gap longer than the estimator's ``recovery.gap_reset`` (``--gap-reset``) the
@@ -354,8 +356,8 @@ class LiveSession:
         be cut. A line held for jumping back before it went away is settled first, as
         the device's restart (no line after it can say otherwise)."""
         if self._jumped is not None and self.fatal is None:
-            (held, arrival, _), self._jumped = self._jumped, None
-            self._handle_sample(held, arrival, confirmed=True)
+            (held, arrival, ahead), self._jumped = self._jumped, None
+            self._handle_sample(held, arrival, confirmed=ahead)
         self.clock.expect_restart()
         self._joined = True
 

@@ -51,10 +51,11 @@ FORWARD_JUMP_S = 2.0
 #: A sample this soon after one dropped for jumping ahead or behind (ms of device time)
 #: confirms that jump.
 CONFIRM_MS = 10_000.0
-#: A step back of more than this (s) is held by a caller that can hold
-#: (:meth:`DeviceClock.jumps_back`) until the next sample says whether the device
-#: restarted: a reset within the first second of its clock steps back by less than
-#: ``restart_jump_s``; a line sent again, or late, a period or two back is no restart.
+#: A step back of more than this (s), to a device time under half the last one, is held
+#: by a caller that can hold (:meth:`DeviceClock.jumps_back`) until the next sample says
+#: whether the device restarted: a reset within the first second of its clock steps
+#: back by less than ``restart_jump_s``, to a clock that starts again near zero; a line
+#: sent again, late or corrupted lands nearer the last one.
 HELD_BACK_S = 0.05
 
 #: Equal stamps are samples of one millisecond while the usual period is below this, s.
@@ -106,17 +107,19 @@ class DeviceClock:
         self._restart_armed = True
 
     def jumps_back(self, t_ms: float) -> bool:
-        """Whether the device time ``t_ms`` (ms) steps back far enough to be a restart
-        that no reconnect or banner announced, which the next sample may confirm
+        """Whether the device time ``t_ms`` (ms) steps back as a restart that no
+        reconnect or banner announced would, which the next sample may confirm
         (:meth:`confirms_jump`; then placed with ``confirmed``): a jump back of more than
-        :data:`HELD_BACK_S`, not a wrap."""
+        ``restart_jump_s``, or of more than :data:`HELD_BACK_S` to under half the last
+        device time (a clock that starts again); not a wrap."""
         last = self._last_ms
         if last is None or t_ms >= last or self._restart_armed:
             return False
         wrapped = t_ms + MILLIS_WRAP - last
         if last >= MILLIS_WRAP - WRAP_WINDOW_MS and 0 < wrapped <= WRAP_WINDOW_MS:
             return False
-        return last - t_ms > HELD_BACK_S * 1e3
+        back = last - t_ms
+        return back > self.restart_jump_s * 1e3 or (back > HELD_BACK_S * 1e3 and t_ms < last / 2)
 
     def confirms_jump(self, held_ms: float, t_ms: float) -> bool:
         """Whether the device time ``t_ms`` (ms) of the sample after one held for jumping
@@ -148,8 +151,9 @@ class DeviceClock:
     ) -> Placed:
         """Place one sample (device ``t_ms``, monotonic ``arrival`` in s); the usual
         ``period_s`` spaces a restarted axis. Out-of-order samples do not move the clock.
-        ``confirmed``: a jump ahead or back that the next sample confirmed
-        (:meth:`confirms_ahead`), placed as the gap it is."""
+        ``confirmed``: a jump ahead that the next sample confirmed
+        (:meth:`confirms_ahead`), placed as the gap it is, or back (:meth:`confirms_jump`),
+        placed as the restart it is."""
         last = self._last_ms
         event: ClockEvent = "first" if last is None else "next"
         if last is not None and t_ms < last:
