@@ -267,7 +267,7 @@ class McapEstimateWriter:
         require("mcap", "robot", "writing MCAP")
         from mcap.writer import CompressionType, Writer
 
-        self._writer = Writer(fh, compression=CompressionType.NONE)
+        self._writer = Writer(fh, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="continuum-mhe")
         self._channels: dict[str, int] = {}
         schemas = {**SCHEMAS, ESTIMATE_SCHEMA: estimate_schema(outputs, outlier)}
