@@ -205,6 +205,14 @@ def test_a_wrong_topic_count_lists_the_logs_imu_topics(
         f"{log}: no --topic for a robot with 2 IMUs: pass one --topic per IMU, in the robot "
         "file's order; sensor_msgs/msg/Imu topics in this log: /imu1, /imu2"
     )
+    # a log with fewer Imu topics than the robot's IMUs (several IMUs on one topic, told
+    # apart by their frame_id): the message says such a topic is not read
+    with pytest.raises(InputError) as info:
+        read_imu_topics(log, ["/imu1"], 3)
+    assert str(info.value).endswith(
+        "(the log has 2 Imu topic(s) for 3 IMUs: one topic carrying several IMUs' messages, "
+        "told apart by header.frame_id, is not read; record one topic per IMU)"
+    )
 
 
 def test_topics_whose_stamps_stand_apart_from_the_log_s_clock_warn(

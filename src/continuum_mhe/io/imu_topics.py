@@ -233,9 +233,17 @@ def read_imu_topics(
         held = log_topics(p)
         if not any(typ in IMU_TYPES for typ in held.values()):  # no --topic can help
             raise InputError(f"{p}: {topics_line(held)} (a robot with {imus} needs one per IMU)")
+        imu_topics = sum(typ in IMU_TYPES for typ in held.values())
+        fewer = (
+            f" (the log has {imu_topics} Imu topic(s) for {imus}: one topic carrying several "
+            "IMUs' messages, told apart by header.frame_id, is not read; record one topic "
+            "per IMU)"
+            if imu_topics < n_imus
+            else ""
+        )
         raise InputError(
             f"{p}: {given} for a robot with {imus}: pass one --topic per IMU, in the robot "
-            f"file's order; {topics_line(held)}"
+            f"file's order; {topics_line(held)}{fewer}"
         )
     if len(set(topics)) != len(topics):
         raise InputError(f"{p}: a --topic is given twice ({', '.join(topics)})")
