@@ -71,7 +71,7 @@ def test_benchmark_command_records_ratios_and_environment(
 
     monkeypatch.setattr(bench_env, "cpu_model", lambda: "Test CPU 9000")
     out = tmp_path / "bench.json"
-    args = ["benchmark", "--horizons", "4", "--duration", "0.6", "--memory-samples", "60",
+    args = ["benchmark", "--horizons", "4", "--duration", "0.6", "--memory-samples", "1000",
             "--loss-horizons", "none", "--repeats", "1"]  # fmt: skip
     assert main([*args, "--json", str(out)]) == 0
     report = json.loads(out.read_text())
@@ -94,7 +94,7 @@ def test_benchmark_command_records_ratios_and_environment(
                          ("over_ekf_compiled", "ekf-compiled"),
                          ("over_ekf_kernel", "ekf-kernel")):  # fmt: skip
             assert r[key] == pytest.approx(r["median_us"] / rows[ref]["median_us"])
-    assert report["memory"]["samples"] == 60
+    assert report["memory"]["samples"] == 1000
     assert report["versions"]["casadi"] == casadi.__version__
     assert report["machine"]["cores"] == os.cpu_count()
     assert report["machine"]["cpu"] == "Test CPU 9000"  # (known answers below)
@@ -586,6 +586,24 @@ def test_the_robot_benchmark_takes_a_robot_of_one_section() -> None:
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 
     robot = Robot((Section(0.2, 3.0),), (ImuPlacement(0),))
-    report = run_robot_benchmark(robot, [10], 1.0)
+    said: list[str] = []
+    report = run_robot_benchmark(robot, [10], 1.0, say=said.append)
     (row,) = report["rows"]
     assert row["horizon"] == 10 and row["fallbacks"] == 0 and row["max_diff_vs_ipopt"] < 1e-6
+    # its progress as each horizon starts and ends, as the main run says it; the
+    # report says what was asked
+    assert said[0].startswith("N = 10 (1 of 1 horizons): the fast MHE and IPOPT")
+    assert said[1].startswith("N = 10 done in ")
+    assert report["horizons"] == [10] and report["duration_s"] == 1.0
+
+
+def test_a_memory_check_too_short_to_fit_is_refused_before_the_run(capsys) -> None:
+    """``--memory-samples`` of a few samples fitted its slope on a window still growing
+    (84 MiB a sample from 2), or failed after every timing was done: refused at once."""
+    from continuum_mhe.cli import main
+
+    argv = ["benchmark", "--horizons", "10", "--duration", "1", "--memory-samples", "2"]
+    assert main(argv) == 2
+    assert "--memory-samples 2: the memory check fits its slope over at least 1000" in (
+        capsys.readouterr().err
+    )

@@ -195,19 +195,30 @@ def raw_imu_recording(
 
 
 def run_robot_benchmark(
-    robot: Robot, horizons: list[int], duration: float, repeats: int = 1
+    robot: Robot,
+    horizons: list[int],
+    duration: float,
+    repeats: int = 1,
+    say: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """The fast MHE against IPOPT on the same windows of a (multi-section) robot with raw
     IMUs (``direct``), per horizon: median and p99 time per sample, the ratio, and the
     largest output difference (m and rad). Each is warmed up (the fast MHE on the whole
     recording, IPOPT, whose NLP is built on its first window, on its first ``N + 2``
     samples), then both run ``repeats`` times in turn; each sample's time is its median
-    over the rounds."""
+    over the rounds. ``say``: called with a line as each horizon starts and ends."""
+    progress = say or (lambda line: None)
     f = raw_imu_model(robot)
     rec = raw_imu_recording(robot, duration)
+    env = environment(f)  # the load average at the start
     wrapped = tuple(i for i, o in enumerate(f.outputs) if o.wrapped)
     rows = []
-    for n in horizons:
+    for k, n in enumerate(horizons, start=1):
+        started = time.perf_counter()
+        progress(
+            f"N = {n} ({k} of {len(horizons)} horizons): the fast MHE and IPOPT, a warm-up "
+            f"and {repeats} round(s) of {len(rec.t)} samples each"
+        )
         fast = MovingHorizonEstimator(f, MHESettings(horizon=n))
         ipopt = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt"))
         _run_timed(fast, rec)  # warm up
@@ -233,14 +244,24 @@ def run_robot_benchmark(
                 "fallbacks": status.count("fallback-ipopt"),
             }
         )
+        progress(f"N = {n} done in {time.perf_counter() - started:.0f} s")
     return {
         "robot": robot.describe(),
         "model": "direct",
         "samples": len(rec.t),
+        "duration_s": duration,
+        "horizons": list(horizons),
         "repeats": repeats,
-        **environment(f),
+        **env,
         "rows": rows,
     }
+
+
+def _rounds(repeats: int) -> str:
+    """How each sample's time was taken over ``repeats`` rounds, for a table's title."""
+    if repeats == 1:
+        return "one round after the warm-up"
+    return f"each sample's median over {repeats} interleaved rounds"
 
 
 def print_robot_report(report: dict[str, Any]) -> None:
@@ -250,8 +271,7 @@ def print_robot_report(report: dict[str, Any]) -> None:
 
     table = Table(
         title=f"fast MHE vs IPOPT on the same windows: {report['robot']}, raw IMUs "
-        f"({report['model']}), {report['samples']} samples, each sample's median over "
-        f"{report['repeats']} interleaved rounds"
+        f"({report['model']}), {report['samples']} samples, {_rounds(report['repeats'])}"
     )
     for col in ("N", "fast us", "fast p99 us", "IPOPT us", "IPOPT / fast", "max|d|", "fallbk"):
         table.add_column(col, justify="right", no_wrap=True)
@@ -488,9 +508,9 @@ def print_report(report: dict[str, Any]) -> None:
 
     table = Table(
         title=f"Time per sample: bend, {report['scenario']}, {report['samples']} samples "
-        f"(median and p99 from sample N on, each sample's median over {report['repeats']} "
-        "interleaved rounds; /fast, /IPOPT, /EKFc, /kernel: median over the fast MHE's, "
-        "IPOPT's, the compiled EKF's and the bare compiled EKF kernel's; max|d|: largest "
+        f"(median and p99 from sample N on, {_rounds(report['repeats'])}; /fast, /IPOPT, "
+        "/EKFc, /kernel: the median over the fast MHE's, IPOPT's, the compiled EKF's and "
+        "the bare compiled EKF kernel's median; max|d|: largest "
         "output difference from IPOPT's, m and rad, over the run and from sample N on; "
         "fallbk: windows handed to IPOPT, or a peer did not converge on; solver us: the "
         "peer's own reported time)"

@@ -122,7 +122,8 @@ def print_loss_report(rows: list[dict[str, Any]]) -> None:
     from continuum_mhe.progress import table_console
 
     table = Table(
-        title="Cost of each MHE loss (median us per sample from sample N on; / l2: over "
+        title="Cost of each MHE loss (median us per sample from sample N on, the smallest "
+        "of three runs' medians, whatever --repeats; / l2: over "
         "the same backend's l2 time on the same data; SQP it: the fast backend's mean "
         "iterations per sample; max|d|: fast vs IPOPT, m and rad)"
     )

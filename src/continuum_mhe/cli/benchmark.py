@@ -27,6 +27,9 @@ from continuum_mhe.errors import UserError
 
 #: ``--memory-samples``' default: the long recording of the memory check.
 MEMORY_SAMPLES = 20000
+#: The fewest samples the memory check fits a slope on: its window (N = 30) full and
+#: warmed up over a quarter of them, the rest enough points to fit.
+MIN_MEMORY_SAMPLES = 1000
 
 
 def _horizons(text: str) -> list[int]:
@@ -92,18 +95,24 @@ def run(args: argparse.Namespace) -> int:
         ) if given]  # fmt: skip
         if unused:
             raise UserError(
-                f"{', '.join(unused)} does not apply with --robot: it times the fast MHE "
-                "against IPOPT alone"
+                f"{', '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply with "
+                "--robot: it times the fast MHE against IPOPT alone"
             )
         from continuum_mhe.io.robot_file import read_robot
 
         robot_report = run_robot_benchmark(
-            read_robot(args.robot), args.horizons, args.duration, args.repeats
+            read_robot(args.robot), args.horizons, args.duration, args.repeats, say=_say
         )
         print_robot_report(robot_report)
         if args.json:
             _write_json(args.json, robot_report, args)
         return 0
+    if 0 < args.memory_samples < MIN_MEMORY_SAMPLES:
+        raise UserError(
+            f"--memory-samples {args.memory_samples}: the memory check fits its slope over at "
+            f"least {MIN_MEMORY_SAMPLES} samples (the window full and warmed up first); 0 "
+            "skips it"
+        )
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
     if args.loss_horizons and "fast" not in methods:
         raise UserError(
@@ -123,12 +132,17 @@ def run(args: argparse.Namespace) -> int:
         None if args.loss_horizons is None else tuple(args.loss_horizons),
         args.repeats,
         args.acados,
-        say=lambda line: print(f"{PROG} benchmark: {line}", file=sys.stderr, flush=True),
+        say=_say,
     )
     print_report(report)
     if args.json:
         _write_json(args.json, report, args)
     return 0
+
+
+def _say(line: str) -> None:
+    """A progress line on stderr."""
+    print(f"{PROG} benchmark: {line}", file=sys.stderr, flush=True)
 
 
 DESCRIPTION = (
