@@ -171,7 +171,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--robot",
         metavar="ROBOT.toml",
-        help="instead: fast MHE against IPOPT on this robot with raw IMUs (direct model)",
+        help="instead: fast MHE against IPOPT on this constant-curvature robot with raw "
+        "IMUs (direct model); a tendon robot is not timed here (the fast MHE does not take "
+        "its model)",
     )
     p.add_argument(
         "--skip",
