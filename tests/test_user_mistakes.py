@@ -3491,3 +3491,45 @@ def test_a_robot_or_formulation_given_before_the_name_is_told_the_order() -> Non
     with pytest.raises(UserError, match=r"^make_estimator takes the method first") as info:
         make_estimator(formulation, "ekf")  # type: ignore[arg-type]
     assert len(str(info.value)) < 200
+
+
+def test_an_estimate_s_recorded_mounting_holds_with_length_and_is_warned_with_a_robot(
+    tmp_path, capsys
+) -> None:
+    """A hanging robot's estimate (its options line records ``z-down``) read with
+    ``--length`` alone keeps its mounting (it was drawn standing, silently); with a robot
+    file that says ``z-up`` the turn is warned of, as ``--mounting z-up`` is."""
+    import argparse
+
+    from continuum_mhe.cli.robot_options import estimate_robot
+
+    m, t, e = (str(tmp_path / n) for n in ("m.csv", "t.csv", "e.csv"))
+    assert main(["simulate", "paper3d", "-o", m, "--truth", t, "--duration", "1",
+                 "--mounting", "z-down"]) == 0  # fmt: skip
+    assert main(["estimate", m, "-o", e, "--mounting", "z-down", "--method", "ekf"]) == 0
+    capsys.readouterr()
+    args = argparse.Namespace(robot=None, length=0.2, mounting=None)
+    assert estimate_robot(args, e, "drawn").mounting == "z-down"
+    up = tmp_path / "up.toml"
+    up.write_text('mounting = "z-up"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n')
+    said: list[str] = []
+    robot = estimate_robot(argparse.Namespace(robot=str(up)), e, "drawn", said)
+    assert robot.mounting == "z-up" and len(said) == 1
+    assert "was estimated with mounting z-down (its options line), but" in said[0]
+
+
+def test_view_of_a_tendon_estimate_whose_tensions_file_is_gone_names_it(tmp_path, capsys) -> None:
+    """A tendon robot's estimate whose options line names a tensions file that is not
+    there: ``view`` draws the tips alone and says which file it looked for (it said only
+    the generic note)."""
+    from continuum_mhe.cli.view import _recorded_tensions
+    from continuum_mhe.io.robot_file import read_robot
+
+    est = tmp_path / "e.csv"
+    est.write_text(
+        '# options = {robot = "tendon-two-section", inputs = "gone_tensions.csv"}\n'
+        "t,x,y,z,status\n0,0,0,0.4,ok\n"
+    )
+    assert _recorded_tensions(str(est), read_robot("tendon-two-section")) is None
+    err = capsys.readouterr().err
+    assert "was estimated with --inputs gone_tensions.csv (its options line), which is not" in err

@@ -9,6 +9,7 @@ import math
 import sys
 import warnings
 from collections.abc import Sequence
+from dataclasses import replace
 
 from continuum_mhe.cli.config import beside, recorded_option
 from continuum_mhe.cli.program import PROG
@@ -99,8 +100,10 @@ def estimate_robot(
     args: argparse.Namespace, path: str, use: str, warned: list[str] | None = None
 ) -> Robot:
     """The robot an estimate CSV ``path`` was made on, for a command that reads it:
-    ``--robot``, or one section of ``--length`` (and ``--mounting``) where one is
-    given; else the robot the estimate's options line records, where it can be read
+    ``--robot``, or one section of ``--length`` (and ``--mounting``, else the mounting
+    the estimate's options line records) where one is given; a ``--robot`` or
+    ``--mounting`` that turns the recorded mounting over is warned of; else the robot
+    the estimate's options line records, where it can be read
     (said in a note ending in ``use``, what the command does on it); else one section
     of :data:`DEFAULT_LENGTH`. ``warned``: where a warning goes (printed when None)."""
     robot = None if robot_given(args) else recorded_robot(path, use)
@@ -108,8 +111,19 @@ def estimate_robot(
         return robot
     robot = robot_from_args(args)
     line = ""
+    recorded_way = recorded_mounting(path)
     if args.robot:
         line = other_recorded_robot(path, args.robot, robot)
+        if not line and recorded_way is not None and recorded_way != robot.mounting:
+            line = (
+                f"{path} was estimated with mounting {recorded_way} (its options line), but "
+                f"{args.robot} says {robot.mounting}: the robot file's is used, which turns "
+                "the estimate's base over"
+            )
+    elif getattr(args, "mounting", None) is None:
+        # --length alone: the estimate's own mounting, as its options line records it
+        if recorded_way in ("z-up", "z-down") and recorded_way != robot.mounting:
+            robot = replace(robot, mounting="z-down" if recorded_way == "z-down" else "z-up")
     elif getattr(args, "mounting", None) is not None:
         recorded = recorded_mounting(path)
         if recorded is not None and recorded != args.mounting:

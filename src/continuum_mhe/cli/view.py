@@ -43,12 +43,19 @@ def run(args: argparse.Namespace) -> int:
 def _recorded_tensions(estimates: str, robot: Robot) -> str | None:
     """For a tendon robot (``robot``), the tensions file the estimate's options line
     names where it is a file here, said in a note, as ``plot`` takes it; else None."""
-    from continuum_mhe.cli.config import recorded_tensions
+    from continuum_mhe.cli.config import recorded_option, recorded_tensions
 
     if robot.backbone is None or not robot.n_tendons:
         return None
     recorded = recorded_tensions(estimates)
     if recorded is None:
+        named = recorded_option(estimates, "inputs")
+        if isinstance(named, str):  # the file the options line names is not here
+            print(
+                f"{PROG}: note: {estimates} was estimated with --inputs {named} (its options "
+                "line), which is not there: the tips alone are drawn (pass --inputs)",
+                file=sys.stderr,
+            )
         return None
     print(recorded.note(estimates), file=sys.stderr)
     return recorded.path
