@@ -3533,3 +3533,24 @@ def test_view_of_a_tendon_estimate_whose_tensions_file_is_gone_names_it(tmp_path
     assert _recorded_tensions(str(est), read_robot("tendon-two-section")) is None
     err = capsys.readouterr().err
     assert "was estimated with --inputs gone_tensions.csv (its options line), which is not" in err
+
+
+def test_evaluate_of_a_truth_that_ends_early_says_so_after_skip_start(
+    paper3d_pair, tmp_path, capsys
+) -> None:
+    """A truth that ends at 3.6 s of a 6 s run, scored with --skip-start: what is left of
+    it decides whether it covers part of the run (from 2.6 s: that part's warning, not
+    'the files' times do not match'); where no rows are left, the message says the truth
+    ends there, not only that the times do not match."""
+    lines = Path(paper3d_pair["t"]).read_text().splitlines()
+    head = [ln for ln in lines if not ln[:1].isdigit()]
+    rows = [ln for ln in lines if ln[:1].isdigit() and float(ln.split(",")[0]) <= 3.6]
+    early = tmp_path / "early.csv"
+    early.write_text("\n".join([*head, *rows]) + "\n")
+    e = str(paper3d_pair["e"])
+    assert main(["evaluate", e, str(early), "--skip-start", "2.6"]) == 0
+    err = capsys.readouterr().err
+    assert "which covers that part of the run alone" in err and "do not match" not in err
+    assert main(["evaluate", e, str(early), "--skip-start", "4.5"]) == 2
+    err = capsys.readouterr().err
+    assert "or the truth ends at t = 3.6 s and --skip-start scores from t = 4.5 s" in err

@@ -87,9 +87,21 @@ def _align(
     if interpolated:
         note = interpolated_note(path_truth, path_est, k, n, truth_sparser(t_est, t_truth))
         print(f"{PROG}: note: {note}", file=sys.stderr)
-    spanned = spans_the_truth(t_est, i_est, t_truth)
+    # the truth from where the scores start (--skip-start): a truth of part of the run
+    # is judged by what is left of it there
+    scored_truth = t_truth if scored_from is None else t_truth[t_truth >= scored_from]
+    spanned = spans_the_truth(t_est, i_est, scored_truth)
     comparable = comparable_rows(t_est, t_truth)
     problem, warning = rows_matched(path_est, path_truth, k, n, interpolated, spanned, comparable)
+    if scored_from is not None and len(t_truth) and float(t_truth[-1]) < float(t_est[-1]):
+        # a truth that ends early, --skip-start cutting into what is left of it
+        cut = (
+            f"; or the truth ends at t = {time_text(float(t_truth[-1]))} s and --skip-start "
+            f"scores from t = {time_text(scored_from)} s: few of those rows, or none, have "
+            "a truth"
+        )
+        problem = problem and problem + cut
+        warning = warning and ("files' times do not match" in warning and warning + cut or warning)
     if problem:
         first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
         raise InputError(problem + _offset_hint(first, t_est, t_truth))
