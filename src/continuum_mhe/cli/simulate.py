@@ -104,7 +104,8 @@ def run(args: argparse.Namespace) -> int:
     if beyond:
         print(
             f"{PROG}: note: the {args.scenario} motion bends {beyond}: estimates there are "
-            "at-bound (theta_max is the robot's limit)",
+            "at-bound (theta_max is the robot's limit; estimate --theta-max, or the robot "
+            "file's theta_max, raises it)",
             file=sys.stderr,
         )
     mounted = [str(i + 1) for i, place in enumerate(robot.imus) if any(place.mount_rpy)]
