@@ -598,8 +598,8 @@ def test_the_robot_benchmark_takes_a_robot_of_one_section() -> None:
 
 
 def test_a_memory_check_too_short_to_fit_is_refused_before_the_run(capsys) -> None:
-    """``--memory-samples`` of a few samples fitted its slope on a window still growing
-    (84 MiB a sample from 2), or failed after every timing was done: refused at once."""
+    """``--memory-samples`` of a few samples would fit its slope on a window still
+    growing, or fail after every timing is done: it is refused before the run."""
     from continuum_mhe.cli import main
 
     argv = ["benchmark", "--horizons", "10", "--duration", "1", "--memory-samples", "2"]

@@ -1122,9 +1122,8 @@ def test_a_board_on_its_side_keeps_the_robot_file_s_roll(
 ) -> None:
     """A board mounted on its side (``mount_rpy = [0, 90, 0]``: its x axis along the
     backbone): at rest gravity lies along its x axis, about which the roll turns it, so
-    the roll measured is the noise's (17, -110 and 61 degrees on three rests in a
-    trial, and the written file then 26 mm off): the robot file's roll is kept, with a
-    note, and the pitch is measured."""
+    the roll a rest measures is the noise's: the robot file's roll is kept, with a
+    note, and the pitch is measured (three rests, three draws of the noise)."""
     robot = tmp_path / "side.toml"
     robot.write_text(
         'mounting = "z-up"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n'

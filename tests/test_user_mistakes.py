@@ -3497,8 +3497,8 @@ def test_an_estimate_s_recorded_mounting_holds_with_length_and_is_warned_with_a_
     tmp_path, capsys
 ) -> None:
     """A hanging robot's estimate (its options line records ``z-down``) read with
-    ``--length`` alone keeps its mounting (it was drawn standing, silently); with a robot
-    file that says ``z-up`` the turn is warned of, as ``--mounting z-up`` is."""
+    ``--length`` alone keeps that mounting; with a robot file that says ``z-up`` the
+    turn is warned of, as ``--mounting z-up`` is."""
     import argparse
 
     from continuum_mhe.cli.robot_options import estimate_robot
@@ -3520,8 +3520,7 @@ def test_an_estimate_s_recorded_mounting_holds_with_length_and_is_warned_with_a_
 
 def test_view_of_a_tendon_estimate_whose_tensions_file_is_gone_names_it(tmp_path, capsys) -> None:
     """A tendon robot's estimate whose options line names a tensions file that is not
-    there: ``view`` draws the tips alone and says which file it looked for (it said only
-    the generic note)."""
+    there: ``view`` draws the tips alone and says which file it looked for."""
     from continuum_mhe.cli.view import _recorded_tensions
     from continuum_mhe.io.robot_file import read_robot
 

@@ -100,8 +100,10 @@ def _align(
             f"scores from t = {time_text(scored_from)} s: few of those rows, or none, have "
             "a truth"
         )
-        problem = problem and problem + cut
-        warning = warning and ("files' times do not match" in warning and warning + cut or warning)
+        if problem:
+            problem += cut
+        if "files' times do not match" in warning:  # (not the part-of-the-run warning)
+            warning += cut
     if problem:
         first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
         raise InputError(problem + _offset_hint(first, t_est, t_truth))

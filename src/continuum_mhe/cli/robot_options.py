@@ -10,10 +10,12 @@ import sys
 import warnings
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import cast
 
 from continuum_mhe.cli.config import beside, recorded_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import InputError
+from continuum_mhe.model.imu import MOUNTINGS, Mounting
 from continuum_mhe.model.robot import Robot
 
 #: One section's length (m) where neither ``--robot`` nor ``--length`` gives one.
@@ -122,16 +124,14 @@ def estimate_robot(
             )
     elif getattr(args, "mounting", None) is None:
         # --length alone: the estimate's own mounting, as its options line records it
-        if recorded_way in ("z-up", "z-down") and recorded_way != robot.mounting:
-            robot = replace(robot, mounting="z-down" if recorded_way == "z-down" else "z-up")
-    elif getattr(args, "mounting", None) is not None:
-        recorded = recorded_mounting(path)
-        if recorded is not None and recorded != args.mounting:
-            line = (
-                f"{path} was estimated with mounting {recorded} (its options line), not "
-                f"--mounting {args.mounting}: the given one is used, which turns the "
-                "estimate's base over: leave --mounting out to use the recorded one"
-            )
+        if recorded_way in MOUNTINGS and recorded_way != robot.mounting:
+            robot = replace(robot, mounting=cast(Mounting, recorded_way))
+    elif recorded_way is not None and recorded_way != args.mounting:
+        line = (
+            f"{path} was estimated with mounting {recorded_way} (its options line), not "
+            f"--mounting {args.mounting}: the given one is used, which turns the "
+            "estimate's base over: leave --mounting out to use the recorded one"
+        )
     if line and warned is not None:
         warned.append(line)
     elif line:

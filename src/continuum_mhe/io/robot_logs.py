@@ -659,8 +659,8 @@ def read_imu_log(
             stacklevel=2,
         )
     stamp = "header.stamp must be ROS time (sec, and nanosec in ns)"
+    ns = np.array(stamps, dtype=np.int64)
     if stamped:  # each second's stamps bunched after its start: nanosec read in microseconds
-        ns = np.array(stamps, dtype=np.int64)
         within = ns % 1_000_000_000
         span = float(ns[-1] - ns[0]) / 1e9
         if span >= MICROSECOND_NANOSEC_SPAN_S and within.min() < within.max() < 1_000_000:
@@ -670,7 +670,7 @@ def read_imu_log(
                 f"nanosec? {stamp}"
             )
     t0 = stamps[0]
-    t = (np.array(stamps, dtype=np.int64) - t0) / 1e9
+    t = (ns - t0) / 1e9
     check_time_steps(
         f"{p}: topic {name}", "header stamps advance", t,
         f"{stamp}: milliseconds in sec?", f"{stamp}: microseconds in nanosec?",

@@ -7,8 +7,9 @@
   :meth:`DeviceClock.expect_restart` was called. The time base is broken there: the
   axis continues after the wall-clock time the device was silent, and the caller
   restarts the estimator. A caller that can hold a sample asks :meth:`jumps_back`
-  first (a step back of more than :data:`HELD_BACK_S`: a board reset within its
-  clock's first second steps back by less than ``restart_jump_s``) and keeps such a
+  first (also a step back of more than :data:`HELD_BACK_S` to under half the last
+  time: a board reset within its clock's first second steps back by less than
+  ``restart_jump_s``) and keeps such a
   sample until the next one says whether the device restarted (:meth:`confirms_jump`:
   it follows the held one, within :data:`CONFIRM_MS`, instead of the old clock; placed
   with ``confirmed``) or the held one's ``t_ms`` was corrupted (an out-of-order sample).
