@@ -77,8 +77,8 @@ def test_no_row_after_a_forced_restart_is_ok_before_readings_confirm_it(
 ) -> None:
     """The shipped ``spatial`` rod (raw IMUs; its tip twists 120 degrees about the
     tangent, which the PCC model cannot follow) restarts about 200 times on readings
-    that contradict the estimate; a restart's fit of one reading was ``ok`` at the next
-    sample once, 150 mm off (t = 1.44 s, MHE). No ``ok`` row is 50 mm off."""
+    that contradict the estimate. No ``ok`` row is 50 mm off, the sample after a restart's
+    fit of one reading included (t = 1.44 s, MHE, 150 mm off if it were ``ok``)."""
     data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
     out = tmp_path / "e.csv"
     argv = ["estimate", str(data / "spatial_raw.csv"), "--robot", "two-section",
@@ -123,7 +123,7 @@ def test_many_restarts_say_the_readings_do_not_fit_the_robot(
 
 def test_a_burst_of_wild_readings_does_not_count_as_a_held_back_chain() -> None:
     """A formulation whose bad-start restarts stop after three in a row: a burst of
-    four wild readings restarts three times (on it, within it, after it); no restart was
+    four wild readings restarts three times (on it, within it, after it); no restart is
     held back, so ``bad_start_chains`` stays 0 (it counts the chains in which the check
     held one back, as ``estimate``'s "stopped restarting" says). From the second restart
     of the chain the rows are ``uncertain`` until the last one has held for the
@@ -569,8 +569,9 @@ def _blanked(source: Path, out: Path, imu_rows: dict[int, range]) -> Path:
 def test_a_late_imus_restart_waits_for_a_sample_every_imu_reads(imu_2_late, tmp_path, capsys):
     """IMU 2 missing in the first three samples and IMU 1 in the fourth (IMU 2's first
     reading on a sample without IMU 1's): the restart waits for the fifth, the first
-    that both read (it was dropped, and the MHE 12 mm off); IMUs at different rates (IMU
-    2 on every other sample from the first) restart nothing, whatever restarts else."""
+    that both read (not dropped, which would leave the MHE 12 mm off); IMUs at different
+    rates (IMU 2 on every other sample from the first) restart nothing, whatever
+    restarts else."""
     _, whole, truth = imu_2_late
     raw = whole.parent / "raw.csv"
     partial = _blanked(raw, tmp_path / "partial.csv", {2: range(3), 1: range(3, 4)})

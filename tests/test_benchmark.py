@@ -304,8 +304,8 @@ def test_an_acados_solver_that_does_not_build_is_one_line_and_leaves_no_folder(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A make that fails while acados builds its generated solver: a UserError naming
-    acados and --skip acados (the command line's one line, exit 2; it was an internal
-    error, exit 70), and the generated code's temporary folder removed (it was left)."""
+    acados and --skip acados (the command line's one line, exit 2, not an internal
+    error, exit 70), and the generated code's temporary folder removed, not left."""
     folder = os.environ.get(ACADOS_DIR_VARIABLE)
     why = peers.missing_peers(folder).get("acados")
     if why is not None:
@@ -562,10 +562,10 @@ def test_the_peers_multipliers_move_by_one_sample_as_their_states(ng: int) -> No
 def test_empty_values_and_a_loss_table_without_the_fast_mhe_are_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], needle: str
 ) -> None:
-    """An empty ``--robot`` ran the whole peer benchmark, an empty ``--acados`` named an
-    install command without a folder, empty horizons were dropped, and a loss table
-    asked for with the fast MHE skipped vanished: one line each, exit 2, before
-    anything runs."""
+    """An empty ``--robot``, an empty ``--acados``, an empty horizon and a loss table
+    asked for with the fast MHE skipped: one line each, exit 2, before anything runs
+    (not the whole peer benchmark, an install command without a folder, the horizon
+    dropped or the table left out without a word)."""
     from continuum_mhe.cli import main
 
     out = tmp_path / "bench.json"

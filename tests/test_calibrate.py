@@ -478,11 +478,11 @@ def test_calibrate_refuses_most_imus_upside_down_against_the_mounting(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A robot hanging from its base (its tip board mounted upside down) described as
-    standing: at rest IMUs 1 and 2 of 3 read gravity upside down, IMU 3 upright. Only a
-    rest in which every IMU did was refused: calibrated, IMUs 1 and 2 got rolls of 180
-    degrees and the estimates were the truth mirrored, 197 mm off, every row ok. Refused
-    in one line naming mounting, nothing written; described as hanging, IMU 3 is
-    calibrated as upside down, with a warning."""
+    standing: at rest IMUs 1 and 2 of 3 read gravity upside down, IMU 3 upright. Refused
+    in one line naming mounting, nothing written, as a rest in which every IMU reads
+    upside down is (calibrated, IMUs 1 and 2 would get rolls of 180 degrees and the
+    estimates would be the truth mirrored, 197 mm off, every row ok); described as
+    hanging, IMU 3 is calibrated as upside down, with a warning."""
     from continuum_mhe.cli import main
 
     sections = "".join(f"[[section]]\nlength = {v}\ntheta_max = 3.0\n" for v in (0.12, 0.1, 0.08))
@@ -521,9 +521,9 @@ def test_calibrate_refuses_most_imus_upside_down_against_the_mounting(
 
 
 def test_calibrate_reads_files_and_writes_robot_files(tmp_path, capsys) -> None:
-    """--from - (standard input) was read twice and said it had no header: refused in one
+    """--from - (standard input, which calibrate would read twice) is refused in one
     line, as a pipe is; --write-robot takes a .toml name; a nan reading names what
-    calibrate needs (it pointed to --skip-bad, which calibrate does not have)."""
+    calibrate needs, not --skip-bad, which calibrate does not have."""
     import sys
     from io import StringIO
     from pathlib import Path
@@ -555,8 +555,8 @@ def test_calibrate_reads_files_and_writes_robot_files(tmp_path, capsys) -> None:
 
 
 def test_a_rest_recording_too_short_to_calibrate_is_refused(tmp_path, capsys) -> None:
-    """Two rows (0.02 s) were calibrated and written without a word, and an IMU read in
-    3 rows of 601 too; the refusals named no file: one line naming it now."""
+    """Two rows (0.02 s), or an IMU read in 3 rows of 601, are refused in one line naming
+    the file, nothing written (not calibrated without a word)."""
     from pathlib import Path
 
     from continuum_mhe.cli import main
@@ -595,7 +595,7 @@ def test_a_rest_recording_too_short_to_calibrate_is_refused(tmp_path, capsys) ->
 
 
 def test_the_serial_line_s_options_with_a_recording_are_refused(capsys) -> None:
-    """--seconds (and --baud, --format, --port) with --from did nothing, silently."""
+    """--seconds (and --baud, --format, --port) with --from are refused, not ignored."""
     from pathlib import Path
 
     from continuum_mhe.cli import main
@@ -722,8 +722,8 @@ def test_a_rest_in_which_an_imu_reads_far_off_straight_warns(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """One IMU 45 degrees off straight at rest (a robot left bent: its section bent 45
-    degrees, the other IMU straight) was taken as its mounting without a word: a warning
-    names it, since a board is mounted flat, on its side or upside down. 25 degrees, and
+    degrees, the other IMU straight) is not taken as its mounting without a word: a
+    warning names it, since a board is mounted flat, on its side or upside down. 25 degrees, and
     a board on its side (90), say nothing (one upside down: the test above)."""
     path = tmp_path / "rest.csv"
     _two_imu_rest(path, (45.0, 1.0))
@@ -881,7 +881,7 @@ def test_a_simulated_rest_calibrates_a_robot_of_three_sections(
     hardware the recording ``calibrate --from`` takes: on a three-section robot whose
     second IMU is mounted at roll 3 and pitch -2 degrees, the written robot file holds
     that mounting (to the readings' noise) and each IMU's gyro bias, and reading it back
-    says nothing of radians (a well-mounted IMU's near-zero angles were taken for
+    says nothing of radians (a well-mounted IMU's near-zero angles are not taken for
     radians)."""
     import warnings
 
@@ -914,7 +914,7 @@ def test_a_simulated_tilt_rest_is_one_calibrate_takes(
 ) -> None:
     """``simulate rest`` with tilt IMUs (the default) draws a still IMU's noise, not the
     2 degrees of a moving one (the IMU's own acceleration in it), so that ``calibrate
-    --from`` takes it (it was refused as a robot that moved); an explicit
+    --from`` takes it (not refused as a robot that moved); an explicit
     ``--noise-deg`` is kept. The still noise is the raw accelerometer's at rest, as
     tilt."""
     from continuum_mhe.io.state_tables import read_state_table
@@ -1028,7 +1028,7 @@ def test_write_robot_takes_a_robot_file_that_starts_with_a_byte_order_mark(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A robot file saved with a UTF-8 byte-order mark (as some Windows editors write
-    it) is read by every command; ``--write-robot`` rewrites it too (it stopped as an
+    it) is read by every command; ``--write-robot`` rewrites it too (not an
     internal error in the TOML writer), without the mark, with the same mountings as
     from the file without it."""
     data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data"

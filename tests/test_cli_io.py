@@ -246,8 +246,8 @@ def test_bad_measurement_file_is_rejected_cleanly(tmp_path, capsys, case):
 @pytest.mark.parametrize("case", ["degrees", "roll-pitch-swapped"])
 def test_skip_bad_does_not_read_a_files_wrong_unit_or_columns_as_dropouts(tmp_path, capsys, case):
     """Angles in degrees, or roll and pitch swapped, are the file's, not a few rows'
-    glitches: refused with --skip-bad as without it (they were read as dropouts and the
-    rest estimated with the wrong unit or columns, `ok` and far off)."""
+    glitches: refused with --skip-bad as without it (not read as dropouts with the rest
+    estimated with the wrong unit or columns, `ok` and far off)."""
     text, expected = BAD_INPUTS[case]
     meas = _write(tmp_path / "meas.csv", text)
     code = main(["estimate", str(meas), "--skip-bad", "-o", str(tmp_path / "est.csv")])
@@ -379,7 +379,8 @@ def test_evaluate_rejects_bad_truth(tmp_path, capsys):
      "0,0,0,0.2,0,0,ok,1\n0.05,0,-2e9,0.2,0,0,ok,1\n")],
 )  # fmt: skip
 def test_evaluate_refuses_values_beyond_any_robot(tmp_path, capsys, which, text):
-    """A value of 1e300 m gave an infinite mean error (and ``Infinity`` in --json)."""
+    """A value of 1e300 m in the truth or the estimate is refused in one line naming the
+    file and line (not an infinite mean error, nor ``Infinity`` in --json)."""
     good = {"truth": "t,x,y,z\n0,0,0,0.2\n0.05,0,0,0.2\n",
             "estimate": "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n"}  # fmt: skip
     files = {k: _write(tmp_path / f"{k}.csv", text if k == which else good[k]) for k in good}
@@ -410,7 +411,8 @@ def test_evaluate_reads_a_standard_deviation_beyond_the_value_limit(tmp_path, ca
 
 
 def test_evaluate_refuses_an_estimate_given_as_the_truth(tmp_path, capsys):
-    """The estimate against itself gave a 0 mm error and every coverage 1.000."""
+    """An estimate given as the truth (the estimate against itself: a 0 mm error and
+    every coverage 1.000) is refused in one line naming it."""
     est = _write(
         tmp_path / "est.csv",
         "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n0.05,0,0,0.2,0,0,ok,1\n",
@@ -681,7 +683,7 @@ def test_simulate_writes_both_files_or_neither(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.endswith("--truth names the measurement file -o too; give two files")
     assert len(err.splitlines()) == 1 and not meas.exists()
-    # a figure's name for either CSV (it was written as CSV under that name)
+    # a figure's name for either CSV is refused (not written as CSV under that name)
     for argv in (
         ["-o", str(tmp_path / "m.png")],
         ["-o", str(meas), "--truth", str(tmp_path / "t.pdf")],
@@ -728,8 +730,8 @@ def short_demo(monkeypatch):
 
 def test_a_demo_s_estimates_are_evaluated_on_its_robot(tmp_path, capsys, short_demo) -> None:
     """The demo's estimate files record their method and --robot, as estimate's do:
-    evaluate of a two-section demo's file against its truth took the default 0.2 m
-    section and was refused until --robot was given."""
+    evaluate of a two-section demo's file against its truth takes the two-section robot
+    without --robot (not the default 0.2 m section, refused)."""
     out = tmp_path / "d"
     assert main(["demo", "--robot", "two-section", "--out", str(out)]) == 0
     assert (
@@ -746,7 +748,7 @@ def test_a_demo_of_one_section_with_its_imu_midway_runs_paper3d(
     tmp_path, capsys, short_demo
 ) -> None:
     """A one-section robot whose IMU is not at the tip gets the one-section scenario
-    (paper3d); it was refused as a robot of too few sections for the spatial one."""
+    (paper3d), not refused as a robot of too few sections for the spatial one."""
     robot = tmp_path / "mid.toml"
     robot.write_text("[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\nat = 0.5\n")
     out = tmp_path / "d"
@@ -905,8 +907,8 @@ def test_evaluate_takes_the_length_the_estimate_records(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """An estimate made with --length 0.3 is evaluated on 0.3 m without --length (its
-    options line records it; the tip error in % of 0.2 m and the warning naming 0.3
-    disagreed), said in a note; --length given wins; the default length records
+    options line records it, so that the tip error in % is of 0.3 m, as the note
+    says), said in a note; --length given wins; the default length records
     nothing to say."""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
@@ -925,7 +927,7 @@ def test_evaluate_takes_the_length_the_estimate_records(
     assert share == pytest.approx(100 * tip_mm / 300, abs=0.01)
     assert main(["evaluate", str(est), str(truth), "--length", "0.3"]) == 0
     assert "note" not in capsys.readouterr().err
-    # a hanging robot of the default length: its mounting is recorded too (it was not)
+    # a hanging robot of the default length: its mounting is recorded too
     meas_down, est_down = tmp_path / "md.csv", tmp_path / "ed.csv"
     assert main(["simulate", "paper3d", "-o", str(meas_down), "--duration", "2",
                  "--mounting", "z-down"]) == 0  # fmt: skip
@@ -1222,7 +1224,8 @@ def test_simulate_says_where_the_motion_bends_past_theta_max(tmp_path, capsys):
 def test_plot_and_view_of_an_estimate_without_its_tip_columns_is_one_line(
     tmp_path, capsys, command
 ):
-    """A table without x, y, z was an internal error (exit 70) in plot."""
+    """A table without x, y, z is refused in one line by plot and view, not an internal
+    error (exit 70)."""
     est = _write(tmp_path / "est.csv", "t,theta,phi,status\n0,0.1,0.2,ok\n0.05,0.1,0.2,ok\n")
     out = {"plot": ["-o", str(tmp_path / "f.png")], "view": ["--save", str(tmp_path / "f.rrd")]}
     assert main([command, str(est), *out[command]]) == 2
@@ -1262,8 +1265,8 @@ def test_truth_at_follows_a_turning_angle_across_pi(
 
 def test_evaluate_takes_the_truth_as_plot_does_too(tmp_path, capsys):
     """``evaluate EST --truth TRUTH`` (as ``plot`` and ``view`` take it) scores as
-    ``evaluate EST TRUTH``; both, or neither, is one line, exit 2. (``--truth`` was read
-    as an abbreviation of ``--truth-shift``: "expected a number".)"""
+    ``evaluate EST TRUTH``; both, or neither, is one line, exit 2. (``--truth`` is not
+    read as an abbreviation of ``--truth-shift``: "expected a number".)"""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert (
         main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--duration", "2"])
@@ -1352,7 +1355,7 @@ def test_a_second_demo_in_its_own_folder_replaces_its_files(tmp_path, monkeypatc
 def test_an_options_line_that_makes_no_robot_is_said(tmp_path, capsys, edit, said):
     """An estimate whose options line records a length or mounting that makes no robot
     (edited by hand) is evaluated on the default section with a note naming the value
-    (it was taken silently, or a mounting read as z-up); the recorded 0.3 m is taken."""
+    (not taken silently, nor a mounting read as z-up); the recorded 0.3 m is taken."""
     meas, truth, est = (tmp_path / n for n in ("m.csv", "t.csv", "e.csv"))
     assert (
         main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth", str(truth)])
@@ -1375,8 +1378,7 @@ def test_an_options_line_that_makes_no_robot_is_said(tmp_path, capsys, edit, sai
 def test_a_file_that_fails_to_read_is_named_in_the_error(tmp_path, capsys, command) -> None:
     """A read that fails after the file opened (``/proc/self/mem`` opens and then gives
     an I/O error, as a device or a lost network share may) is one line naming the file,
-    exit 2: the error carried no file name and was said as "reading or writing a
-    file"."""
+    exit 2, not a "reading or writing a file" error without the file's name."""
     from continuum_mhe.cli import main
 
     meas, est, truth = tmp_path / "m.csv", tmp_path / "e.csv", tmp_path / "t.csv"
@@ -1396,7 +1398,7 @@ def test_a_file_that_fails_to_read_is_named_in_the_error(tmp_path, capsys, comma
 
 def test_plot_of_a_folder_without_results_says_so_before_its_options(tmp_path, capsys) -> None:
     """``plot FOLDER -o P.png`` on a folder that ``reproduce`` did not write: the folder
-    holds no results (it said the folder was a reproduce folder and -o was the fault)."""
+    holds no results (not that the folder is a reproduce folder and -o the fault)."""
     from continuum_mhe.cli import main
 
     folder = tmp_path / "empty"
@@ -1409,8 +1411,8 @@ def test_plot_of_a_folder_without_results_says_so_before_its_options(tmp_path, c
 
 def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_path, capsys):
     """A truth row with a NaN or an empty cell (a marker the motion capture lost):
-    ``evaluate`` compares the other rows and counts it "without a finite truth" (it was
-    refused, and "NaN or infinite value" named no column), and leaves out a column of
+    ``evaluate`` compares the other rows and counts it "without a finite truth" (not
+    refused with a "NaN or infinite value" that names no column), and leaves out a column of
     text that no output is named as; a reader that takes no gaps (``read_state_table``
     without ``gaps``) names the line and the column."""
     from continuum_mhe.cli import main
@@ -1460,9 +1462,9 @@ def test_a_gap_in_a_truth_file_is_a_row_without_truth_and_named_elsewhere(tmp_pa
 
 
 def test_a_value_of_many_digits_is_named_short(tmp_path, capsys) -> None:
-    """A field of 100,000 digits (a logger's garbage; it reads as inf) was echoed whole
-    in the one-line error, 100 KB long: the value is cut to a few dozen characters, in
-    a recording and in a truth file alike."""
+    """A field of 100,000 digits (a logger's garbage; it reads as inf) is not echoed
+    whole in the one-line error (100 KB long): the value is cut to a few dozen
+    characters, in a recording and in a truth file alike."""
     from continuum_mhe.cli import main
 
     digits = "1" * 100_000

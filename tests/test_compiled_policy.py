@@ -405,7 +405,7 @@ def test_a_formulation_pickles_and_copies_after_an_estimator_used_it(
     name: str, sections: int, method: str
 ) -> None:
     """A formulation that an estimator has used (its cached symbolic expressions and
-    compiled checks built) pickles and copies as a fresh one does (it raised
+    compiled checks built) pickles and copies as a fresh one does (not a
     TypeError or "Cannot pickle SX objects"), and the copy estimates alike."""
     import copy
     import pickle
@@ -428,7 +428,7 @@ def test_a_formulation_pickles_and_copies_after_an_estimator_used_it(
 
 def test_a_refused_sample_is_refused_before_any_sample_of_the_call_is_stepped() -> None:
     """A tilt in degrees, an infinite reading or a repeated time at sample 3 of a call:
-    the UserError comes before samples 0 to 2 are stepped (they were stepped and their
+    the UserError comes before samples 0 to 2 are stepped (not after, with their
     estimates lost), so the corrected call gives a fresh run's estimates."""
     rec = simulate("paper3d", duration=1.0, seed=1)
     t, z = rec.t[:6].copy(), rec.z[:6].copy()

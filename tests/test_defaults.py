@@ -202,8 +202,8 @@ def test_the_inconsistency_line_counts_and_names_what_to_check() -> None:
     assert line is not None and "--own-acceleration models it)" in line
     assert "quiet readings at 50 Hz or more, as simulate --imu raw writes them" in line
     # a robot faster than the motion model (a bending plane turning at 2 turns a second:
-    # 96 % of the rows inconsistent, every one but 16 ok with --accel-psd 1000) was told
-    # only to check its robot file; where --accel-psd sets the process noise it is named
+    # 96 % of the rows inconsistent, every one but 16 ok with --accel-psd 1000) is told
+    # more than to check its robot file: where --accel-psd sets the process noise it is named
     assert "a larger --accel-psd, NoiseSettings.bend_accel_psd, follows a faster" in line
     from dataclasses import replace
 
@@ -240,8 +240,8 @@ def test_a_hanging_recording_run_from_python_on_a_z_up_robot_is_refused(method: 
     """The library's ``run`` checks the first readings against the robot's mounting as
     the command line's reader does: arrays of a hanging two-section robot run on the
     same robot described z-up are refused in one line naming ``mounting`` and the
-    Robot's field (the UKF gave 59 of 81 rows ``ok``, 450 mm off, without it); on the
-    robot as it hangs they run."""
+    Robot's field (without the check the UKF gives 59 of 81 rows ``ok``, 450 mm off);
+    on the robot as it hangs they run."""
     from continuum_mhe.errors import UserError
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section
@@ -266,7 +266,7 @@ def test_step_and_continue_run_check_the_first_readings_against_the_mounting(met
     """``step`` and ``continue_run`` check the first 25 readings after a reset as ``run``
     checks a recording's: a hanging robot stepped as z-up is refused at its 25th sample
     in one line naming ``mounting`` (``step``: 24 estimates before it; without the check
-    they went on at the bound), and every later sample until a reset; ``continue_run``
+    they would go on at the bound), and every later sample until a reset; ``continue_run``
     refuses a first block that holds them before stepping any sample; as it hangs, both
     run on."""
     from continuum_mhe.estimators import make_estimator

@@ -55,8 +55,8 @@ def test_a_display_that_does_not_answer_is_named_before_the_viewer_starts(
     said: str,
 ) -> None:
     """``live --view`` and ``view`` with a ``DISPLAY`` whose server is gone: one line
-    naming it, exit 2, before the port or the viewer (Rerun's viewer never came up, and
-    ``live`` then waited for it for ever after Ctrl-C)."""
+    naming it, exit 2, before the port or the viewer (not a wait, for ever and past
+    Ctrl-C, for a Rerun viewer that never comes up)."""
     pytest.importorskip("rerun")
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setenv("DISPLAY", f":{FREE_DISPLAY}")

@@ -144,7 +144,7 @@ def test_slow_sampling_ekf_never_reports_absurd_bends_as_ok() -> None:
     assert ok.sum() > 20
     # an ok row is off its bound (a bend within AT_BOUND_TOL of it is at-bound) ...
     assert np.all(series.output[ok, 3] < f.robot.theta_max - AT_BOUND_TOL)
-    # ... and near the truth: the defect was ok rows 50 to 64 mm and up to 25 std off;
+    # ... and near the truth: no ok row 50 to 64 mm or up to 25 std off;
     # x and y within 4 of their std (z near straight is the linearised std's limit)
     off = np.abs(series.output[:, :3] - rec.truth[:, :3])
     assert np.all(off[ok] < 0.025)
@@ -232,7 +232,7 @@ def test_an_imu_upside_down_from_the_start_gives_no_ok_row_far_off(
     """A two-section raw recording whose second IMU's accelerometer reads negated from the
     first sample (mounted upside down, or its axes' signs wrong): a wrong shape fits a
     few of its readings in a row between the disagreeing ones, and none of those rows
-    may be ok (they were, 170 mm off with a 9 mm standard deviation)."""
+    may be ok (they are 170 mm off with a 9 mm standard deviation)."""
     robot = tmp_path / "r2.toml"
     robot.write_text(
         'mounting = "z-up"\n[[section]]\nlength = 0.16\ntheta_max = 2.5\n'

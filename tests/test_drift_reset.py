@@ -59,9 +59,7 @@ def _tip_errors(f: object, series: object) -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize("fault", ["frozen-tip-imu", "tension-off"])
-def test_a_passing_fault_no_longer_loses_the_rest_of_the_recording(
-    tmp_path: Path, fault: str
-) -> None:
+def test_a_passing_fault_keeps_the_rest_of_the_recording(tmp_path: Path, fault: str) -> None:
     """``force-29`` (raw, EKF): the tip IMU repeating one reading from 2 to 3 s, or
     tension_1 0.05 N too high from 1 to 1.2 s. Without the drift reset the estimate
     stays off to the end (over 50 mm on average after 4 s: 256 and 123 mm); with it,
@@ -120,7 +118,7 @@ def test_the_drift_reset_is_a_tendon_robots_and_off_with_zero(
 def test_a_restart_starts_the_drift_anew(tmp_path: Path) -> None:
     """Two rows drifted (a tension 0.05 N off), then a gap: the gap's restart at 2.3 s
     is the only one; the drifted rows before it do not time a drift reset of the start
-    after it (it restarted again at the next sample)."""
+    after it (which would restart it again at the next sample)."""
     f, t, z = _recording(_tension_off(tmp_path))
     kept = (t < 1.05) | (t > 2.3 - 1e-9)
     est = make_estimator("ekf", f)  # type: ignore[arg-type]
@@ -161,9 +159,8 @@ def test_the_return_of_the_tensions_after_a_fraction_of_a_second_restarts_as_a_g
     missing from 3.0 to 3.4 s, the IMUs reading throughout: those samples use no
     reading (the IMUs' model needs the tensions) and the prediction has no tensions to
     follow. Their return restarts as after a gap, keeping the sensors' states: no ok
-    row after it more than 5 mm or 4 standard deviations off. Without the gap reset
-    (``gap_reset=None``, which this restart follows) ok rows were over 10 mm off, 4 to
-    5.5 standard deviations (a trial of the library)."""
+    row after it more than 5 mm or 4 standard deviations off (``gap_reset=None``, which
+    this restart follows, leaves ok rows over 10 mm off, 4 to 5.5 standard deviations)."""
     f, t, z = _streamed_with_tensions_missing(3.0, 3.4)
     after = t >= 3.4 - 1e-9
     without = make_estimator("ekf", f, recovery=RecoverySettings(gap_reset=None))  # type: ignore[arg-type]

@@ -77,7 +77,7 @@ def test_each_command_module_defines_its_arguments_and_run():
 
 def test_every_command_has_a_row_in_the_guide_s_table_of_commands():
     """The guide's table of commands (docs/guide/commands.md) names every command of
-    the table (a new command's row was missed and nothing said so)."""
+    the table (a new command without a row fails here)."""
     from pathlib import Path
 
     from continuum_mhe.cli.program import COMMANDS
@@ -192,7 +192,7 @@ def test_the_formulation_registry_and_its_names_agree():
 
 def test_the_errors_and_warnings_the_library_raises_are_public_names():
     """Each error and warning the library raises, importable from ``continuum_mhe`` as
-    the library's guide lists them (they were only in the modules that raise them), and
+    the library's guide lists them (not only from the modules that raise them), and
     each of the kind it is documented as."""
     import continuum_mhe
     from continuum_mhe.estimators.reading_units import ReadingUnitsError

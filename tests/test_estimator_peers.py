@@ -874,8 +874,8 @@ def test_an_estimate_series_has_a_length_statuses_and_row_subsets() -> None:
 def test_a_paper_estimate_held_on_phis_bound_is_at_bound(method: str) -> None:
     """The paper formulation's phi is a state bounded by -pi and pi, which the MHE's box
     cannot wrap: where the bending plane turns past it (``straight``, seed 1) the MHE
-    holds phi on the bound, 58 rows with a zero std_phi, up to 0.36 rad off, that were
-    ``ok``. Such rows are ``at-bound``, in every estimator; no bent ``ok`` row has a
+    holds phi on the bound, 58 rows with a zero std_phi, up to 0.36 rad off, that must
+    not be ``ok``: such rows are ``at-bound``, in every estimator; no bent ``ok`` row has a
     zero standard deviation, and at most one is 0.3 rad off in phi."""
     from continuum_mhe import make_estimator, make_formulation
 

@@ -150,9 +150,9 @@ def check_window(formulation: Formulation, rec: Recorded, w: Window, res: fm.Fas
 
 #: First-order optimality of a window answer, by differences of step ``KKT_STEP`` of
 #: IPOPT's objective, relative to ``max(1, cost)``. The fast answers that stop on
-#: ``theta = 0`` above IPOPT's cost met it to 3e-10 (26 windows of the straight,
+#: ``theta = 0`` above IPOPT's cost meet it to 3e-10 (26 windows of the straight,
 #: planar-overbend and paper3d recordings, N = 2, 4, 12); their initial guesses, and
-#: the answers with ``phi`` turned by 0.05 rad, missed it by 6e-6 or more.
+#: the answers with ``phi`` turned by 0.05 rad, miss it by 6e-6 or more.
 KKT_TOL = 1e-7
 KKT_STEP = 1e-6
 

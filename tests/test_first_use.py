@@ -82,7 +82,7 @@ def test_first_estimate_compiles_nothing(tmp_path, case) -> None:
 
 def test_the_first_online_step_of_a_raw_imu_robot_imports_no_scipy() -> None:
     """An online loop's first step on two raw IMUs (the direct model with its gyro
-    biases) imports no part of scipy, whose import alone took 190 to 410 ms of that
+    biases) imports no part of scipy, whose import alone takes 190 to 410 ms of that
     step: the start's covariances are numpy's."""
     code = (
         "import sys\n"

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import ast
+import io
 import os
 import re
 import shutil
 import subprocess
 import sys
+import tokenize
 from pathlib import Path
 from typing import Any
 
@@ -30,22 +33,26 @@ def test_ruff_clean():
 
 
 def test_every_tool_answers_help():
-    """Each script of tools/ prints its usage for --help and exits 0 (seven crashed on
-    int('--help') and three ran their whole study), in one process: each run as a
-    script with --help as its argument."""
+    """Each script of tools/ prints its usage for --help (standard output starting
+    ``usage: NAME.py``) and exits 0, without reading --help as an argument or running
+    its study, in one process: each run as a script with --help as its argument."""
     code = (
-        "import runpy, sys\n"
+        "import contextlib, io, runpy, sys\n"
         "from pathlib import Path\n"
         "failed = []\n"
         "sys.path.insert(0, 'tools')\n"
         "for path in sorted(Path('tools').glob('*.py')):\n"
         "    sys.argv = [str(path), '--help']\n"
+        "    out = io.StringIO()\n"
         "    try:\n"
-        "        runpy.run_path(str(path), run_name='__main__')\n"
+        "        with contextlib.redirect_stdout(out):\n"
+        "            runpy.run_path(str(path), run_name='__main__')\n"
         "        failed.append(f'{path}: no SystemExit')\n"
         "    except SystemExit as exc:\n"
         "        if exc.code not in (0, None):\n"
         "            failed.append(f'{path}: exit {exc.code}')\n"
+        "        elif not out.getvalue().startswith(f'usage: {path.name}'):\n"
+        "            failed.append(f'{path}: no usage: {out.getvalue()[:80]!r}')\n"
         "    except BaseException as exc:\n"
         "        failed.append(f'{path}: {type(exc).__name__}: {exc}')\n"
         "print('\\n'.join(failed))\n"
@@ -290,23 +297,63 @@ HISTORY = re.compile(
     re.IGNORECASE,
 )
 
+#: more history, in the tests' docstrings and comments: what a test guards against is
+#: said as what the code does not do, not as what it did
+TEST_HISTORY = re.compile(
+    r"\bno longer\b(?! than)|\banymore\b|\b(was|were) an internal error\b"
+    r"|\((it|they) (was|were|said|gave|took|ran|raised|printed|crashed|stopped|ended)\b",
+    re.IGNORECASE,
+)
+
+#: "now" in a test's docstring (its comments narrate the steps: "buffer 0 now holds")
+DOCSTRING_NOW = re.compile(r"\bnow\b(?! and then)", re.IGNORECASE)
+
+
+def _history_lines(path: Path) -> list[tuple[int, str]]:
+    """The lines of ``path`` that hold development history, ``(number, text)``: any line
+    of a page, the code or the tools; of a test module its docstrings and comments
+    alone (its strings and patterns may spell the history out, as :data:`HISTORY`
+    does)."""
+    text = path.read_text()
+    lines = text.splitlines()
+    if path.parent != ROOT / "tests":
+        return [(n, line) for n, line in enumerate(lines, 1) if HISTORY.search(line)]
+    found = {
+        token.start[0]
+        for token in tokenize.generate_tokens(io.StringIO(text).readline)
+        if token.type == tokenize.COMMENT
+        and (HISTORY.search(token.string) or TEST_HISTORY.search(token.string))
+    }
+    for node in ast.walk(ast.parse(text)):
+        if (
+            isinstance(node, ast.Expr)
+            and isinstance(node.value, ast.Constant)
+            and isinstance(node.value.value, str)
+        ):
+            found |= {
+                n
+                for n in range(node.lineno, (node.end_lineno or node.lineno) + 1)
+                if any(p.search(lines[n - 1]) for p in (HISTORY, TEST_HISTORY, DOCSTRING_NOW))
+            }
+    return [(n, lines[n - 1]) for n in sorted(found)]
+
 
 def test_no_development_history_in_docs_or_source():
-    """The README, the documentation site, the code and the tools state what is true
-    now: no "session N", "this session", "issue #N", "previously", "an earlier core"
-    or "used to be" (the history is CHANGELOG.md's)."""
+    """The README, the documentation site, the code, the tools and the tests' docstrings
+    and comments state what is true: no development history (:data:`HISTORY`,
+    :data:`TEST_HISTORY`, :data:`DOCSTRING_NOW`; the history is CHANGELOG.md's)."""
     paths = [
         ROOT / "README.md",
         *(ROOT / "docs").rglob("*.md"),
         *(ROOT / "src").rglob("*.py"),
         *(ROOT / "tools").rglob("*.py"),
+        *(ROOT / "tests").glob("*.py"),
         *(ROOT / "csrc").glob("*.[ch]pp"),
     ]
     found = [
         f"{path.relative_to(ROOT)}:{number}: {line.strip()}"
         for path in paths
-        for number, line in enumerate(path.read_text().splitlines(), 1)
-        if HISTORY.search(line)
+        for number, line in _history_lines(path)
     ]
     assert not found, "\n".join(found)
 

@@ -125,7 +125,7 @@ def test_models_that_have_the_acceleration_or_a_twist_are_left_out() -> None:
     direct = make_formulation("direct", robot)
     for f in (replace(direct, own_acceleration=True), replace(direct, imu_twist=True)):
         assert not takes_acceleration_as_gravity(f)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"^the paper formulation has no such readings$"):
         own_acceleration_functions(make_formulation("paper"))
 
 
@@ -134,7 +134,7 @@ def test_no_ok_row_of_a_rod_leaving_its_pose_lies_far_outside_its_std(method) ->
     # the shipped tendon-drive rod with tilt IMUs: where the robot leaves a pose its tip
     # IMU accelerates at up to 0.13 g across gravity, a reading error of 7 degrees that
     # the two IMUs' four angles fit exactly; carried in the standard deviations, no ok
-    # row lies more than 4 of them off (11 did without it, each estimator), and most
+    # row lies more than 4 of them off (without it 11 do, in each estimator), and most
     # rows stay ok
     folder = default_data_path().parent / "rod2"
     f = make_formulation("bend", read_robot("two-section"))

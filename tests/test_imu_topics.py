@@ -220,8 +220,8 @@ def test_topics_whose_stamps_stand_apart_from_the_log_s_clock_warn(
 ) -> None:
     """IMU 2's header stamps 0.5 s ahead of the log's times, IMU 1's on them (a sensor
     with a clock of its own): paired by stamp, each pair joins readings taken 0.5 s
-    apart (a user's log: 91 mm off, nothing said); one warning naming the topics and
-    the offset. One topic delivered 20 ms later than the other says nothing."""
+    apart (91 mm off on a user's log): one warning naming the topics and the offset, not
+    silence. One topic delivered 20 ms later than the other says nothing."""
     ahead = [dict(streams["imu"][0]), dict(streams["imu"][1])]
     ahead[1]["log"] = ahead[1]["stamps"] - 500_000_000
     with pytest.warns(TopicClockWarning) as seen:
@@ -242,8 +242,8 @@ def test_a_wide_pair_tolerance_does_not_hide_clocks_apart(
 ) -> None:
     """IMU 2's stamps 0.3 s ahead of the log's times, paired with ``--pair-tolerance
     0.35``: the tolerance lets the pairs join readings 0.3 s apart, and the clocks are
-    said all the same (the limit was twice the tolerance given: nothing said, rows `ok`
-    38 mm off)."""
+    said all the same (the limit is not twice the tolerance given, which would say
+    nothing and leave rows `ok` 38 mm off)."""
     ahead = [dict(streams["imu"][0]), dict(streams["imu"][1])]
     ahead[1]["log"] = ahead[1]["stamps"] - 300_000_000
     with pytest.warns(TopicClockWarning, match="/imu2's header stamps are 300 ms ahead"):
@@ -293,8 +293,8 @@ def test_zero_of_time_is_imu_1_s_first_stamp_where_a_topic_starts_later(
     streams: dict[str, Any], tmp_path: Path
 ) -> None:
     """IMU 2 starting 0.16 s after IMU 1: ``t = 0`` stays at IMU 1's first stamp, where
-    a tensions file counted from IMU 1's first message has it (the first pair's moved
-    it, every later tension 0.16 s off in time, the rows `ok`); the samples before IMU
+    a tensions file counted from IMU 1's first message has it (not at the first pair's,
+    which would put every later tension 0.16 s off in time, the rows `ok`); the samples before IMU
     2's first are IMU 2's dropouts."""
     late2 = {k: v[streams["imu"][1]["stamps"] >= streams["base"][8]] for k, v in
              streams["imu"][1].items()}  # fmt: skip
@@ -310,8 +310,8 @@ def test_an_error_names_the_message_in_its_topic_not_the_paired_sample(
     streams: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """IMU 1's message 40 without an acceleration: two of IMU 1's samples before it have
-    no partner, and the error named it "sample 38" (the paired samples' count); it names
-    the message in its topic."""
+    no partner, and the error names the message in its topic (not "sample 38", the
+    paired samples' count)."""
     imus = [dict(streams["imu"][0]), streams["imu"][1]]
     acc = imus[0]["acc"].copy()
     acc[39] = np.nan
@@ -336,7 +336,7 @@ def test_a_topic_that_pairs_nowhere_is_one_line(streams: dict[str, Any], tmp_pat
 
 
 def test_a_tolerance_of_seconds_is_said_in_seconds(streams: dict[str, Any], tmp_path: Path) -> None:
-    """``--pair-tolerance 5`` was reported as "within 5e+03 ms"."""
+    """``--pair-tolerance 5`` is reported as "within 5 s", not "within 5e+03 ms"."""
     log = write_mcap_topics(tmp_path / "x.mcap", streams["imu"])
     assert " within 5 s; " in read_imu_topics(log, TOPICS, 2, tolerance_s=5.0).report()
     assert " within 10 ms; " in read_imu_topics(log, TOPICS, 2).report()
@@ -417,7 +417,7 @@ def test_an_outage_of_imu_1_is_estimated_from_the_other_imus(
     streams: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """IMU 1 silent for 0.6 s (samples 40 to 69) while IMU 2 goes on at twice IMU 1's
-    rate there: those 0.6 s are estimated from IMU 2 at IMU 1's rate (its samples were
+    rate there: those 0.6 s are estimated from IMU 2 at IMU 1's rate (its samples not
     left unused, a gap in the estimate), IMU 1 missing as in a table's row with its
     fields empty (the estimates equal those of that table), and the line says so."""
     imu1, imu2 = dict(streams["imu"][0]), dict(streams["imu"][1])
@@ -454,7 +454,7 @@ def test_imu_1_stopping_first_leaves_the_other_imus_estimated(
     streams: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """IMU 1 stops after sample 69 of 101 while IMU 2 goes on: the last 0.62 s are
-    estimated from IMU 2 (they were left out, the estimate ending with IMU 1), IMU 1
+    estimated from IMU 2 (not left out, the estimate ending with IMU 1), IMU 1
     missing as in a table's row with its fields empty (the estimates equal that
     table's), and the line counts them as IMU 1's dropouts."""
     imu1, imu2 = dict(streams["imu"][0]), dict(streams["imu"][1])
@@ -584,8 +584,8 @@ def test_rates_on_some_topics_only_are_refused_as_a_table_s_columns(
     tmp_path: Path, streams: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """IMU 2's topic marks its rates absent (REP 145) while IMU 1's has them: one line
-    naming both topics, exit 2, nothing written (the estimate fell back to the tilt
-    model and dropped IMU 1's gyro, as a table with one IMU's gyro columns is refused);
+    naming both topics, exit 2, nothing written (not an estimate on the tilt model without
+    IMU 1's gyro), as a table with one IMU's gyro columns is refused;
     ``--imu-model tilt`` leaves the gyros out on purpose and runs."""
     imus = [streams["imu"][0], {**streams["imu"][1], "no_gyro": True}]
     log = write_mcap_topics(tmp_path / "mixed.mcap", imus)

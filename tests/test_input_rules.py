@@ -394,9 +394,9 @@ def test_a_vanishing_noise_is_one_line_not_a_singular_matrix(
 
 @pytest.mark.parametrize("name", ["initial_bend_std", "initial_rate_std"])
 def test_a_vanishing_start_prior_is_refused_not_every_row_without_an_estimate(name: str) -> None:
-    """A start prior of 1e-300 (its variance underflows to 0) gave the MHE and the UKF no
-    estimate on any row of paper3d, without a word; it is refused naming the setting.
-    1e-9, the smallest taken, still estimates every row."""
+    """A start prior of 1e-300 (its variance underflows to 0, which would give the MHE and
+    the UKF no estimate on any row of paper3d, without a word) is refused naming the
+    setting. 1e-9, the smallest taken, still estimates every row."""
     rec = simulate("paper3d", duration=2, seed=0)
     with pytest.raises(UserError, match=rf"^{name} 1e-300 is below 1e-09: a start held"):
         NoiseSettings(**{name: 1e-300})
@@ -511,7 +511,7 @@ def test_a_robust_loss_for_a_filter_is_refused_and_the_window_settings_are_the_m
 def test_an_infinite_reading_is_not_called_degrees_nor_a_dropout() -> None:
     """step() with roll = inf names an infinite value, not an angle out of range (which
     45 gets, as degrees); so does run() with an infinite tension of a tendon robot
-    (taken as a dropout, it left the next second uncertain)."""
+    (taken as a dropout, it would leave the next second uncertain)."""
     est = make_estimator("ekf", _bend())
     with pytest.raises(UserError, match=r"roll=inf: an infinite value; a reading that"):
         est.step(Measurement(0.0, np.array([np.inf, 0.1])))
@@ -731,8 +731,8 @@ def test_step_and_continue_run_say_when_t_looks_like_milliseconds() -> None:
 
 def test_run_on_a_recording_without_a_reading_warns_that_nothing_was_estimated() -> None:
     """Every reading NaN (each a dropout): ``run`` returns a series of ``no-estimate``
-    rows, and says so in a warning (it said nothing: an empty result read as a quiet
-    one). One sample with readings gives an estimate and no warning."""
+    rows, and says so in a warning (not nothing, which would let an empty result read
+    as a quiet one). One sample with readings gives an estimate and no warning."""
     from continuum_mhe.io.csv_files import DropoutWarning
 
     rec = simulate("straight", seed=1, duration=2.0)
@@ -842,7 +842,7 @@ def test_series_rows_refuses_what_selects_no_rows_of_it() -> None:
 def test_an_impossible_reading_of_one_of_several_imus_is_refused_or_said(tmp_path, capsys):
     """An acceleration of 1e6 m/s^2 in IMU 1's columns of a two-IMU recording is refused
     in one line naming its line and IMU, nothing written, as for one IMU and as a NaN
-    there (it was read as a silent dropout, the run exit 0 with every row ``ok``);
+    there (not read as a silent dropout, the run exit 0 with every row ``ok``);
     ``--skip-bad`` reads it as that IMU's dropout and says which line and why."""
     from continuum_mhe.cli import main
 

@@ -626,7 +626,7 @@ def test_a_long_evaluation_in_parts_equals_it_in_one(monkeypatch, columns: int) 
 
 
 def test_the_kinematics_helpers_refuse_a_negative_length_shapes_apart_and_degrees() -> None:
-    """The public helpers refuse in one UserError what gave a mirrored tip (a negative
+    """The public helpers refuse in one UserError what would give a mirrored tip (a negative
     length), numpy's broadcasting error (shapes apart), or a drawing of bends in degrees
     (``backbone_points``, theta past a turn; past pi is a file's EKF row, drawn); an arc
     length of 0 is the base."""

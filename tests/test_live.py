@@ -69,7 +69,7 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
     port = tmp_path / "ttyIMU"
     out = tmp_path / "live.csv"
     master = new_pty(port)
-    # session 1: 60 samples, gap of 10 samples after sample 40 (device lost them)
+    # the first session: 60 samples, gap of 10 samples after sample 40 (device lost them)
     first = raw_lines(0, 70, skip=range(40, 50))
     garbage = [
         "#continuum_imu 1.0 accel=+-4g gyro=+-500dps rate=50Hz\n",
@@ -111,7 +111,7 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
         assert len(t1) == valid_first
         assert np.all(np.diff(t1) > 0)
         assert np.all(np.isfinite(x1))
-        # session 2: the device comes back and restarts its clock at 0
+        # the second session: the device comes back and restarts its clock at 0
         master = new_pty(port)
         wait_for(lambda: "is back" in live.err, "the device to be reopened")
         second = raw_lines(0, 25)
@@ -169,7 +169,7 @@ def test_live_bad_port_is_one_line_with_causes(tmp_path: Path) -> None:
 
 def test_a_recording_given_as_the_port_is_said_to_be_no_serial_device(tmp_path: Path) -> None:
     """``--port rec.csv`` (a recording's path): one line saying it is a regular file and
-    how a recording is estimated (it said the board might be unplugged)."""
+    how a recording is estimated (not that the board may be unplugged)."""
     from continuum_mhe.stream.reader import port_hint
 
     rec = tmp_path / "rec.csv"
@@ -358,8 +358,8 @@ def test_live_says_nothing_is_saved_and_why_no_plot(tmp_path: Path) -> None:
 
 def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) -> None:
     """A session in which no sample arrives leaves an existing -o file as it is, even
-    with --overwrite, and says it was not written; so for a --view file (it was
-    replaced by a view without an estimate, and nothing said)."""
+    with --overwrite, and says it was not written; so for a --view file (not replaced
+    by a view without an estimate, nothing said)."""
     port, out, view = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "v.rrd"
     out.write_text("an earlier session\n")
     view.write_bytes(b"an earlier view")
@@ -478,8 +478,8 @@ def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Pat
     """With --imu-model direct a deg/s gyro (57 times too fast) stops live at its
     gyro-unit check: the first 100 samples estimated as they arrive, then the summary,
     estimate's one line for the same samples (naming the port) and exit 2, the lines
-    queued after them left; the estimates made from those readings are removed (they
-    were kept, `ok` rows among them), the recording of the readings kept."""
+    queued after them left; the estimates made from those readings are removed (not
+    kept, with `ok` rows among them), the recording of the readings kept."""
     from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
@@ -685,10 +685,9 @@ def test_the_latency_quantiles_say_where_they_are_beyond_the_histogram() -> None
 def test_live_warms_its_estimator_up_before_it_opens_the_port(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    """The estimator was built and warmed up after the port opened: a device that
-    streams from the start had its lines wait meanwhile (1.5 s on a tendon robot, a
-    false "falling behind" at every start, lines lost where the port's buffer fills).
-    The port opens after the warm-up."""
+    """The port opens after the estimator is built and warmed up, so that a device that
+    streams from the start has no lines waiting meanwhile (1.5 s on a tendon robot, a
+    false "falling behind" at every start, lines lost where the port's buffer fills)."""
     import continuum_mhe.cli.live as live_cli
     from continuum_mhe.cli import main
 

@@ -109,8 +109,8 @@ def test_the_view_sees_every_estimate_the_first_after_an_open_included() -> None
 
 
 def test_a_status_line_after_a_silence_says_its_estimate_is_that_old() -> None:
-    """A device that stops sending: each status line showed the last estimate as if
-    it were the robot's now (``0.0 Hz ... [ok]``); it says how long no line came and
+    """A device that stops sending: the status line does not show the last estimate as
+    the robot's current one (``0.0 Hz ... [ok]``); it says how long no line came and
     that the estimate is from then, and nothing of the kind while lines arrive."""
     s, _ = _session()
     _feed(s, [1000 + 10 * i for i in range(5)])
@@ -188,8 +188,8 @@ def test_a_device_clock_in_seconds_is_said_once(
     t_ms: list[float], arrival_step: float, slow: bool
 ) -> None:
     """A device that sends seconds as ``t_ms`` (0.02 a line at 50 Hz): its clock
-    advances 2 ms in 2 s of arrival, which the session says once (the steps were read
-    a thousand times too short without a word); milliseconds, or a replay faster than
+    advances 2 ms in 2 s of arrival, which the session says once (the steps are not
+    read a thousand times too short without a word); milliseconds, or a replay faster than
     real time, say nothing."""
     s, said = _session()
     now = time.monotonic()
@@ -207,7 +207,7 @@ def test_a_banner_after_samples_is_a_board_reset_even_without_a_first_banner() -
     """A board that streamed before live saw its banner, then reset: the banner after
     samples arms the restart, so its clock stepping back by less than a second (2,500
     to 1,700 ms) is a restart, said once, and no sample after it is dropped as out of
-    order (80 were, without a word)."""
+    order (not 80 of them, without a word)."""
     s, said = _session()
     before, after = list(range(1000, 2510, 10)), list(range(1700, 3000, 10))
     _feed(s, before)
@@ -626,7 +626,7 @@ def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
     first garbled line is said once with its likely cause, a session of garbled lines
     alone says it in one line, and one valid sample makes the session no failure. The
     first line after the open, with more fields than a line has, is a whole line,
-    garbled, not the tail of one (it was counted as partial)."""
+    garbled, not the tail of one (not counted as partial)."""
     s, said = _session()
     now = time.monotonic()
     for i in range(10):
@@ -870,8 +870,8 @@ def test_a_units_stop_after_a_board_reset_cuts_back_only_the_rows_after_it(
 ) -> None:
     """rad/s readings checked and estimated, then a board reset brings firmware that
     sends deg/s: the session stops at the check re-armed by the reset, and only the
-    estimates made since it are cut from the file (the whole file was removed, the
-    estimates from the right readings with it)."""
+    estimates made since it are cut from the file (not the whole file, the estimates
+    from the right readings with it)."""
     from live_helpers import raw_lines
 
     from continuum_mhe.io.estimate_csv import estimate_columns

@@ -312,9 +312,9 @@ def test_a_reader_that_fails_stops_live_with_the_cause_instead_of_waiting(
 
 
 def test_a_device_time_far_ahead_of_real_time_is_out_of_order() -> None:
-    """One line's t_ms corrupted 1e15 ms ahead: it was kept as a sample, the axis moved
-    by 1e12 s and the next real line counted as a device restart. It is dropped as out
-    of order, and the stream goes on without a gap or a restart; the line is said as
+    """One line's t_ms corrupted 1e15 ms ahead is dropped as out of order (not kept as a
+    sample, which would move the axis by 1e12 s and count the next real line as a device
+    restart), and the stream goes on without a gap or a restart; the line is said as
     far ahead, with every digit of its stamp."""
     s, said = _session()
     now = time.monotonic()
@@ -350,11 +350,11 @@ def test_a_device_time_seconds_ahead_of_real_time_is_out_of_order(ahead_ms: int)
 
 
 def test_a_jump_ahead_that_the_next_line_confirms_is_a_gap() -> None:
-    """Two lines left in the port from a session 20 minutes earlier, then the device's
-    live lines: the first live line, far ahead, is held until the next confirms the jump
-    (every later line was dropped), then estimated, and the stream goes on after a gap:
-    no line is lost. A jump that the next line does not confirm (one corrupted t_ms) is
-    that line alone (the tests above)."""
+    """Two lines left in the port from a session that ended 20 minutes earlier, then the
+    device's live lines: the first live line, far ahead, is held until the next confirms
+    the jump (not every later line dropped), then estimated, and the stream goes on
+    after a gap: no line is lost. A jump that the next line does not confirm (one
+    corrupted t_ms) is that line alone (the tests above)."""
     s, said = _session()
     now = time.monotonic()
     stamps = [1000, 1010, *(1_201_000 + 10 * i for i in range(300))]

@@ -263,10 +263,10 @@ def test_a_tensions_file_that_does_not_cover_the_stream_stops_it_before_writing(
 def test_tensions_in_mn_on_the_line_stop_the_session_in_one_line(runs: Runs) -> None:
     """Tensions in mN on the line (each a thousand times the newtons) stop the session
     at the first sample whose tensions would bend a section through turns, as a
-    tensions file in mN is refused: they were estimated, every row lost, and the session
-    fell behind the stream. (The lines from t = 0.14 s: one sample whose tensions in mN
-    pass, then t = 0.16 s, the first that does not; from t = 0 the eight samples before
-    it were estimated, which this check does not need.)"""
+    tensions file in mN is refused, not estimated with every row lost and the session
+    behind the stream. (The lines from t = 0.14 s: one sample whose tensions in mN
+    pass, then t = 0.16 s, the first that does not; the eight samples from t = 0 before
+    them, which this check does not need, are left out.)"""
     with_tensions, _ = _first_samples_lines()
     in_mn = []
     for ln in with_tensions[7:20]:
@@ -336,7 +336,7 @@ def test_field_count_hint_names_the_missing_tensions() -> None:
     tilt_read = "20," + ",".join(["0.1"] * 12) + ",1,1,1,1,1,1"
     assert "--format raw" in field_count_hint(tilt_read, "tilt", 2, n_tensions=6)
     assert field_count_hint(tilt_read, "raw", 2, n_tensions=6) == ""
-    # the tensions on the line where --inputs gives them too (it named 3 IMUs)
+    # the tensions on the line where --inputs gives them too (not 3 IMUs)
     said = field_count_hint(tilt_read, "raw", 2, file_tensions=6)
     assert said.startswith(
         ": a line of the IMUs and the robot's 6 tendon tensions, which "
@@ -633,7 +633,7 @@ def test_live_summary_says_a_start_under_load_is_not_trusted() -> None:
 def test_live_summary_says_a_tip_force_beyond_every_tension_as_estimate_does() -> None:
     """Tensions on the line a hundredth of those acting (the shipped ``unloaded``): the
     tip force makes up for them, far beyond every tension given, and ``live``'s summary
-    carries ``estimate``'s warning (it said nothing of it)."""
+    carries ``estimate``'s warning."""
     n = 200
     head, raw = _rows(DATA / "unloaded_raw.csv", n)
     _, ten = _rows(DATA / "unloaded_tensions.csv", n)
@@ -662,8 +662,7 @@ def test_lines_that_arrive_but_give_no_estimate_are_not_called_no_sample(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A session whose lines all arrive garbled (a non-number in a field) does not say
-    that no sample arrived: it names what arrived and that no estimate was made of it
-    (a trial read "no sample arrived" where lines had)."""
+    that no sample arrived: it names what arrived and that no estimate was made of it."""
     data = "".join(f"{20 * k},abc,0.1\n" for k in range(5))  # the first read as partial
     monkeypatch.setattr("continuum_mhe.cli.live.open_port", lambda *a: _Port(data.encode()))
     est = tmp_path / "est.csv"
@@ -703,6 +702,6 @@ def test_the_samples_the_streams_end_releases_do_not_count_in_the_latency(runs: 
     """The last two samples of a stream with tensions on the line wait for the tensions
     after them, and at the stream's end for the end itself (here the 0.5 s session's,
     the lines all read at its start): their wait is the quiet line's, not the
-    estimator's, and the latency does not count them (its largest was the session's
-    length)."""
+    estimator's, and the latency does not count them (which would make its largest the
+    session's length)."""
     assert runs.line_session.latency.n == N - 2

@@ -190,14 +190,13 @@ def test_three_sections_agree_with_ipopt_with_own_acceleration() -> None:
 def test_gauss_newton_answers_lie_near_the_converged_ones() -> None:
     """Gauss-Newton steps (``FastOptions(newton=False)``) on three sections with the
     IMUs' own acceleration: their rate is linear and drifts from one iteration to the
-    next. Certified by the bound and the step size as a Newton step is (the core was
-    told the options' ``newton`` for exact steps), answers lay up to 8.7 times
-    ``err_tol`` from the answer iterated to 1e-13 (17 of 161 windows of an 8 s
-    recording); with the core's safety factor on both they lie within twice ``err_tol``
-    (the worst 1.04 times: a rate that jumps from 1e-3 to 7e-2 between iterations).
-    The steps were Gauss-Newton: the model forms the second-order term (Newton steps
-    by default), and Newton steps from the same windows' starts take fewer iterations
-    on more than half of the windows."""
+    next. Certified by the bound and the step size as a Newton step is (as if the
+    steps were exact), answers would lie up to 8.7 times ``err_tol`` from the answer
+    iterated to 1e-13 (17 of 161 windows of an 8 s recording); with the core's safety
+    factor on both they lie within twice ``err_tol`` (the worst 1.04 times: a rate that
+    jumps from 1e-3 to 7e-2 between iterations). The steps are Gauss-Newton: the model
+    forms the second-order term (Newton steps by default), and Newton steps from the
+    same windows' starts take fewer iterations on more than half of the windows."""
     import tempfile
     from pathlib import Path
 

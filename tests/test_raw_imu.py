@@ -832,8 +832,8 @@ def test_an_imu_whose_gyro_columns_are_empty_in_every_row_is_refused(
 ) -> None:
     """A two-IMU raw file whose IMU 2 has its gyro columns empty in every row (an IMU
     without a gyro, written into a template with gyro columns): one line naming those
-    columns and what to give, exit 2, nothing written (every row was a dropout of IMU 2,
-    its accelerometer thrown away, and the estimate said 'IMU 2 never reported'). A gyro
+    columns and what to give, exit 2, nothing written (not every row a dropout of IMU 2,
+    its accelerometer thrown away, and 'IMU 2 never reported'). A gyro
     with a few empty cells is read, those rows dropouts of its IMU."""
     from continuum_mhe.cli import main
 

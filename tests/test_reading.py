@@ -338,10 +338,11 @@ def test_raw_times_a_thousand_times_too_long_are_told_by_the_gyros(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], scale: float, column: str, says: str
 ) -> None:
     """A 1 kHz raw recording with its times in milliseconds read as seconds steps by 1 s
-    a sample, as a 1 Hz recording does (no gap restarts it): it was estimated, no row
-    `ok`, a warning blaming the robot file. The gyros turn the gravity direction over a
-    second far from where the accelerometers show it next, over a millisecond onto it:
-    one line, exit 2, nothing written. The same with ``t_ms`` in microseconds."""
+    a sample, as a 1 Hz recording does (no gap restarts it), which, estimated, would
+    leave no row `ok` and a warning blaming the robot file. The gyros turn the gravity
+    direction over a second far from where the accelerometers show it next, over a
+    millisecond onto it: one line, exit 2, nothing written. The same with ``t_ms`` in
+    microseconds."""
     path = _raw_recording(tmp_path / "k.csv", 0.001, 2.0, scale, column)
     out = tmp_path / "e.csv"
     capsys.readouterr()

@@ -130,8 +130,8 @@ def test_read_only_folder_names_the_output(tmp_path, capsys, monkeypatch) -> Non
 def test_a_read_only_file_system_is_refused_before_the_work(tmp_path, capsys, command) -> None:
     """An output on a read-only file system (which refuses even root, and which a
     folder's mode does not show to root) is one line naming it, exit 2, before any
-    work: nothing printed before it (benchmark ran for minutes, calibrate printed its
-    report, and then the write failed)."""
+    work: nothing printed before it (not minutes of benchmark, or calibrate's report,
+    and then a failed write)."""
     rest = tmp_path / "rest.csv"
     assert main(["simulate", "rest", "--imu", "raw", "-o", str(rest), "--duration", "3"]) == 0
     folder = tmp_path / "ro"
@@ -258,9 +258,9 @@ def test_a_burst_of_wrong_readings_is_not_ok_while_the_estimate_follows_it(
     """0.6 rad added to every tilt IMU's roll for a burst of samples (6 of paper3d at
     20 Hz; 10 of a two-section spatial motion at 50 Hz): the first readings of the burst
     are beyond one sample's limit and ``inconsistent``, the estimator moves onto them, and
-    the rest of the burst agrees with the moved estimate. Those rows were ``ok``, 50 to
-    61 mm (paper3d) and 104 to 126 mm (two sections) off at up to 13 and 29 of their
-    standard deviations; within a second of such a reading no row is ``ok``, and no
+    the rest of the burst agrees with the moved estimate. Those rows, 50 to 61 mm
+    (paper3d) and 104 to 126 mm (two sections) off at up to 13 and 29 of their standard
+    deviations, must not be ``ok``: within a second of such a reading no row is ``ok``, and no
     ``ok`` row of the recording is more than 20 mm or 4 of its standard deviations off."""
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section
     from continuum_mhe.simulation.scenarios import simulate_robot

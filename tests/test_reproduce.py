@@ -418,7 +418,7 @@ def test_an_interrupted_overwrite_leaves_no_manifest_of_a_run_not_made(
 ) -> None:
     """Ctrl-C while ``reproduce --overwrite`` writes into an earlier run's folder: the
     files it replaced keep their new content, so the folder mixes two runs; its
-    manifest, which recorded the interrupted run as made, is removed (it said so). Here
+    manifest, which would record the interrupted run as made, is removed. Here
     ``--only beyond`` into the folder of an earlier one (the quick run's beyond data,
     manifest and report), with the quick run's results of its trials."""
     from continuum_mhe.evaluation import plotting
@@ -820,7 +820,7 @@ def test_beyond_corruptions() -> None:
     zl = with_spikes(rec).z
     hit = np.any(zl != z, axis=1)
     assert hit.sum() == 8 and set(np.round(np.degrees(zl[hit, 1]), 9)) <= {50.0, 70.0}
-    with pytest.raises(UserError):
+    with pytest.raises(UserError, match=r"^duration must be at least 10 s for the gap group$"):
         by.BeyondSpec("gap", 0, 5.0)  # too short for the gap and the 2 s after
 
 
@@ -973,8 +973,8 @@ def test_reproduce_refuses_a_bad_scheduler_address_or_rod_recording_in_one_line(
 ) -> None:
     """A scheduler address without a port, --jobs with a scheduler, an estimate file given
     as the rod recording, and a rod recording no longer than the MHE's window: each one
-    line naming it, exit 2, no folder (they were an internal error, a 403-line numpy
-    error, and a claim said to hold on 3 samples)."""
+    line naming it, exit 2, no folder (not an internal error, a 403-line numpy error,
+    or a claim said to hold on 3 samples)."""
     from continuum_mhe.simulation.cosserat import default_data_path
 
     pytest.importorskip("dask.distributed")
@@ -1018,7 +1018,7 @@ def test_plot_of_a_results_folder_with_a_malformed_results_file_is_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A results JSON of the wrong structure (valid JSON): one line naming it, exit 2,
-    no figure (it was an internal error)."""
+    no figure (not an internal error)."""
     folder = tmp_path / "res"
     folder.mkdir()
     (folder / "exp2_constraints.json").write_text('{"config": {}, "example": 5}')
@@ -1032,7 +1032,7 @@ def test_plot_of_a_results_folder_with_a_malformed_results_file_is_one_line(
 def test_the_horizon_sweeps_verdict_is_on_a_total_its_table_shows(quick_run: Path) -> None:
     """Sec. 3.5's total time: the table gives the sum of the solves and (M - N + 1) x the
     median, the one the verdict judges, and the N it names as the peak is that column's
-    largest (the table used to show only the sum, whose peak could be elsewhere)."""
+    largest (not the sum alone, whose peak can be elsewhere)."""
     report = (quick_run / "report.md").read_text()
     lines = report[report.index("## 5. Horizon sweep") :].splitlines()
     header = next(ln for ln in lines if ln.startswith("| N |"))
@@ -1050,7 +1050,7 @@ def test_the_horizon_sweeps_verdict_is_on_a_total_its_table_shows(quick_run: Pat
 def test_plot_of_a_results_folder_into_a_file_says_it_is_not_a_folder(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """--out naming a file: one line saying it is not a folder (it was the OS's 'File
+    """--out naming a file: one line saying it is not a folder (not the OS's 'File
     exists')."""
     folder = tmp_path / "res"
     folder.mkdir()

@@ -173,8 +173,8 @@ def test_a_folder_given_as_robot_file_is_named_a_folder(tmp_path: Path) -> None:
 
 
 def test_robot_classes_take_numpy_numbers_and_refuse_bools_and_slips() -> None:
-    """numpy's reals and integers are numbers (they were refused); bools are not (they
-    were taken as 1); a tendon angle beyond a full turn is degrees given to a class that
+    """numpy's reals and integers are numbers, taken; bools are not, refused (not taken
+    as 1); a tendon angle beyond a full turn is degrees given to a class that
     takes radians; a backbone or tendon that is not one is refused where it is given."""
     from continuum_mhe.errors import UserError
     from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon

@@ -247,11 +247,12 @@ def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
 def test_an_imu_log_cut_short_says_where_in_one_line(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """An MCAP whose cut lies past its messages (in its index) named a message the
-    topic does not have ("message 151" of 150) and no topic; one shorter than its
-    footer gave the operating system's "[Errno 22] Invalid argument"; a ROS 2 bag folder
-    without metadata.yaml (a recorder killed) did not say it holds a readable file.
-    Each is one line that says where, exit status 2, nothing written."""
+    """An MCAP whose cut lies past its messages (in its index), one shorter than its
+    footer, and a ROS 2 bag folder without metadata.yaml (a recorder killed): each is one
+    line that says where, exit status 2, nothing written (not a message the topic does
+    not have, "message 151" of 150, without the topic, nor the operating system's
+    "[Errno 22] Invalid argument"); the bag folder's line names the readable file it
+    holds."""
     whole = write_mcap(tmp_path / "whole.mcap", recording)
     n = len(recording["stamps"])
     index_cut = tmp_path / "index_cut.mcap"
@@ -474,9 +475,10 @@ def test_accelerations_marked_absent_are_dropouts_as_nan_fields(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A message whose ``linear_acceleration_covariance[0]`` is -1 (REP 145: absent) has
-    no acceleration, whatever its field holds (a driver's placeholder of 0, 0, 9.81 was
-    read as gravity: the IMU looked frozen): named in one line, or with --skip-bad a
-    dropout; marked in every message, the topic is refused in one line."""
+    no acceleration, whatever its field holds (a driver's placeholder of 0, 0, 9.81 is
+    not read as gravity, which would make the IMU look frozen): named in one line, or
+    with --skip-bad a dropout; marked in every message, the topic is refused in one
+    line."""
     acc = recording["acc"].copy()
     acc[10:12] = [0.0, 0.0, 9.81]
     no_accel = np.zeros(len(acc), dtype=bool)
@@ -502,8 +504,8 @@ def test_orientation_missing_in_some_messages_is_named_or_a_dropout(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """``--orientation`` on a log whose messages 50 to 54 carry no orientation (a zero
-    quaternion; a filter still starting marks it -1): one line naming the first (the
-    whole log was refused as having none, --skip-bad or not); with --skip-bad five
+    quaternion; a filter still starting marks it -1): one line naming the first (not
+    the whole log refused as having none, --skip-bad or not); with --skip-bad five
     dropouts."""
     truth = recording["truth"]
     rp = tilt(truth[:, 3], truth[:, 4])
@@ -703,9 +705,9 @@ def test_a_zero_stamp_among_others_is_left_out_not_put_on_the_log_clock(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Header stamps on a device clock (1000 s since boot) logged on the Unix clock: one
-    zero stamp took the log's time, and every later message then counted as going
-    back (a whole log dropped, exit 0). It is left out and counted; where every stamp
-    is zero the log's times are the samples'."""
+    zero stamp is left out and counted (not taken as the log's time, which would count
+    every later message as going back and drop the whole log, exit 0); where every
+    stamp is zero the log's times are the samples'."""
     boot = recording["stamps"] - recording["stamps"][0] + 1000 * 10**9
     headers = boot.copy()
     headers[100] = 0
@@ -730,10 +732,10 @@ def test_a_zero_stamp_among_others_is_left_out_not_put_on_the_log_clock(
 def test_stamps_that_do_not_advance_give_the_log_times_and_are_said(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A driver that sets header.stamp once (every stamp the same, non-zero): every
-    message but the first was dropped as not increasing, and the estimate of one row
-    exited 0. Most stamps not passing the one before are no clock: the log's times are
-    the samples', every message kept, and estimate says so in one note. A few stamps
+    """A driver that sets header.stamp once (every stamp the same, non-zero): most stamps
+    not passing the one before are no clock: the log's times are the samples', every
+    message kept (not every message but the first dropped as not increasing, an
+    estimate of one row, exit 0), and estimate says so in one note. A few stamps
     out of order among advancing ones are still left out and counted."""
     n = len(recording["stamps"])
     same = np.full_like(recording["stamps"], recording["stamps"][0] + 5 * 10**9)
@@ -762,7 +764,7 @@ def test_stamps_in_milliseconds_are_named_in_the_refusal(
 ) -> None:
     """Header stamps whose ``sec`` holds milliseconds step by 1,000 times the period:
     every sample restarts the estimator after a gap, and the one-line refusal names the
-    stamps' unit (it named --gap-reset alone)."""
+    stamps' unit (not --gap-reset alone)."""
     s0 = recording["stamps"][0]
     in_ms = s0 + (recording["stamps"] - s0) * 1000
     log_path = write_mcap(tmp_path / "ms.mcap", recording, headers=in_ms)
@@ -781,7 +783,7 @@ def test_stamps_in_milliseconds_are_named_in_the_refusal(
 def test_rates_marked_absent_are_no_gyro(tmp_path: Path, recording: dict[str, Any]) -> None:
     """Messages whose ``angular_velocity_covariance[0]`` is -1 (REP 145) carry no rates:
     the log reads as an accelerometer alone (the tilt model), as the CSV without gyro
-    columns does (the zeros were taken as rates: 30 mm off)."""
+    columns does (the zeros are not taken as rates, 30 mm off)."""
     log_path = write_mcap(tmp_path / "ng.mcap", recording, no_gyro=True)
     assert read_imu_log(log_path).gyr is None
     t = (recording["stamps"] - recording["stamps"][0]) / 1e9
@@ -801,7 +803,7 @@ def test_rates_marked_absent_are_no_gyro(tmp_path: Path, recording: dict[str, An
 def test_an_mcap_without_its_optional_summary_is_read(
     tmp_path: Path, recording: dict[str, Any]
 ) -> None:
-    """The summary section is optional in MCAP: a log without one was refused as an
+    """The summary section is optional in MCAP: a log without one is not refused as an
     unfinished recording; its topics come from its messages, and the samples are the
     same as the summarised file's. A file cut inside a record says so."""
     from mcap.reader import make_reader
@@ -831,9 +833,9 @@ def test_an_mcap_without_its_optional_summary_is_read(
 def test_a_db3_path_is_read_only_as_the_bag_its_metadata_lists(
     tmp_path: Path, recording: dict[str, Any]
 ) -> None:
-    """A .db3 named by its path is its folder's bag: another .db3 in that folder was read
-    as the metadata's bag (another file's samples, exit 0), and a .db3 without its
-    metadata.yaml gave the reader's riddle; each is one line now."""
+    """A .db3 named by its path is its folder's bag: another .db3 in that folder (not read
+    as the metadata's bag, another file's samples, exit 0) and a .db3 without its
+    metadata.yaml (not the reader's riddle) are each one line."""
     import shutil
 
     bag = write_ros2_bag(tmp_path / "bag2", recording)
@@ -853,8 +855,8 @@ def test_a_db3_path_is_read_only_as_the_bag_its_metadata_lists(
 def test_pair_tolerance_on_one_imu_s_topic_is_refused(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """--pair-tolerance pairs several topics' samples: on one IMU's topic it did nothing,
-    silently; refused like the other options that do nothing here. An estimate MCAP is
+    """--pair-tolerance pairs several topics' samples: on one IMU's topic it is refused
+    like the other options that do nothing here, not ignored silently. An estimate MCAP is
     an options file, as an estimate CSV is: its options note (a missing one: one line)."""
     log = write_mcap(tmp_path / "run.mcap", recording)
     out = tmp_path / "e.csv"
@@ -1082,7 +1084,8 @@ def test_a_bag_folder_is_read_as_its_mcap_only_where_its_metadata_lists_it_alone
 def test_json_stamps_of_ros_1_fractional_seconds_and_nanoseconds_in_sec(tmp_path: Path) -> None:
     """A JSON message's header stamp as ROS 1 writes it through rosbridge (``secs``,
     ``nsecs``) and as a fractional ``sec`` are read to the nanosecond (the fractional one
-    was cut to whole seconds, and all but a few messages left out as not increasing);
+    not cut to whole seconds, which would leave all but a few messages out as not
+    increasing);
     nanoseconds in ``sec`` (an int64 overflow, exit 70) are refused in one line naming
     the message."""
     t0 = 1_700_000_000
@@ -1107,7 +1110,7 @@ def test_json_stamps_of_ros_1_fractional_seconds_and_nanoseconds_in_sec(tmp_path
 
 def test_a_topic_whose_frame_changes_is_said(tmp_path: Path) -> None:
     """A topic whose messages name another ``header.frame_id`` from message 4 on
-    (another sensor's messages on it) was read as one IMU's, nothing said; one
+    (another sensor's messages on it) is not read as one IMU's without a word: one
     warning names the two frames and the message. One frame throughout, or none, says
     nothing."""
     from continuum_mhe.io.robot_logs import FrameWarning
@@ -1135,7 +1138,7 @@ def test_a_topic_whose_frame_changes_is_said(tmp_path: Path) -> None:
 
 def test_a_record_naming_a_missing_channel_is_not_called_a_missing_field() -> None:
     """The MCAP reader's ``KeyError`` of a damaged record (a channel or schema id the
-    file does not hold) was worded as a JSON message without a field ("a message
+    file does not hold) is not worded as a JSON message without a field ("a message
     without the field 16571"); a JSON message's missing field keeps its wording."""
     from continuum_mhe.io.robot_logs import _why_unreadable
 
@@ -1170,9 +1173,9 @@ def test_a_cut_inside_the_only_chunk_says_why_nothing_before_it_is_read(
     tmp_path: Path, recording: dict[str, Any]
 ) -> None:
     """An MCAP file whose one chunk holds every message, cut inside that chunk: with
-    --skip-bad nothing can be read, and the line said "no whole message before the
-    cut" of a file with a hundred messages before it; it says that a chunk's messages
-    are lost with the chunk the cut ends."""
+    --skip-bad nothing can be read, and the line says that a chunk's messages are lost
+    with the chunk the cut ends (not "no whole message before the cut" of a file with a
+    hundred messages before it)."""
     log = write_mcap(tmp_path / "chunked.mcap", recording)
     data = log.read_bytes()
     log.write_bytes(data[: len(data) // 2])
@@ -1185,10 +1188,10 @@ def test_a_cut_inside_the_only_chunk_says_why_nothing_before_it_is_read(
 def test_one_stamp_that_jumps_ahead_is_left_out_alone(
     tmp_path: Path, recording: dict[str, Any], ahead_s: float
 ) -> None:
-    """Message 51 stamped ``ahead_s`` after its neighbours (a stamp's glitch): the next
-    message was blamed (a clock that restarted, exit 2), or with a smaller jump the ten
-    good messages after it were left out and the bad one kept; the glitch alone is left
-    out, counted, and every other message kept."""
+    """Message 51 stamped ``ahead_s`` after its neighbours (a stamp's glitch): the glitch
+    alone is left out, counted, and every other message kept (the next message not
+    blamed as a clock that restarted, exit 2, nor, with a smaller jump, the ten good
+    messages after it left out and the bad one kept)."""
     stamps = recording["stamps"].copy()
     stamps[50] = stamps[49] + int(ahead_s * 1e9)
     log = read_imu_log(write_mcap(tmp_path / "glitch.mcap", recording, headers=stamps))

@@ -419,7 +419,7 @@ def test_benchmark_reports_each_loss_as_a_ratio_to_l2() -> None:
 
 def test_newton_off_reaches_the_same_robust_optimum(recording) -> None:
     """Gauss-Newton with the clipped rank-one term alone (no exact second-order term).
-    Its steps were Gauss-Newton: the model forms the second-order term (Newton steps by
+    Its steps are Gauss-Newton: the model forms the second-order term (Newton steps by
     default), and Newton steps from the same windows' starts take fewer iterations on
     more than half of the windows."""
     from continuum_mhe.estimators.fast.sqp import newton_steps

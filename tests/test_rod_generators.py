@@ -205,7 +205,7 @@ def test_rod_generator_writes_its_settings_beside_the_recording(tmp_path: Path) 
 
 def test_the_rod_generator_refuses_a_missing_folder_before_it_simulates(tmp_path, capsys) -> None:
     """``python -m continuum_mhe.simulation.cosserat -o DIR/x.csv`` with no DIR: one line,
-    exit 2, before the minute of simulation (a traceback after it)."""
+    exit 2, before the minute of simulation (not a traceback after it)."""
     pytest.importorskip("elastica")
     from continuum_mhe.simulation import cosserat
 
@@ -218,7 +218,7 @@ def test_the_section_rod_generator_makes_its_folder_and_refuses_a_mistyped_path(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``-o DIR`` of a folder not there yet: made, as the tendon generator makes its
-    own (it was refused, "no such folder", while the docs' commands name a new DIR); a
+    own (not refused, "no such folder": the docs' commands name a new DIR); a
     folder in a folder that does not exist, or a file, is one line, exit 2. (The bend
     recording's writer stands in for the rod's simulation: the folder is the point.)"""
     from continuum_mhe.simulation import cosserat_sections
@@ -248,8 +248,8 @@ def test_the_section_rod_generator_picks_a_stable_step_and_says_a_divergence(
     """A stiffer torsion needs a shorter explicit step: without ``--sim-dt`` the
     generator takes ``default_sim_dt`` (the default rod's 2e-5 s, shorter as the
     torsional waves speed up: under the 1e-5 and 5e-6 s that ran at G = 2E and 5E);
-    with a step that diverges it says so in one line naming ``--sim-dt``, exit 2 (it
-    raised a traceback); a shear ratio that is not a ratio is refused in one line."""
+    with a step that diverges it says so in one line naming ``--sim-dt``, exit 2 (not a
+    traceback); a shear ratio that is not a ratio is refused in one line."""
     pytest.importorskip("elastica")
     from continuum_mhe.simulation.cosserat_sections import BASE_SIM_DT, default_sim_dt
     from continuum_mhe.simulation.cosserat_sections import main as generate

@@ -1,6 +1,6 @@
 """A slack tendon's tension read a little below zero (a load cell's noise or offset) is
 taken as 0, said once, in a tensions file, on the serial line, in a stream and in an
-estimator's ``step`` and ``run``; a tension further below zero is refused as before."""
+estimator's ``step`` and ``run``; a tension further below zero is refused."""
 
 from __future__ import annotations
 
@@ -154,7 +154,7 @@ def test_a_stream_takes_a_tension_further_below_zero_as_missing() -> None:
     """-0.5 N beside 1 N (a limit of 20 mN) in a stream: taken as missing, so that its
     sample and the two on each side have no tensions (dropouts as a whole; their rates
     would take it), said once; the samples further away keep theirs (the estimator's
-    step refused the sample alone, and its neighbours' rates took -0.5 N)."""
+    step does not refuse the sample alone, with its neighbours' rates taking -0.5 N)."""
     stream = TensionStream("line", 2)
     t = np.arange(12) * 0.02
     given = [[1.0 + 0.1 * k, -0.5 if k == 6 else 0.3] for k in range(12)]

@@ -623,8 +623,8 @@ def test_a_restart_after_a_gap_under_load_keeps_the_sensors_and_finds_the_load()
 def test_a_restart_keeps_no_sensor_state_one_reading_set() -> None:
     """The shipped ``unloaded`` with the tension gains estimated, the samples between
     0.02 and 1.52 s missing: the estimate before the gap is the start's second, whose
-    gains one reading moved (0.83 and 0.99) and barely informed. Kept, they set the rest
-    of the run (hundreds of ``ok`` rows more than 5 mm off, 6.7 mm on average); the
+    gains one reading moved (0.83 and 0.99) and barely informed. Kept, they would set
+    the rest of the run (hundreds of ``ok`` rows more than 5 mm off, 6.7 mm on average); the
     restart keeps only the states the data informed, and no ``ok`` row is 5 mm off."""
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.io.input_options import InputOptions
@@ -1442,9 +1442,9 @@ def test_a_tendon_truth_with_gaps_in_its_tip_force_is_plotted_and_scored(
     force29_estimate: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A truth whose force columns are empty in every third row (a force sensor's lost
-    samples): plot drew the truth's backbone at such an instant under a force of NaN and
-    warned "no equilibrium ... (a force in mN, or a backbone too soft?)"; now the
-    instant's truth is left out of the 3D panel, without a warning. evaluate --json
+    samples): plot leaves the instant's truth out of the 3D panel, without a warning (not
+    its backbone drawn under a force of NaN, with "no equilibrium ... (a force in mN, or
+    a backbone too soft?)"). evaluate --json
     scores the force over the rows that have it, and writes valid JSON (no NaN), with
     the fx, fy, fz columns empty throughout too."""
     import json
@@ -1641,10 +1641,10 @@ def test_the_tip_force_prior_is_a_third_of_the_buckling_load() -> None:
 
 
 def test_a_stiff_backbone_s_prior_is_not_taken_for_a_divergence() -> None:
-    """A 2 mm steel backbone's force prior (a third of its 155 N buckling load) exceeded
-    the fixed 50 N at which a tip force counted as diverged: every sample restarted and
-    ``estimate`` gave no estimate. The limit is ten buckling loads, at least 50 N; a
-    given value wins."""
+    """A 2 mm steel backbone's force prior (a third of its 155 N buckling load) exceeds
+    50 N: the limit at which a tip force counts as diverged is ten buckling loads, at
+    least 50 N (not a fixed 50 N, at which every sample would restart and ``estimate``
+    give no estimate); a given value wins."""
     from continuum_mhe.model.tendon import DIVERGED_BUCKLING_MULTIPLE, MAX_FORCE_FLOOR
 
     shipped = read_robot("tendon-two-section")
@@ -1714,7 +1714,7 @@ def test_the_estimators_refuse_a_model_that_ignores_the_robots_tendons(name: str
     """A ``bend`` or ``direct`` model of a robot with tendons, given to an estimator
     (the library's ``make_estimator`` or a class), is one UserError saying what the
     model leaves out and how to get the tendon model: it ignores the tendons' loads,
-    and on ``force-29`` with tilt IMUs the EKF's rows were 27 mm off on average, 400
+    and on ``force-29`` with tilt IMUs the EKF's rows are 27 mm off on average, 400
     of 401 ``ok``. The same robot without its tendons is the constant-curvature model's
     to estimate."""
     from dataclasses import replace
@@ -1830,8 +1830,8 @@ def test_the_recording_generator_refuses_a_robot_it_does_not_write(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "writes two-section robots with an IMU at each section's end" in err[0]
     assert "not 1 section (0.2 m), IMUs at 1@0.5" in err[0] and not out.exists()
-    # a hanging robot, and IMUs turned on their disks: it wrote a standing robot's
-    # readings under their names, which the same robot file then refused
+    # a hanging robot, and IMUs turned on their disks: refused too (not a standing
+    # robot's readings under their names, which the same robot file would refuse)
     shipped = (DATA.parents[0] / "robots" / "tendon_two_section.toml").read_text()
     turned = shipped.replace(
         "[[imu]]\nsection = 2", "[[imu]]\nsection = 2\nmount_rpy = [180, 0, 0]"
@@ -1852,7 +1852,7 @@ def test_the_recording_generator_refuses_sections_without_disks_and_warns_in_one
 ) -> None:
     """A robot file without ``disks`` (optional: the estimators' model does not need
     them) is one line and exit 2 from the generator, which routes the tendons through
-    the disks (it ended in a ZeroDivisionError traceback), nothing written; a robot
+    the disks (not a ZeroDivisionError traceback), nothing written; a robot
     file's warning (a tendon angle that reads as radians) prints as the generator's one
     line, not as Python's file, line and source line."""
     import subprocess
@@ -1943,7 +1943,7 @@ def test_simulate_rest_of_a_tendon_robot_is_its_straight_readings_for_calibrate(
 ) -> None:
     """``simulate rest`` (which the help gives for any robot) on a tendon robot: the
     robot straight and still, its tendons slack, read as its sections' geometry, raw or
-    tilt, which ``calibrate --from`` takes with the same robot file (it was refused, and
+    tilt, which ``calibrate --from`` takes with the same robot file (not refused, though
     the tendon generator has no rest)."""
     rest = tmp_path / "rest.csv"
     argv = ["simulate", "rest", "--robot", "tendon-two-section", "--imu", "raw", "-o", str(rest)]
@@ -2003,7 +2003,7 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
         assert main(argv) == 0
     assert view.exists()
     # and plot: of the four rows it draws, the one without an equilibrium is drawn
-    # through its section ends, said (it refused the whole figure)
+    # through its section ends, said (not the whole figure refused)
     for i in range(header + 1, len(lines)):
         cells = lines[i].rstrip("\n").split(",")
         cells[fx] = "80" if i == header + 2 else "0"
@@ -2626,8 +2626,8 @@ def test_load_input_reads_a_tendon_robot_with_its_tensions_as_open_input_does() 
 
 
 def test_measurement_row_refuses_parts_of_the_wrong_size() -> None:
-    """``measurement_row`` names the part that does not fit the robot (seven tensions
-    with five rates made a ``z`` of the right length before)."""
+    """``measurement_row`` names the part that does not fit the robot, also where seven
+    tensions with five rates would make a ``z`` of the right length."""
     from continuum_mhe.errors import UserError
     from continuum_mhe.model.registry import make_formulation
 
@@ -3035,7 +3035,7 @@ def test_rows_after_a_restart_of_a_model_that_did_not_follow_are_not_ok(tmp_path
     robot.toml``, seed 0), estimated with its sections' lengths swapped: the rows are
     ``drifted``. The single EKF (the robot loaded, without the free-of-load hypothesis)
     restarts on readings that contradict it; a restart clears the IMU error states whose
-    change showed the model error, so the rows after it looked ``ok`` (two, 20 to 24 mm
+    change shows the model error, so the rows after it would look ``ok`` (two, 20 to 24 mm
     off, 18 of their standard deviations); within the probation time of the last drifted
     row they are not trusted."""
     from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
@@ -3181,7 +3181,7 @@ def test_the_single_loaded_ekf_trusts_no_row_of_a_start_that_shows_a_load() -> N
     """The single loaded EKF (``free_of_load_hypothesis=False``) started at 3 s of the
     shipped ``force-08`` (raw IMUs), under load: the first reading shows a load that
     the start cannot tell from the IMUs' errors, and its estimates, about 11 mm off,
-    took part of it for those errors. As with the default EKF's two hypotheses, none of
+    take part of it for those errors. As with the default EKF's two hypotheses, none of
     that start's rows is ``ok``, and ``estimate``'s line counts them."""
     from continuum_mhe.estimators import ExtendedKalmanFilter
     from continuum_mhe.estimators.run_notices import untrusted_start_notice
@@ -3328,9 +3328,9 @@ def test_a_start_under_load_on_a_sample_without_imus_is_judged_at_the_first_imu_
 ) -> None:
     """``force-08`` (raw IMUs) started at 3 s, under load, its first three samples with
     the tensions but no IMU reading (``live`` before its IMUs report): the start is
-    judged at the first sample with an IMU reading, and no row of it is ``ok`` (it was
-    judged on the first sample, which shows nothing, and about 100 rows were ``ok`` and
-    over 5 mm off); the default EKF and the single loaded EKF alike."""
+    judged at the first sample with an IMU reading, and no row of it is ``ok`` (not
+    judged on the first sample, which shows nothing, with about 100 rows ``ok`` and over
+    5 mm off); the default EKF and the single loaded EKF alike."""
     from continuum_mhe.estimators import ExtendedKalmanFilter, make_estimator
 
     f, t, z = _raw_shipped(401, "force-08")
@@ -3351,8 +3351,8 @@ def test_a_start_under_load_on_a_sample_without_imus_is_judged_at_the_first_imu_
 
 def test_tensions_on_a_clock_s_absolute_time_are_said_to_be() -> None:
     """Tensions stamped with a clock's time since 1970, for a recording counted from its
-    start: the line said only that they miss the recording; it says their times look
-    like a clock's own and where the recording's zero is. Tensions that merely end
+    start: the line says their times look like a clock's own and where the recording's
+    zero is, not only that they miss the recording. Tensions that merely end
     early get no such words."""
     from continuum_mhe.errors import InputError
     from continuum_mhe.io.tensions import Tensions
@@ -3404,7 +3404,7 @@ def test_evaluate_refuses_a_truths_tip_force_in_mn_and_twist_in_degrees(
 ) -> None:
     """A truth whose tip force is in mN (about 1000 times the estimate's) or whose twist
     ``psi_k`` is in degrees (beyond 2 pi) is refused in one line naming the truth file
-    (the scores were 108 N of force error, 67.8 deg of twist); the truth in N and rad
+    (not scored as 108 N of force error, 67.8 deg of twist); the truth in N and rad
     is scored; an estimate free of load says nothing of the force's unit."""
     from continuum_mhe.io.position_units import force_unit_against
 

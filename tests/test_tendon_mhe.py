@@ -134,8 +134,8 @@ def test_a_robust_loss_weighs_the_imus_alone_and_ipopt_solves_its_window() -> No
     window cost alike; IPOPT solves the window with the loss's Gauss-Newton Hessian, and
     its answer is a stationary point of the compiled cost (the core's gradient there, its
     per-block loss included, vanishes). With the loss on every block the tip condition
-    was down-weighted and the estimate drifted off (``force-29`` raw, N = 3: 43 mm off at
-    the 24th sample, every window ``not-converged``)."""
+    would be down-weighted and the estimate drift off (``force-29`` raw, N = 3: 43 mm off
+    at the 24th sample, every window ``not-converged``)."""
     from continuum_mhe.estimators.window_nlp import build_nlp, pack_parameters
 
     f = _formulation()

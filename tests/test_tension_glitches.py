@@ -1,8 +1,8 @@
 """Glitches of the given tensions (:mod:`continuum_mhe.io.tension_glitches`): found
 where one row alone, or two in a row, leave the curve through their neighbours, replaced by that
 curve in a tensions file and in a stream, never found in smooth motions, steps, a slack
-tendon that starts to pull or a slower log held at every row; and a glitch no longer
-sends the tendon robot's estimate off for the rest of the recording."""
+tendon that starts to pull or a slower log held at every row; and a glitch does not
+send the tendon robot's estimate off for the rest of the recording."""
 
 from __future__ import annotations
 
@@ -94,7 +94,7 @@ def test_no_glitch_in_what_tensions_do(case: str) -> None:
 def test_a_noisy_step_is_no_two_row_glitch(seed: int) -> None:
     """A controller's step of 0.2 N read with 5 mN of noise: the two rows at the step
     nearly echo as a two-row glitch would, but the four rows each side lie on two
-    levels, not one cubic; none is a glitch (these seeds' steps were taken for one and
+    levels, not one cubic; none is a glitch (these seeds' steps are not taken for one and
     smeared into a ramp)."""
     rng = np.random.default_rng(seed)
     v = (1.0 + 0.2 * (T >= 5.0) + 0.005 * rng.normal(size=len(T)))[:, None]

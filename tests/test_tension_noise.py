@@ -487,7 +487,7 @@ def test_the_start_of_a_10_hz_tensions_file_is_not_thrown_off(tmp_path: Path) ->
 
 def test_a_recordings_own_noisy_tension_columns_are_said_as_live_says_them(tmp_path) -> None:
     """A recording whose own tension columns carry a load cell's noise (as ``live
-    --record`` writes them) is differenced row by row, as ``live`` took it, and
+    --record`` writes them) is differenced row by row, as ``live`` takes it, and
     ``estimate`` says so as ``live`` does, naming a tensions file of their own (smoothed);
     the shipped smooth tensions in the same columns are not said."""
     smooth = read_tensions(DATA / "force-29_tensions.csv", 6)

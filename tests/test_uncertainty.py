@@ -796,7 +796,7 @@ def test_each_run_counts_its_own_recording(index: int) -> None:
     assert est.diagnostics == first
     est.reset()  # so does a reset before stepping by hand
     assert est.diagnostics == Diagnostics()  # every count zero, no failure
-    assert first.gap_resets == 1 and list(first.first_freezes) == [0]  # the copy run gave
+    assert first.gap_resets == 1 and list(first.first_freezes) == [0]  # the copy run returned
 
 
 def test_a_reset_zeroes_the_second_start_and_branch_check_counts() -> None:
@@ -1080,9 +1080,9 @@ def test_a_dropout_does_not_narrow_the_standard_deviations(
     tmp_path: Path, method: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """IMU 1 missing for two samples of the shipped spatial-tendon recording (raw): the
-    standard deviations there were those of IMU 2's constant reading errors alone, up to
-    3.2 times narrower than with both IMUs (std_theta_2 0.057 -> 0.018 rad, rows 0.027
-    rad off) although IMU 1's errors are in the estimate through the samples before.
+    standard deviations there are not those of IMU 2's constant reading errors alone (up
+    to 3.2 times narrower than with both IMUs, std_theta_2 0.057 -> 0.018 rad, rows
+    0.027 rad off), since IMU 1's errors are in the estimate through the samples before.
     Losing a reading never narrows them: within 3 % of the run without the dropout (the
     estimates differ a little). The recording's first 6 s (300 rows) are estimated: the
     rows up to the dropout's are those of the whole recording's estimates."""

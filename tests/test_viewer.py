@@ -987,7 +987,7 @@ def test_free_bytes_counts_the_reserved_blocks_for_root_alone(
 
 
 def test_a_view_closed_twice_closes_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """close() after a failed close does nothing (it flushed and failed again)."""
+    """close() after a failed close does nothing (no second flush that fails again)."""
     from continuum_mhe.errors import InputError
 
     view = BackboneView(Robot.single(0.2), pcc_outputs(1), ViewerSink("save", tmp_path / "v.rrd"))
@@ -1050,7 +1050,7 @@ def test_view_refuses_a_tendon_estimate_on_a_robot_without_tendons(
 ) -> None:
     """A tendon robot's estimate (its tip force columns) with --robot of a robot without
     tendons, or --length: one line, exit 2, no view, as plot refuses it (the arcs drawn
-    missed the estimate's tip by up to 100 mm, with a warning about another thing)."""
+    would miss the estimate's tip by up to 100 mm, with a warning about another thing)."""
     pytest.importorskip("rerun")
     est = tmp_path / "e.csv"
     est.write_text(
@@ -1068,8 +1068,7 @@ def test_view_refuses_a_tendon_estimate_on_a_robot_without_tendons(
 
 def test_view_times_are_the_estimates_to_the_nanosecond(tmp_path: Path) -> None:
     """Times whose seconds are not exact in binary (2.05 s is 2.0499999999999998): the
-    view's times are the CSV's rounded to the nanosecond (they were truncated, 1 ns
-    early)."""
+    view's times are the CSV's rounded to the nanosecond (not truncated, 1 ns early)."""
     pytest.importorskip("rerun")
     t = [2.05, 4.1, 8.2, 8.45, 16.15]
     est = tmp_path / "e.csv"
@@ -1083,7 +1082,7 @@ def test_view_times_are_the_estimates_to_the_nanosecond(tmp_path: Path) -> None:
 
 
 def test_the_web_viewer_refuses_one_port_for_both_in_one_line() -> None:
-    """--web-port equal to --grpc-port: one line naming both (it was blamed on a port in
+    """--web-port equal to --grpc-port: one line naming both (not blamed on a port in
     use)."""
     from continuum_mhe.errors import InputError
     from continuum_mhe.viewer.sink import start_web_viewer

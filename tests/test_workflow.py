@@ -759,7 +759,7 @@ def test_an_estimate_made_in_another_folder_repeats_from_anywhere(
 
 def test_an_options_file_that_starts_with_a_byte_order_mark_is_read(tmp_path: Path) -> None:
     """An options file saved with a UTF-8 byte-order mark is read as without it (robot
-    files and CSVs are; it was refused as not valid TOML at column 1)."""
+    files and CSVs are), not refused as not valid TOML at column 1."""
     assert main(["simulate", "paper3d", "--duration", "1", "-o", str(tmp_path / "m.csv")]) == 0
     cfg = tmp_path / "opts.toml"
     cfg.write_text('\ufeffmethod = "ekf"\n', encoding="utf-8")
@@ -770,7 +770,7 @@ def test_an_options_file_that_starts_with_a_byte_order_mark_is_read(tmp_path: Pa
 
 def test_plot_of_a_one_row_estimate_with_a_truth_says_so(tmp_path: Path, capsys) -> None:
     """A truth beside an estimate of one row is refused saying that the estimate has one
-    row (it said 'only 1 of the estimate's 1 rows have a truth row at the same t')."""
+    row (not 'only 1 of the estimate's 1 rows have a truth row at the same t')."""
     meas, truth, est = (tmp_path / n for n in ("m.csv", "t.csv", "e.csv"))
     assert (
         main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth", str(truth)])
