@@ -115,6 +115,38 @@ def test_the_drift_reset_is_a_tendon_robots_and_off_with_zero(
     assert "from the last ok estimate's IMU errors" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("robot", "extra", "refused"),
+    [
+        ([], [], "--drift-reset does not apply: it restarts a tendon robot's estimate"),
+        (["--formulation", "paper", "--method", "ekf"], [], "this model has no such states"),
+        (
+            ["--robot", ROBOT, "--inputs", str(DATA / "force-29_tensions.csv")],
+            ["--estimate-tension-gain"],
+            "--drift-reset does not apply with --estimate-tension-gain",
+        ),
+    ],
+)
+def test_drift_reset_where_it_changes_nothing_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], robot, extra, refused
+) -> None:
+    """``--drift-reset`` typed for a model without drifting IMU error states (a robot
+    without tendons), or with tension gains estimated (whose drift is their settling):
+    one line, exit 2, nothing written."""
+    meas = tmp_path / "m.csv"
+    if robot[:1] == ["--robot"]:
+        meas.write_text("\n".join((DATA / "force-29_raw.csv").read_text().splitlines()[:30]))
+    else:
+        assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), *robot, *extra, "--drift-reset", "1", "-o", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and refused in err[0], err
+    assert not out.exists()
+
+
 def test_a_restart_starts_the_drift_anew(tmp_path: Path) -> None:
     """Two rows drifted (a tension 0.05 N off), then a gap: the gap's restart at 2.3 s
     is the only one; the drifted rows before it do not time a drift reset of the start

@@ -459,6 +459,38 @@ def test_a_logger_header_with_other_imu_names_is_told_the_names_to_use(
     )
 
 
+@pytest.mark.parametrize(
+    ("header", "robot", "said"),
+    [
+        ("t,ax,ay,az,gyro_x,gyro_y,gyro_z", [], "gyro_x -> gx, gyro_y -> gy, gyro_z -> gz"),
+        (
+            "t,ax_1,ay_1,az_1,gyro_x_1,gyro_y_1,gyro_z_1,ax_2,ay_2,az_2,Gyro_X_2,gyro_y_2,gyro_z_2",
+            ["--robot", "two-section"],
+            "gyro_x_1 -> gx_1, gyro_y_1 -> gy_1, gyro_z_1 -> gz_1, ...",
+        ),
+        ("t,ax,ay,az,wx,wy,wz", [], "wx -> gx, wy -> gy, wz -> gz"),
+    ],
+)
+def test_gyro_columns_named_otherwise_beside_the_accelerometer_are_not_left_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture, header: str, robot: list[str], said: str
+) -> None:
+    """Accelerometer columns as the reader takes them and gyro columns spelled
+    otherwise (``gyro_x``, ``wx``): one line giving the renames, nothing written; the
+    gyros are not left out without a word."""
+    values = ",".join(["0.0"] * len(header.split(",")))
+    rows = "\n".join(values.replace("0.0", str(k * 0.05), 1) for k in range(5))
+    path = _write(tmp_path / "imu.csv", f"{header}\n{rows}\n")
+    out = tmp_path / "est.csv"
+    assert main(["estimate", str(path), "-o", str(out), *robot]) == 2
+    assert not out.exists()
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {path}: line 1: columns named like gyro readings that this "
+        f"reader does not take, which would be left out: rename them ({said}; gx, gy, gz "
+        "in rad/s, gx_1 ... for several IMUs), or remove them to estimate from the "
+        "accelerometers alone\n"
+    )
+
+
 def test_a_header_with_gyro_columns_alone_asks_for_the_accelerometer(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:

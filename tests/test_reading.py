@@ -174,6 +174,10 @@ def test_states_table_with_t_ms(tmp_path: Path) -> None:
     [
         ("t roll pitch\n0 0.1 0.1\n", "read as comma"),
         ("t;roll;pitch\n0;0,1;0,1\n", "a decimal comma?"),
+        (
+            "t,roll,pitch\n0,0.1,0.1\nt,roll,pitch\n0.05,0.1,0.1\n",
+            "line 3: column t: 't' is not a number (the header again: two files joined?)",
+        ),
         ("0,0.1,0.1\n0.05,0.1,0.1\n", "no header line"),
         ("# only a comment\n", "only comments"),
         ("x" * (MAX_LINE_BYTES + 10), f"longer than {MAX_LINE_BYTES}"),
@@ -215,6 +219,24 @@ def test_not_utf8_names_its_line(tmp_path: Path) -> None:
     path = tmp_path / "m.csv"
     path.write_bytes(b"t,roll,pitch\n0,0.1,0.1\n\xff\xfe,0.1,0.1\n")
     with pytest.raises(InputError, match=r"m.csv: line 3: not UTF-8 text"):
+        read_measurements(path)
+
+
+def test_text_in_windows_1252_names_the_byte_and_the_conversion(tmp_path: Path) -> None:
+    """A comment saved in an 8-bit encoding (a degree sign as Windows-1252's 0xB0):
+    one line naming the byte, what it reads as there, and the conversion to UTF-8; a
+    binary file's bytes are not given that advice."""
+    path = tmp_path / "m.csv"
+    path.write_bytes(b"# sensor at 25\xb0C\nt,roll,pitch\n0,0.1,0.1\n")
+    with pytest.raises(InputError) as info:
+        read_measurements(path)
+    assert str(info.value) == (
+        f"{path}: line 1: not UTF-8 text: byte 0xB0 at character 15 ('°' in "
+        "Windows-1252), text saved in an 8-bit encoding; save it as UTF-8 (iconv -f CP1252 "
+        f"-t UTF-8 {path} > NEW.csv)"
+    )
+    path.write_bytes(b"t,roll,pitch\n0,0.1,0.1\n\xff\x01\x02,0.1\n")
+    with pytest.raises(InputError, match=r"line 3: not UTF-8 text \(a binary file\?\)$"):
         read_measurements(path)
 
 

@@ -125,6 +125,8 @@ def test_settings_validate_the_loss() -> None:
         MHESettings(loss="tukey")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="loss_scale"):
         MHESettings(loss="huber", loss_scale=-1.0)
+    with pytest.raises(ValueError, match="loss_scale=2.0 is a robust loss's scale; loss='l2'"):
+        MHESettings(loss_scale=2.0)
     assert MHESettings().scale == math.inf
     assert MHESettings(loss="cauchy", loss_scale=4.0).scale == 4.0
 

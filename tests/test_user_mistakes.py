@@ -663,7 +663,8 @@ def test_an_option_that_does_nothing_on_this_input_is_refused(
         (["--method", "ukf", "--paper-start"], "--paper-start is an MHE option; the ukf"),
         (["--method", "ekf", "--solver", "ipopt"], "--solver is an MHE option; the ekf"),
         (["--method", "ekf", "--hor", "20"], "--horizon is an MHE option"),  # abbreviated
-        (["--method", "ekf", "--no-branch-check"], "--branch-check is an MHE option"),
+        (["--method", "ekf", "--no-branch-check"], "--no-branch-check is an MHE option"),
+        (["--method", "ekf", "--branch-check"], "--branch-check is an MHE option"),
         (["--method", "ekf", "--loss", "welsch"], "--loss welsch is an MHE option; the ekf "
          "keeps the l2 cost"),
         (["--robot", "two-section", "--length", "0.5"], "--length does not apply with the "

@@ -90,7 +90,8 @@ class MHESettings:
             (docs/robust.md). The arrival prior and process terms stay quadratic.
         loss_scale: where the robust loss departs from l2, in standard deviations of
             the measurement noise (whitened norm of one block); None takes
-            :data:`DEFAULT_LOSS_SCALE` of the loss. Ignored for ``"l2"``.
+            :data:`DEFAULT_LOSS_SCALE` of the loss. Given with ``"l2"``, a
+            :class:`~continuum_mhe.errors.UserError`.
         branch_check: after each window, test its measurement cost against a
             chi-square quantile and, where implausible, solve the same window from
             other starts and keep the lowest cost, then, if none wins, with the arrival
@@ -119,6 +120,11 @@ class MHESettings:
             raise UserError(f"loss must be one of {MHE_LOSSES}, got {self.loss!r}")
         if self.loss_scale is not None:
             check_positive("loss_scale", self.loss_scale)
+            if self.loss == "l2":
+                raise UserError(
+                    f"loss_scale={self.loss_scale!r} is a robust loss's scale; loss='l2' has "
+                    "none: give loss='huber', 'cauchy' or 'welsch' with it, or leave it out"
+                )
         whole = numbers.Integral  # numpy's integers too
         if not (
             isinstance(self.horizon, whole)

@@ -406,7 +406,7 @@ def format_far(c: Calibration, t_worst: float | None = None) -> str:
     (``t_worst``: the time of the row with the largest ratio, s)."""
     far = f"{c.tip_far} of {c.tip_far_of} more than {FAR_STD:g} std off on a tip axis ("
     if c.tip_far_of:
-        at = f" at t = {t_worst:g} s" if t_worst is not None else ""
+        at = f" at t = {time_text(t_worst)} s" if t_worst is not None else ""
         largest = "a zero std" if math.isinf(c.tip_far_worst) else f"{c.tip_far_worst:.1f} std"
         far += f"the largest {largest}{at}; "
     return f"ok rows far off      {far}about 2 in 10,000 rows where the std is right)"

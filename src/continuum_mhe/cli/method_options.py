@@ -120,6 +120,7 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
     if method != "mhe":
         _refuse_mhe_options(args, method, defaulted, fast_mhe=obstacle is None)
     _refuse_outlier_options(args, method)
+    _refuse_drift_reset(args, formulation)
     args.method = method
     parser = getattr(args, "options_parser", None)
     if parser is not None:  # the estimate file records the method that made it
@@ -159,6 +160,8 @@ def _refuse_mhe_options(
     if dest is None:
         return
     flag = "--" + dest.replace("_", "-")
+    if dest == "branch_check" and args.branch_check is False:
+        flag = "--no-branch-check"
     ask = "--method mhe" if fast_mhe else "--method mhe --solver ipopt (slow)"
     default = f" (this robot's default; {ask} for the MHE)" if defaulted else ""
     which = f"the {method}{default}"
@@ -192,6 +195,26 @@ def _refuse_outlier_options(args: argparse.Namespace, method: str) -> None:
         raise InputError(
             f"--reject-reset does not apply to {which}: only a robust MHE (--loss huber, "
             "cauchy, ...) rejects readings as outliers"
+        )
+
+
+def _refuse_drift_reset(args: argparse.Namespace, formulation: Formulation) -> None:
+    """One line for ``--drift-reset`` typed on the command line for a model whose
+    estimates have no slowly varying error states to drift (a robot without tendons), or
+    whose drift is its tension gains settling (``--estimate-tension-gain``): it would
+    change nothing."""
+    if "drift_reset" not in given_options(args):
+        return
+    if getattr(formulation, "estimate_tension_gain", False):
+        raise InputError(
+            "--drift-reset does not apply with --estimate-tension-gain (the estimates' "
+            "drift is then the tension gains settling, which no restart helps)"
+        )
+    if formulation.change_test() is None:
+        raise InputError(
+            "--drift-reset does not apply: it restarts a tendon robot's estimate whose IMU "
+            "error states drift (a robot file with [[tendon]] entries and a [backbone]); "
+            "this model has no such states"
         )
 
 

@@ -625,7 +625,7 @@ class Estimator(Generic[InferenceT]):
                 warnings.warn(
                     taken.said(
                         "the measurements' tensions",
-                        f"t = {float(t[first]):g} s",
+                        f"t = {time_text(float(t[first]))} s",
                         once=len(t) == 1,  # a step's: the first of those to come
                     ),
                     TensionsWarning,

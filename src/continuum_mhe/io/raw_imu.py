@@ -281,12 +281,15 @@ _OTHER_RAW_NAME = re.compile(
 )
 
 
-def _refuse_other_raw_names(rows: TextRows) -> None:
-    """A one-line error for a header with neither tilt nor raw columns but with columns
-    that name accelerometer or gyro axes otherwise (:data:`_OTHER_RAW_NAME`): the names
-    this reader takes, and what each such column would be called (``ax1`` -> ``ax_1``).
-    Any other header is left to the tilt reader's message."""
-    matches = [(h, m) for h in rows.header if (m := _OTHER_RAW_NAME.match(h))]
+def _other_raw_renames(rows: TextRows, gyro_only: bool = False) -> list[str]:
+    """``"ax1 -> ax_1"`` for each header column that names an accelerometer or gyro axis
+    otherwise than this reader takes (:data:`_OTHER_RAW_NAME`; its gyro columns alone
+    where ``gyro_only``)."""
+    matches = [
+        (h, m)
+        for h in rows.header
+        if (m := _OTHER_RAW_NAME.match(h)) and not (gyro_only and m.group(1))
+    ]
     numbers = [int(m.group(4)) for _, m in matches if m.group(4)]
     first = min(numbers, default=1)  # IMUs count from 1: a file's 0 is IMU 1
     several = len(set(numbers)) > 1
@@ -297,6 +300,15 @@ def _refuse_other_raw_names(rows: TextRows) -> None:
             name += f"_{int(m.group(4)) + 1 - min(first, 1)}"
         if name != h:
             renames.append(f"{rows.as_written(h)} -> {name}")
+    return renames
+
+
+def _refuse_other_raw_names(rows: TextRows) -> None:
+    """A one-line error for a header with neither tilt nor raw columns but with columns
+    that name accelerometer or gyro axes otherwise (:data:`_OTHER_RAW_NAME`): the names
+    this reader takes, and what each such column would be called (``ax1`` -> ``ax_1``).
+    Any other header is left to the tilt reader's message."""
+    renames = _other_raw_renames(rows)
     gyros = [h for h in rows.header if h in GYRO_COLUMNS or RAW_IMU_COLUMNS.number(h)[0]]
     if not renames and gyros:
         raise InputError(
@@ -372,6 +384,14 @@ def raw_layout(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tuple[tuple
         raise InputError(
             f"{rows.name}: line 1: {lacks}, IMU {_imu_list([s[1:] for s in gyro])} {have} "
             "them: give every IMU's gyro or none"
+        )
+    if not gyro and (renames := _other_raw_renames(rows, gyro_only=True)):
+        shown = ", ".join(renames[:3]) + (", ..." if len(renames) > 3 else "")
+        raise InputError(
+            f"{rows.name}: line 1: columns named like gyro readings that this reader does "
+            f"not take, which would be left out: rename them ({shown}; gx, gy, gz in "
+            "rad/s, gx_1 ... for several IMUs), or remove them to estimate from the "
+            "accelerometers alone"
         )
     fields = RAW_IMU_COLUMNS.names if gyro else ACC_COLUMNS
     return ("t", *(c + s for s in suffixes for c in fields)), bool(gyro)

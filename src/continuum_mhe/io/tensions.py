@@ -578,7 +578,7 @@ def _checked_rows(
         raise UserError(f"{name}: t must be finite and strictly increasing (s)")
 
     def where(i: int) -> str:
-        return f"line {lines[i]}" if lines else f"row {i} (t = {t_arr[i]:g} s)"
+        return f"line {lines[i]}" if lines else f"row {i} (t = {time_text(float(t_arr[i]))} s)"
 
     error = InputError if lines else UserError
     bad = np.argwhere(~np.isfinite(v_arr))
@@ -762,14 +762,14 @@ class TensionStream:
             v = np.asarray(values, dtype=float)
         except (TypeError, ValueError):
             raise UserError(
-                f"{self.name}: a sample at t = {t:g} s has tensions that are not numbers: "
+                f"{self.name}: a sample at t = {time_text(t)} s has tensions that are not numbers: "
                 f"{values!r:.60}"
             ) from None
         if self.n_tendons is None and v.ndim == 1:
             self.n_tendons = v.size
         if v.shape != (self.n_tendons,):
             raise UserError(
-                f"{self.name}: a sample at t = {t:g} s has tensions of shape {v.shape}; "
+                f"{self.name}: a sample at t = {time_text(t)} s has tensions of shape {v.shape}; "
                 f"the robot has {self.n_tendons} tendons: one tension each (N)"
             )
         slack = take_slack_readings(v[None, :])
@@ -778,7 +778,7 @@ class TensionStream:
             if not self._negative_said:
                 self._negative_said = True
                 warnings.warn(
-                    f"{self.name}: tension_{j + 1} = {v[j]:g} N at t = {t:g} s is below 0 "
+                    f"{self.name}: tension_{j + 1} = {v[j]:g} N at t = {time_text(t)} s is below 0 "
                     "beyond a slack tendon's reading (its load cell may read down to "
                     f"-{slack.limit[0]:.3g} N there; a tendon cannot push): taken as "
                     "missing, its sample and the two on each side dropouts (said once)",
@@ -790,7 +790,9 @@ class TensionStream:
             v = np.where(slack.slack[0], 0.0, v)
             if not self._slack_said:
                 self._slack_said = True
-                warnings.warn(slack.said(self.name, f"t = {t:g} s", once=True), TensionsWarning, 2)
+                warnings.warn(
+                    slack.said(self.name, f"t = {time_text(t)} s", once=True), TensionsWarning, 2
+                )
         replaced = len(self._kept.replaced)
         self._kept.push(t, v)
         if not self._noise_said and self._kept.seen % NOISE_CHECK_ROWS == 0:

@@ -283,8 +283,15 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
         raise InputError(f"{name}: line {n}: longer than {MAX_LINE_BYTES} bytes (not a CSV file?)")
     try:
         line = body.decode("utf-8")
-    except UnicodeDecodeError:
-        raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
+    except UnicodeDecodeError as exc:
+        if not _text_like(body):
+            raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
+        byte = body[exc.start]
+        raise InputError(
+            f"{name}: line {n}: not UTF-8 text: byte 0x{byte:02X} at character {exc.start + 1} "
+            f"({bytes([byte]).decode('cp1252', 'replace')!r} in Windows-1252), text saved in "
+            f"an 8-bit encoding; save it as UTF-8 (iconv -f CP1252 -t UTF-8 {name} > NEW.csv)"
+        ) from None
     return line.rstrip("\r")
 
 
@@ -566,6 +573,8 @@ def parse_float(name: str, line: int, column: str, text: str) -> float:
         hint = ""
         if "," in text and _is_number(text.replace(",", ".", 1)):
             hint = " (a decimal comma? use a point, e.g. 0.5)"
+        elif column in ("t", "t_ms") and text.strip().strip('"').lower() == column:
+            hint = " (the header again: two files joined?)"
         raise InputError(
             f"{name}: line {line}: column {column}: {shown!r} is not a number{hint}"
         ) from None
