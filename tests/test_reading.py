@@ -240,6 +240,25 @@ def test_text_in_windows_1252_names_the_byte_and_the_conversion(tmp_path: Path) 
         read_measurements(path)
 
 
+@pytest.mark.parametrize("tail", [b"\x00" * 40, b"0.1,0.1\x00\x00\x00", b"\x00\x00\n\x00"])
+def test_nul_bytes_a_logger_left_at_the_end_name_the_lines_to_keep(
+    tmp_path: Path, tail: bytes
+) -> None:
+    """A logger that stopped mid-write pads its last line with NUL bytes: one line
+    saying so, with the lines to keep; a NUL byte inside a line stays a binary file's."""
+    path = tmp_path / "m.csv"
+    path.write_bytes(b"t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1\n" + tail)
+    with pytest.raises(InputError) as info:
+        read_measurements(path)
+    assert str(info.value) == (
+        f"{path}: line 4: ends in NUL bytes, as a logger that stopped mid-write leaves them: "
+        f"keep the lines before it (head -n 3 {path} > NEW.csv)"
+    )
+    path.write_bytes(b"t,roll,pitch\n0,0.1,0.1\n0.05,\x000.1,0.1\n")
+    with pytest.raises(InputError, match=r"line 3: contains a NUL byte \(a binary file"):
+        read_measurements(path)
+
+
 def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> None:
     import signal
 

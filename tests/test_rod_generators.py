@@ -214,6 +214,28 @@ def test_the_rod_generator_refuses_a_missing_folder_before_it_simulates(tmp_path
     assert len(err) == 1 and "folder" in err[0] and "does not exist" in err[0]
 
 
+def test_the_rod_generator_asks_for_its_output_and_replaces_none_unasked(tmp_path, capsys) -> None:
+    """``python -m continuum_mhe.simulation.cosserat`` without ``-o`` is refused (no
+    default inside the installed package, whose shipped recording it would replace),
+    and an existing file (or its settings beside it) without ``--overwrite`` is one line,
+    exit 2, before the simulation, the file left as it was."""
+    pytest.importorskip("elastica")
+    from continuum_mhe.simulation import cosserat
+
+    with pytest.raises(SystemExit) as info:
+        cosserat.main(["--duration", "0.1"])
+    assert info.value.code == 2
+    assert "the following arguments are required: -o/--output" in capsys.readouterr().err
+    out = tmp_path / "rod.csv"
+    for existing in (out, tmp_path / "rod_info.json"):
+        existing.write_text("kept\n")
+        assert cosserat.main(["-o", str(out), "--duration", "0.1"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--overwrite" in err[0] and existing.name in err[0]
+        assert existing.read_text() == "kept\n"
+        existing.unlink()
+
+
 def test_the_section_rod_generator_makes_its_folder_and_refuses_a_mistyped_path(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:

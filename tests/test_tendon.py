@@ -3000,10 +3000,10 @@ def test_drifted_rows_with_tilt_imus_say_that_tilt_does_not_follow_a_twisting_ro
     assert main(argv) == 0
     said = [ln for ln in capsys.readouterr().err.splitlines() if "estimates drifted" in ln]
     assert len(said) == 1
+    assert "and the robot file (the IMUs' places, the backbone); or the tip force" in said[0]
     assert said[0].endswith(
-        "and the robot file (the IMUs' places, the backbone); with tilt IMUs a loaded robot "
-        "that twists is not followed with the right inputs either (raw IMUs are: "
-        "docs/tendon.md, Limits)"
+        "the IMUs barely see the force); with tilt IMUs a loaded robot that twists is not "
+        "followed with the right inputs either (raw IMUs are: docs/tendon.md, Limits)"
     )
 
 
@@ -3459,3 +3459,64 @@ def test_the_drift_and_start_warnings_name_tensions_only_for_a_robot_with_tendon
         assert drift.startswith("118 of 151 estimates drifted") and "robot file" in drift
         assert ("--estimate-tension-gain" in drift) == named
         assert ("tension" in drift) == named and ("tension" in start) == named
+
+
+# --- a push the backbone cannot hold -----------------------------------------------------
+def test_the_tip_push_against_known_answers() -> None:
+    """The tip force's component against the tip's tangent: all of an axial force on the
+    straight rod (a pull negative), and for a small force across it the force times the
+    cantilever's tip slope ``F L^2 / (2 EI)``, negative (the tip turns towards the
+    force)."""
+    robot = _one_section()
+    f = TendonFormulation(robot=robot)
+    x = np.zeros(f.nx)
+    x[5] = -0.2
+    assert f.tip_push(x) == pytest.approx(0.2, rel=1e-12)
+    x[5] = 0.2
+    assert f.tip_push(x) == pytest.approx(-0.2, rel=1e-12)
+    force = 1e-3
+    k0, _ = TendonStatics(robot).solve(np.array([0.0, force, 0.0]), np.zeros(0))
+    x = np.zeros(f.nx)
+    x[:3], x[4] = k0, force
+    assert f.tip_push(x) == pytest.approx(-force * force * 0.2**2 / (2 * EI), rel=1e-3)
+
+
+def test_a_push_beyond_twice_the_buckling_load_is_drifted() -> None:
+    """A straight rod pushed along its axis (an equilibrium of the model at any load):
+    drifted beyond twice the buckling load, not at one and a half."""
+    from continuum_mhe.model.tendon import BUCKLED_PUSH_MULTIPLE
+
+    f = TendonFormulation(robot=_one_section())
+    x = np.zeros(f.nx)
+    x[5] = -1.5 * f.buckling_load
+    assert not f.drifted(x)
+    x[5] = -1.01 * BUCKLED_PUSH_MULTIPLE * f.buckling_load
+    assert f.drifted(x)
+
+
+def test_a_still_straight_robot_is_not_ok_under_a_push_the_imus_cannot_see(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shipped tendon robot straight and still, raw IMUs, no tension: along the
+    backbone the IMUs barely see the tip force, and the EKF's loaded hypothesis takes
+    axial forces of several newtons at standard deviations of hundredths of one. No
+    such row is ok (they are drifted, and restarted after half a second), and the
+    warning names the push."""
+    meas, out = tmp_path / "rest.csv", tmp_path / "e.csv"
+    tensions = tmp_path / "tensions.csv"
+    assert main(["simulate", "rest", "--robot", "tendon-two-section", "--imu", "raw",
+                 "--seed", "2", "-o", str(meas)]) == 0  # fmt: skip
+    zero = ",".join(["0"] * 6)
+    tensions.write_text(
+        "t," + ",".join(f"tension_{i}" for i in range(1, 7)) + f"\n0,{zero}\n20,{zero}\n"
+    )
+    capsys.readouterr()
+    argv = ["estimate", str(meas), "--robot", "tendon-two-section", "--inputs", str(tensions),
+            "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    est = read_state_table(out)
+    fz = est.values[:, est.names.index("fz")]
+    assert np.max(np.abs(fz)) > 1.0  # the loaded hypothesis pushes
+    assert not np.any((np.abs(fz) > 0.1) & (est.status == "ok"))
+    assert "the tip force pushed along the backbone harder than 2 times its buckling" in err

@@ -20,6 +20,7 @@ from continuum_mhe.model.descriptions import tip_position_indices
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX
+from continuum_mhe.model.tendon import BUCKLED_PUSH_MULTIPLE
 from continuum_mhe.results import Diagnostics, Status
 from continuum_mhe.settings import RecoverySettings
 
@@ -486,11 +487,21 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
         if formulation.robot.tendons
         else ""
     )
+    buckling = getattr(formulation, "buckling_load", None)
+    push = (
+        f"; or the tip force pushed along the backbone harder than "
+        f"{BUCKLED_PUSH_MULTIPLE:g} times its buckling load "
+        f"({BUCKLED_PUSH_MULTIPLE * buckling:.3g} N), an equilibrium the backbone cannot "
+        "hold (a still, nearly straight robot, along whose axis the IMUs barely see the "
+        "force)"
+        if buckling is not None
+        else ""
+    )
     return (
         f"{drifted} of {n} estimates drifted: the IMUs' error states left their prior or "
         "changed faster than their model allows, so the model follows the readings only "
         f"with IMU errors these IMUs are not taken to have; check {tensions}the robot file "
-        f"(the IMUs' places, the backbone){tilt}"
+        f"(the IMUs' places, the backbone){push}{tilt}"
     )
 
 

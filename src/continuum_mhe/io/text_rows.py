@@ -272,6 +272,11 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
     if b"\x00" in body:
         if n == 1 and (encoding := _utf16(body)):
             raise InputError(f"{name}: line 1: not UTF-8 text but {UTF16.format(encoding)}")
+        if n > 1 and b"\x00" not in body.rstrip(b"\x00"):
+            raise InputError(
+                f"{name}: line {n}: ends in NUL bytes, as a logger that stopped mid-write "
+                f"leaves them: keep the lines before it (head -n {n - 1} {name} > NEW.csv)"
+            )
         raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
     # a binary file's bytes hold CRs too: said as not text, not as its line ends
     if b"\r" in body.rstrip(b"\r") and _text_like(body):

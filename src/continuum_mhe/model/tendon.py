@@ -175,6 +175,15 @@ LOAD_AT_START_PROBABILITY = 1e-3
 DIVERGED_BUCKLING_MULTIPLE = 10.0
 #: The least tip force, N, that counts as diverged by default.
 MAX_FORCE_FLOOR = 50.0
+#: A tip force that pushes along the tip's tangent harder than this many times the
+#: buckling load makes an estimate ``drifted`` (:meth:`TendonFormulation.drifted`): the
+#: quasi-static model then solves a nearly straight equilibrium that the backbone cannot
+#: hold (it buckles), along which the IMUs barely see the force, and a filter's
+#: covariance linearised there collapses (a still, straight robot: tip forces of 4 N
+#: along its axis at 0.04 N standard deviations). A bent backbone past buckling holds the
+#: load along its tip's tangent near the buckling load at most; on the shipped
+#: recordings the push stays under 0.8 of it.
+BUCKLED_PUSH_MULTIPLE = 2.0
 #: The chi-square probability beyond which the IMUs' error states (gyro biases,
 #: misalignments, accelerometer biases), measured against their prior
 #: (:meth:`TendonFormulation.initial_cov`), make an estimate ``drifted``
@@ -1190,11 +1199,34 @@ class TendonFormulation(Formulation):
         chi-square quantile of :data:`IMU_ERROR_PROBABILITY` (status ``drifted``). The
         estimate then follows the readings only with IMU errors these IMUs are not taken
         to have: the model does not describe the robot (tensions of another scale or
-        order, a load it has no state for)."""
+        order, a load it has no state for). Also true where the tip force pushes along
+        the tip's tangent harder than :data:`BUCKLED_PUSH_MULTIPLE` buckling loads
+        (:meth:`tip_push`): an equilibrium the backbone cannot hold."""
+        x = np.asarray(x, dtype=float)
+        if self.tip_push(x) > BUCKLED_PUSH_MULTIPLE * self.buckling_load:
+            return True
         idx, std, limit = self._imu_error_test
         if not len(idx):
             return False
-        return float(np.sum((np.asarray(x, dtype=float)[idx] / std) ** 2)) > limit
+        return float(np.sum((x[idx] / std) ** 2)) > limit
+
+    def tip_push(self, x: FloatArray) -> float:
+        """The tip force's component against the tip's tangent at state ``x``, N: the
+        push along the backbone (negative: a pull)."""
+        q = np.asarray(x, dtype=float)[: 6 + self.robot.n_tendons]
+        if not np.all(np.isfinite(q)):
+            return math.nan
+        return float(self._tip_push_fn(q))
+
+    @cached_property
+    def _tip_push_fn(self) -> ca.Function:
+        """:meth:`tip_push` of the state, a CasADi function of the state's first
+        ``6 + k`` entries (base curvature, tip force, tensions)."""
+        k = self.robot.n_tendons
+        q = ca.SX.sym("q", 6 + k)
+        tip = Station(self.robot.n_sections - 1, 1.0)
+        poses, _ = self.statics.shoot(q[:3], q[3:6], q[6:], (tip,))
+        return ca.Function("tip_push", [q], [-ca.dot(q[3:6], poses[tip][0][:, 2])])
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
         """Non-finite, or a tip force over :attr:`max_force_used`, or its standard

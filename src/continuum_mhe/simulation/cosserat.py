@@ -490,7 +490,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         description="Simulate a cable-driven Cosserat rod with a tip MPU9250-like IMU "
         "and write the recording CSV.",
     )
-    p.add_argument("-o", "--output", default=str(default_data_path()), help="CSV to write")
+    p.add_argument(
+        "-o", "--output", required=True,
+        help="CSV to write, its settings beside it as NAME_info.json (the shipped recording "
+        "is src/continuum_mhe/data/rod_planar.csv in a clone of the repository)",
+    )  # fmt: skip
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace an existing -o file (else refused)"
+    )
     p.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
     p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
     args = p.parse_args(argv)
@@ -505,7 +512,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     from continuum_mhe.io.output_files import check_output_target
 
     try:  # a missing folder or a directory: said before the minute of simulation
-        check_output_target(args.output)
+        check_output_target(args.output, overwrite=args.overwrite)
+        check_output_target(info_path(args.output), overwrite=args.overwrite)
     except InputError as exc:
         print(f"{p.prog}: error: {exc}", file=sys.stderr)
         return 2
