@@ -242,14 +242,15 @@ def test_the_section_rod_generator_makes_its_folder_and_refuses_a_mistyped_path(
     """``-o DIR`` of a folder not there yet: made, as the tendon generator makes its
     own (not refused, "no such folder": the docs' commands name a new DIR); a
     folder in a folder that does not exist, or a file, is one line, exit 2. (The bend
-    recording's writer stands in for the rod's simulation: the folder is the point.)"""
+    recording's simulation and writer are stood in for: the folder is the point.)"""
     from continuum_mhe.simulation import cosserat_sections
     from continuum_mhe.simulation.cosserat_sections import main as generate
 
-    def write_bend(out: Path, name: str, *args: object) -> Path:
+    def write_bend(out: Path, name: str, *args: object, **kwargs: object) -> Path:
         (out / f"{name}_bend.csv").write_text("t\n0\n")
         return out / f"{name}_bend.csv"
 
+    monkeypatch.setattr(cosserat_sections, "bend_trajectory", lambda *a: None)
     monkeypatch.setattr(cosserat_sections, "write_bend_recording", write_bend)
     new = tmp_path / "DIR"
     assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(new)]) == 0
@@ -283,8 +284,270 @@ def test_the_section_rod_generator_picks_a_stable_step_and_says_a_divergence(
     assert generate([*argv, "--sim-dt", "2e-5", "-o", str(tmp_path / "d")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "diverged" in err[0] and "--sim-dt 2e-05" in err[0], err
-    assert not list((tmp_path / "d").glob("*.csv"))
+    assert not (tmp_path / "d").exists()
     for bad in ("-1", "0", "nan"):
         assert generate(["--shear-ratio", bad, "-o", str(tmp_path / "e")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--shear-ratio must be G / E > 0" in err[0], err
+
+
+# --- the generators' refusals: before any simulation ----------------------------------------
+SECTIONS_PROG = "python -m continuum_mhe.simulation.cosserat_sections"
+TENDON_PROG = "python -m continuum_mhe.simulation.cosserat_tendon"
+
+
+def _straight_frame(n_elements: int = 30, length: float = 0.3) -> tuple[np.ndarray, ...]:
+    """A straight rod along z: positions (3, k+1), directors (3, 3, k), rest lengths."""
+    positions = np.zeros((3, n_elements + 1))
+    positions[2] = np.linspace(0.0, length, n_elements + 1)
+    directors = np.repeat(np.eye(3)[:, :, None], n_elements, axis=2)
+    return positions, directors, np.full(n_elements, length / n_elements)
+
+
+def test_a_blown_up_rod_frame_is_refused_though_finite() -> None:
+    """A rod whose explicit integration blew up stays finite (at 2.5 times the default
+    step the tip went 7.5 m from the base of the 0.3 m rod): an element strained (stretch
+    or shear) past ``MAX_STRAIN`` is a divergence, the documented runs' few 1e-4 are not."""
+    from continuum_mhe.simulation.cosserat_sections import (
+        MAX_STRAIN,
+        RodDivergedError,
+        check_rod_frame,
+        rod_strain,
+    )
+
+    x, q, rest = _straight_frame()
+    assert rod_strain(x, q, rest) == pytest.approx(0.0, abs=1e-12)
+    check_rod_frame(x, q, rest, 0.5)
+    settled = x.copy()
+    settled[2] *= 1 - 4e-4  # the default run's largest strain, 3.6e-4, and a little more
+    check_rod_frame(settled, q, rest, 0.5)
+    blown = x * 25.0  # the tip 7.5 m from the base
+    with pytest.raises(RodDivergedError, match=r"diverged at t = 0\.5000 s \(an element strained"):
+        check_rod_frame(blown, q, rest, 0.5)
+    stretched = x.copy()
+    stretched[2, 20:] += 2 * MAX_STRAIN * rest[0]  # one element 2 % longer
+    assert rod_strain(stretched, q, rest) == pytest.approx(2 * MAX_STRAIN)
+    with pytest.raises(RodDivergedError):
+        check_rod_frame(stretched, q, rest, 0.1)
+    sheared = q.copy()  # one element's frame turned off its tangent by 0.05 rad
+    c, s = math.cos(0.05), math.sin(0.05)
+    sheared[:, :, 7] = np.array([[1.0, 0.0, 0.0], [0.0, c, s], [0.0, -s, c]])
+    assert rod_strain(x, sheared, rest) == pytest.approx(0.05, rel=1e-3)
+    with pytest.raises(RodDivergedError):
+        check_rod_frame(x, sheared, rest, 0.1)
+    x[0, 3] = np.nan
+    with pytest.raises(RodDivergedError, match="not finite"):
+        check_rod_frame(x, q, rest, 0.1)
+
+
+def test_a_step_that_blows_the_rod_up_is_one_line_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--sim-dt 5e-5`` (2.5 times the default) blows the rod up within its first
+    recorded millisecond: one line naming ``--sim-dt``, exit 2, no folder (it wrote all
+    six files of a 7.5 m tip, exit 0)."""
+    pytest.importorskip("elastica")
+    from continuum_mhe.simulation.cosserat_sections import main as generate
+
+    out = tmp_path / "d"
+    assert generate(["--sim-dt", "5e-5", "--duration", "0.05", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"{SECTIONS_PROG}: error: rod simulation"), err
+    assert "strained" in err[0] and "--sim-dt 5e-05: give a shorter step" in err[0], err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["--duration", "-1"], "--duration must be at least the IMUs' sample time, 0.02 s"),
+        (["--duration", "0"], "--duration must be at least"),
+        (["--duration", "0.01"], "--duration must be at least"),
+        (["--duration", "nan"], "--duration must be at least"),
+        (["--duration", "1e9"], "--duration must be at most 600 s"),
+        (["--seed", "-3"], "--seed must be an integer >= 0, got -3"),
+        (["--shear-ratio", "1e3"], "--shear-ratio must be G / E > 0 and at most 100"),
+        (["--shear-ratio", "inf"], "--shear-ratio must be"),
+        (["--sim-dt", "0"], "--sim-dt must be a step of 1e-07 to 0.001 s"),
+        (["--sim-dt", "nan"], "--sim-dt must be"),
+        (["--sim-dt", "0.01"], "--sim-dt must be"),
+        (["--name", "../escape"], "--name '../escape': a file name prefix without a path"),
+        (["--name", ".."], "--name '..'"),
+    ],
+)
+def test_the_section_rod_generator_refuses_bad_numbers_before_it_simulates(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    argv: list[str],
+    said: str,
+) -> None:
+    """A number out of range is one line naming its option, exit 2, before any
+    simulation (they were tracebacks, some after it: a numpy memory error at 1e9 s), no
+    folder made; a ``--name`` with a path separator would write outside ``-o``."""
+    pytest.importorskip("elastica")
+    from continuum_mhe.simulation import cosserat_sections
+
+    def no_simulation(*args: object, **kwargs: object) -> None:
+        raise AssertionError("simulated")
+
+    monkeypatch.setattr(cosserat_sections, "simulate_sections", no_simulation)
+    out = tmp_path / "out"
+    assert cosserat_sections.main([*argv, "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"{SECTIONS_PROG}: error: {said}"), err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_both_generators_help_names_them_as_run_and_says_each_default(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Both tools call themselves ``python -m continuum_mhe.simulation.NAME`` (the
+    tendon one said ``cosserat_tendon.py``), and the section generator's ``--scenario``
+    and ``--seed`` say what they are and their default."""
+    from continuum_mhe.simulation import cosserat_sections, cosserat_tendon
+
+    for module, prog in ((cosserat_sections, SECTIONS_PROG), (cosserat_tendon, TENDON_PROG)):
+        with pytest.raises(SystemExit) as exit_:
+            module.main(["--help"])
+        assert exit_.value.code == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert text.startswith(f"usage: {prog} "), text[:80]
+    with pytest.raises(SystemExit):
+        cosserat_sections.main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "planar-s (an S in one plane) or spatial" in text and "(default planar-s)" in text
+    assert "draws the IMUs' errors and noise, an integer >= 0 (default 0)" in text
+
+
+def _tendon_robot(tmp_path: Path, edit: tuple[str, str] = ("", "")) -> Path:
+    from continuum_mhe.io.robot_file import shipped_robots
+
+    text = Path(shipped_robots()["tendon-two-section"]).read_text()
+    path = tmp_path / "robot.toml"
+    path.write_text(text.replace(*edit))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["--duration", "-1"], "--duration must be at least the IMUs' sample time, 0.02 s"),
+        (["--duration", "0"], "--duration must be at least"),
+        (["--duration", "0.01"], "--duration must be at least"),
+        (["--duration", "nan"], "--duration must be at least"),
+        (["--duration", "1e9"], "--duration must be at most 600 s"),
+        (["--seed", "-1"], "--seed must be an integer >= 0, got -1"),
+        (["--name", "../escape"], "--name '../escape': a file name prefix without a path"),
+        (["-o", "{tmp}/none/dir/x"], "{tmp}/none/dir/x: folder {tmp}/none/dir does not exist"),
+        (["-o", "{tmp}/file"], "{tmp}/file: exists and is not a folder"),
+        (["--robot", "{tmp}/z-down.toml"], "{tmp}/z-down.toml: mounting = 'z-down': "),
+    ],
+)
+def test_the_tendon_generator_refuses_bad_arguments_before_it_simulates(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    argv: list[str],
+    said: str,
+) -> None:
+    """The tendon generator's numbers, ``-o`` and robot layout: one line naming the
+    option (or the robot file), exit 2, before the rod is simulated (some were
+    tracebacks after 10 s of it; a missing parent of ``-o`` was made, an existing file
+    a FileExistsError after the simulation), nothing written."""
+    from continuum_mhe.simulation import cosserat_tendon
+
+    def no_simulation(*args: object, **kwargs: object) -> None:
+        raise AssertionError("simulated")
+
+    monkeypatch.setattr(cosserat_tendon, "quasi_static_trajectory", no_simulation)
+    (tmp_path / "file").write_text("x\n")
+    _tendon_robot(tmp_path, ('mounting = "z-up"', 'mounting = "z-down"')).rename(
+        tmp_path / "z-down.toml"
+    )
+    before = sorted(tmp_path.iterdir())
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    if "-o" not in argv:
+        argv += ["-o", str(tmp_path / "out")]
+    assert cosserat_tendon.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    said = said.replace("{tmp}", str(tmp_path))
+    assert len(err) == 1 and err[0].startswith(f"{TENDON_PROG}: error: {said}"), err
+    assert sorted(tmp_path.iterdir()) == before
+
+
+def test_an_equilibrium_the_tendon_generator_cannot_find_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An energy minimisation that does not converge (a backbone far softer than the
+    tensions are sized for): one line naming the robot file, the time and the likely
+    cause, exit 2, nothing written (it was a RuntimeError traceback)."""
+    from continuum_mhe.simulation import cosserat_tendon
+
+    def not_converged(*args: object, **kwargs: object) -> None:
+        raise cosserat_tendon.EquilibriumError("the rod's energy minimisation did not converge")
+
+    monkeypatch.setattr(cosserat_tendon, "energy_equilibrium", not_converged)
+    robot, out = _tendon_robot(tmp_path), tmp_path / "out"
+    assert cosserat_tendon.main(["--robot", str(robot), "--duration", "0.1", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith(
+        f"{TENDON_PROG}: error: {robot}: the rod's energy minimisation did not converge at "
+        "t = 0.00 s (--scenario unloaded): the tensions, sized for tendon-two-section"
+    ), err
+    assert "a stiffer backbone" in err[0] and not out.exists()
+
+
+def test_the_tendon_truth_of_a_straight_robot_has_phi_0_and_no_minus_zero(
+    tmp_path: Path,
+) -> None:
+    """A straight section's ``phi`` is 0 (docs/formats.md; it was -pi, from
+    ``atan2(-0, -0)``), and no file holds a ``-0`` cell. (A straight trajectory given to
+    the writer stands in for the rod's simulation.)"""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.cosserat_tendon import (
+        TendonTrajectory,
+        write_tendon_recording,
+    )
+
+    n, k = 5, 81
+    t = np.arange(n, dtype=np.float64) * 0.02
+    nodes = np.zeros((n, 3, k))
+    nodes[:, 2] = np.linspace(0.0, 0.4, k)
+    nodes[:, 0, -1] = -1e-12  # rounds to -0
+    dirs = np.broadcast_to(np.eye(3), (n, 2, 3, 3)).copy()
+    z = np.zeros((n, 2, 3))
+    sec = SectionTrajectory(t, nodes, dirs, z, z.copy(), np.zeros(n), (40, 80))
+    traj = TendonTrajectory(sec, dirs, np.zeros((n, 6)), np.zeros((n, 3)))
+    robot = read_robot("tendon-two-section")
+    write_tendon_recording(tmp_path, "s", robot, "unloaded", 0.08, trajectory=traj)
+    truth = read_state_table(tmp_path / "s_truth.csv")
+    for c in ("phi_1", "phi_2", "theta_1", "theta_2"):
+        assert np.all(truth.column(c) == 0.0), c
+    for path in tmp_path.glob("s_*.csv"):
+        cells = path.read_text().replace("\n", ",").split(",")
+        assert "-0" not in cells, path.name
+
+
+def test_the_section_truth_of_a_straight_rod_has_phi_0_and_no_minus_zero(
+    tmp_path: Path,
+) -> None:
+    """The section generator's files of a straight, still rod: ``phi`` 0 and no ``-0``
+    cell (the quantised readings wrote ``-0``). (A straight trajectory given to the
+    writer stands in for the rod's simulation.)"""
+    from continuum_mhe.simulation.cosserat_sections import write_trajectory_recording
+
+    n = 2001
+    nodes = np.zeros((n, 3, 31))
+    nodes[:, 2] = np.linspace(0.0, 0.3, 31)
+    dirs = np.broadcast_to(np.eye(3), (n, 2, 3, 3)).copy()
+    z = np.zeros((n, 2, 3))
+    t = np.arange(n, dtype=np.float64) * 1e-3
+    traj = SectionTrajectory(t, nodes, dirs, z, z.copy(), np.zeros(n), (16, 30))
+    write_trajectory_recording(tmp_path, "s", traj, SectionRodSettings(), "planar-s")
+    truth = read_state_table(tmp_path / "s_truth.csv")
+    assert np.all(truth.column("phi_1") == 0.0) and np.all(truth.column("phi_2") == 0.0)
+    for path in tmp_path.glob("s_*.csv"):
+        cells = path.read_text().replace("\n", ",").split(",")
+        assert "-0" not in cells, path.name

@@ -1873,10 +1873,9 @@ def test_the_recording_generator_refuses_sections_without_disks_and_warns_in_one
     assert r.returncode == 2, r.stderr
     err = r.stderr.strip().splitlines()
     assert len(err) == 2, r.stderr
-    assert (
-        err[0].startswith("cosserat_tendon: warning: ") and "(4.712 rad is 270 degrees)" in err[0]
-    )
-    assert err[1].startswith("cosserat_tendon: error: section 1 has no spacer disks")
+    prog = "python -m continuum_mhe.simulation.cosserat_tendon"
+    assert err[0].startswith(f"{prog}: warning: ") and "(4.712 rad is 270 degrees)" in err[0]
+    assert err[1].startswith(f"{prog}: error: {robot}: section 1 has no spacer disks")
     assert not out.exists()
 
 

@@ -65,6 +65,10 @@ Regenerate (needs the ``rod`` extra)::
 IMUs' constant errors are drawn as for it, without simulating it).
 ``--calibrated`` gives the IMUs no accelerometer bias and no board misalignment (noise,
 quantisation and gyro bias stay), to separate the sensors' errors from the model's.
+A ``--sim-dt`` too long for the rod blows the explicit integration up, sometimes
+without leaving finite numbers: a recorded element strained past :data:`MAX_STRAIN`
+(stretch or shear; the documented runs reach under 4e-4) stops the run in one line
+naming ``--sim-dt``, before anything is written.
 """
 
 from __future__ import annotations
@@ -72,6 +76,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -109,6 +114,94 @@ CALIBRATED_IMU = ImuSettings(sample_dt=0.02, accel_bias=0.0, misalignment_deg=0.
 
 #: The integration step of the default rod (torsion at G = E/3), s.
 BASE_SIM_DT = 2.0e-5
+#: The rod's states are recorded every ``RECORD_DT`` s (:func:`simulate_sections`).
+RECORD_DT = 1e-3
+#: The largest strain (stretch, compression or shear, :func:`rod_strain`) of any
+#: element in a recorded frame; beyond it the explicit integrator has blown up, even
+#: where the rod stays finite (at 2.5 times the default step, 5e-5 s, the tip went
+#: 7.5 m from the base of the 0.3 m rod). The rod is extensible: the documented 12 s
+#: runs reach 3.1e-4 (planar-s) to 3.6e-4 (both scenarios with the tendon drive), 2.7e-4
+#: as the rod settles under its weight in its first 15 ms (the bend recording; spatial
+#: at G = 5E and 5e-6 s); the 5e-5 s step passes 0.01 in its first recorded
+#: millisecond and reaches 1.9e3.
+MAX_STRAIN = 0.01
+#: The longest recording, s: the trajectory keeps a record every ``RECORD_DT`` of
+#: about 1 kB (31 nodes, the section ends' frames and velocities), and the rest
+#: recording a copy of it, so 600 s holds about 1.2 GB (a longer one ran out of
+#: memory, or would run for hours: 600 s is about 25 minutes at the default step).
+MAX_DURATION_S = 600.0
+#: ``--sim-dt``'s range, s: beyond the records' 1 ms the records would be a step
+#: apart, and below 1e-7 s (200 times shorter than the default) a 12 s recording
+#: takes hours.
+SIM_DT_RANGE = (1e-7, RECORD_DT)
+#: ``--shear-ratio``'s largest G / E: 300 times a plain elastomer's torsion (an
+#: isotropic material's G / E is 1/3 to 1/2); its default step, 1e-6 s, runs a 12 s
+#: recording in about half an hour.
+MAX_SHEAR_RATIO = 100.0
+
+
+class RodDivergedError(RuntimeError):
+    """The explicit integration blew up (a step too long for the rod): an element's
+    strain past :data:`MAX_STRAIN`, or a position not finite."""
+
+
+def rod_strain(positions: FloatArray, directors: FloatArray, rest_lengths: FloatArray) -> float:
+    """The largest shear-and-stretch strain ``|Q_i (x_{i+1} - x_i) / l_i - e3|`` of a
+    rod's elements (PyElastica's ``sigma``): positions (3, k+1), directors (3, 3, k)
+    (rows: the element's axes), rest lengths (k,). NaN where a position is not finite."""
+    t = np.diff(positions, axis=1) / rest_lengths
+    local = np.einsum("ijk,jk->ik", directors, t)
+    local[2] -= 1.0
+    return float(np.max(np.linalg.norm(local, axis=0)))
+
+
+def check_rod_frame(
+    positions: FloatArray, directors: FloatArray, rest_lengths: FloatArray, time: float
+) -> None:
+    """A :class:`RodDivergedError` where the rod at ``time`` (s) has blown up: a
+    position that is not finite, or an element strained past :data:`MAX_STRAIN`."""
+    if not np.all(np.isfinite(positions)):
+        raise RodDivergedError(f"rod simulation diverged at t = {time:.4f} s (not finite)")
+    strain = rod_strain(positions, directors, rest_lengths)
+    if not strain <= MAX_STRAIN:
+        raise RodDivergedError(
+            f"rod simulation diverged at t = {time:.4f} s (an element strained by "
+            f"{strain:.3g}, beyond {MAX_STRAIN:g})"
+        )
+
+
+def check_generator_arguments(
+    duration: float, seed: int, sample_dt: float, max_duration: float = MAX_DURATION_S
+) -> None:
+    """A one-line :class:`~continuum_mhe.errors.UserError` naming the option, before
+    anything is simulated: ``--duration`` shorter than the IMUs' sample time
+    ``sample_dt`` (a recording of its first sample alone, as ``continuum-mhe simulate``
+    refuses a duration under its ``--dt``), longer than ``max_duration`` (the
+    generator's memory and time), or not a number; a negative ``--seed`` (the random
+    generator takes seeds >= 0, as ``simulate``'s)."""
+    if not (math.isfinite(duration) and duration >= sample_dt):
+        raise UserError(
+            f"--duration must be at least the IMUs' sample time, {sample_dt:g} s (a "
+            f"shorter recording holds its first sample alone), got {duration:g}"
+        )
+    if duration > max_duration:
+        raise UserError(
+            f"--duration must be at most {max_duration:g} s (write longer recordings in "
+            f"parts), got {duration:g}"
+        )
+    if seed < 0:
+        raise UserError(f"--seed must be an integer >= 0, got {seed}")
+
+
+def check_file_prefix(name: str) -> None:
+    """A one-line :class:`~continuum_mhe.errors.UserError` for a ``--name`` that is not
+    a file name prefix: one with a path separator would write outside ``-o``."""
+    seps = [c for c in (os.sep, os.altsep, "/") if c]
+    if any(c in name for c in seps) or name in (".", ".."):
+        raise UserError(
+            f"--name {name!r}: a file name prefix without a path separator (the files "
+            "are written in the folder -o)"
+        )
 
 
 @dataclass(frozen=True)
@@ -205,9 +298,11 @@ def tendon_couples(
 
 
 def simulate_sections(
-    settings: SectionRodSettings, scenario: str, duration: float, record_dt: float = 1e-3
+    settings: SectionRodSettings, scenario: str, duration: float, record_dt: float = RECORD_DT
 ) -> SectionTrajectory:
-    """Integrate the rod for ``duration`` s and record every ``record_dt`` s."""
+    """Integrate the rod for ``duration`` s and record every ``record_dt`` s; a
+    :class:`RodDivergedError` where a recorded frame has blown up
+    (:func:`check_rod_frame`)."""
     ea: Any = require("elastica", "rod", "the rod simulation", package="pyelastica")
     if scenario not in (*SCENARIOS, BEND):
         raise UserError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
@@ -274,8 +369,9 @@ def simulate_sections(
         if i > 0:
             for _ in range(per_record):
                 time = stepper.step(sim, time, np.float64(s.sim_dt))
-        if not np.all(np.isfinite(rod.position_collection)):
-            raise RuntimeError(f"rod simulation diverged at t = {float(time):.4f} s")
+        check_rod_frame(
+            rod.position_collection, rod.director_collection, rod.rest_lengths, float(time)
+        )
         t_rec[i] = time
         nodes[i] = rod.position_collection
         for k, (node, elem) in enumerate(((e1, e1 - 1), (s.n_elements, s.n_elements - 1))):
@@ -409,17 +505,25 @@ def _write_imu_table(path: Path, t: FloatArray, f: FloatArray, w: FloatArray) ->
     n_imus = f.shape[1]
     cols = ["t", *(c for k in range(n_imus) for c in raw_columns(k, n_imus))]
     rows = np.column_stack([t - t[0]] + [np.hstack([f[:, k], w[:, k]]) for k in range(n_imus)])
-    write_table(path, cols, rows.tolist())
+    write_table(path, cols, (rows + 0.0).tolist())  # + 0.0: no "-0" cells
     return path
 
 
 def recording_samples(settings: SectionRodSettings, duration: float, imu: ImuSettings) -> int:
     """The IMU sample count of a recording of ``duration`` s (as :func:`imu_samples`
     takes it from :func:`simulate_sections`' records, every 1 ms), without simulating."""
-    per_record = max(1, int(round(1e-3 / settings.sim_dt)))
+    per_record = max(1, int(round(RECORD_DT / settings.sim_dt)))
     n_rec = int(round(duration / (per_record * settings.sim_dt))) + 1
     step = max(1, int(round(imu.sample_dt / (per_record * settings.sim_dt))))
     return len(range(0, n_rec, step))
+
+
+def bend_trajectory(
+    settings: SectionRodSettings, duration: float = BEND_DURATION_S
+) -> SectionTrajectory:
+    """The rod bent slowly in the base x-z plane towards ``-x`` (``phi = 0``; base-frame
+    couples, whatever the recording's drive) for ``duration`` s."""
+    return simulate_sections(replace(settings, drive="base"), BEND, duration)
 
 
 def write_bend_recording(
@@ -431,13 +535,14 @@ def write_bend_recording(
     samples_like: int,
     misalignment_axes: tuple[int, ...] = (0, 1, 2),
     duration: float = BEND_DURATION_S,
+    trajectory: SectionTrajectory | None = None,
 ) -> Path:
     """``NAME_bend.csv``: the recording's IMUs (the constant errors of a recording of
     ``samples_like`` samples drawn from ``seed``; fresh noise) on the rod bent slowly in
-    the base x-z plane towards ``-x`` (``phi = 0``; base-frame couples, whatever the
-    recording's drive), for ``continuum-mhe calibrate --bend``. Simulates the rod for
-    ``duration`` s."""
-    traj = simulate_sections(replace(settings, drive="base"), BEND, duration)
+    the base x-z plane towards ``-x`` (:func:`bend_trajectory`), for ``continuum-mhe
+    calibrate --bend``. Simulates the rod for ``duration`` s, unless ``trajectory``
+    gives that simulation."""
+    traj = trajectory or bend_trajectory(settings, duration)
     t, f, w, _ = imu_samples(
         traj, imu, seed, noise_seed=seed + 2_000_003, misalignment_axes=misalignment_axes,
         errors_like=samples_like,
@@ -457,11 +562,19 @@ def write_section_recording(
 ) -> dict[str, object]:
     """Simulate, sample and write the files (see the module docstring; the bend
     recording is a second simulation, ``bend_duration`` s); returns the info (floor,
-    one-section error, twist)."""
+    one-section error, twist). Both simulations run before anything is written (a
+    :class:`RodDivergedError` writes nothing); the folder ``out`` is made then, in a
+    folder that exists (checked first: :func:`~continuum_mhe.io.output_files.
+    check_new_folder`)."""
+    from continuum_mhe.io.output_files import check_new_folder
+
+    check_new_folder(out, overwrite=True, names=())
     traj = simulate_sections(settings, scenario, duration)
+    bend = bend_trajectory(settings, bend_duration)
+    out.mkdir(exist_ok=True)  # (as the tendon generator makes its folder)
     info = write_trajectory_recording(out, name, traj, settings, scenario, imu, seed)
     n = int(info["samples"])  # type: ignore[call-overload]
-    write_bend_recording(out, name, settings, imu or DEFAULT_IMU, seed, n, duration=bend_duration)
+    write_bend_recording(out, name, settings, imu or DEFAULT_IMU, seed, n, trajectory=bend)
     return info
 
 
@@ -496,16 +609,16 @@ def write_trajectory_recording(
     write_table(
         out / f"{name}_tilt.csv",
         ["t", *tilt_columns(f.shape[1])],
-        np.column_stack([t, tilt]).tolist(),
+        (np.column_stack([t, tilt]) + 0.0).tolist(),
     )
     b = bends[idx]
     theta = np.hypot(b[..., 0], b[..., 1])
-    phi = np.arctan2(b[..., 1], b[..., 0])
+    phi = np.where(theta > 0.0, np.arctan2(b[..., 1], b[..., 0]), 0.0)  # 0 when straight
     truth_cols = ["t", *output_names(pcc_outputs(len(ends)))]  # the estimate's columns
     truth = [t, *tip.T]
     for k in range(len(ends)):
         truth += [theta[:, k], phi[:, k], *ends[k].T]
-    write_table(out / f"{name}_truth.csv", truth_cols, np.column_stack(truth).tolist())
+    write_table(out / f"{name}_truth.csv", truth_cols, (np.column_stack(truth) + 0.0).tolist())
     floor = np.linalg.norm(fk_tip[idx] - tip, axis=1) * 1e3
     one = np.linalg.norm(one_section_tip(traj, sum(settings.lengths))[idx] - tip, axis=1) * 1e3
     twist_t = np.degrees(np.abs(tangent_twist(traj, bends)[idx]))
@@ -540,20 +653,39 @@ def default_sim_dt(shear_ratio: float) -> float:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from continuum_mhe.io.output_files import check_new_folder
+
     p = argparse.ArgumentParser(
         prog="python -m continuum_mhe.simulation.cosserat_sections",
         description="Simulate a two-section Cosserat rod with an IMU at each section's end.",
     )
     p.add_argument("-o", "--out", required=True, help="folder for the files")
-    p.add_argument("--scenario", choices=SCENARIOS, default="planar-s")
+    p.add_argument(
+        "--scenario",
+        choices=SCENARIOS,
+        default="planar-s",
+        help="the couples' motion: planar-s (an S in one plane) or spatial (bending "
+        "planes turning; bends past 90 degrees) (default planar-s)",
+    )
     p.add_argument("--name", help="file name prefix (default: the scenario)")
-    p.add_argument("--duration", type=float, default=12.0, help="seconds (default 12)")
-    p.add_argument("--shear-ratio", type=float, default=1.0 / 3.0, help="G / E (default 1/3)")
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=12.0,
+        help=f"seconds, 0.02 (the IMUs' sample time) to {MAX_DURATION_S:g} (default 12)",
+    )
+    p.add_argument(
+        "--shear-ratio",
+        type=float,
+        default=1.0 / 3.0,
+        help=f"G / E, above 0 and at most {MAX_SHEAR_RATIO:g} (default 1/3)",
+    )
     p.add_argument(
         "--sim-dt",
         type=float,
         default=None,
-        help="integration step in s (default: 2e-5, shorter for a stiffer torsion: default_sim_dt)",
+        help="integration step in s, 1e-7 to 1e-3 (default: 2e-5, shorter for a stiffer "
+        "torsion: default_sim_dt)",
     )
     p.add_argument(
         "--drive",
@@ -567,7 +699,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="IMUs without accelerometer bias and board misalignment (as after a "
         "calibration); noise, quantisation and gyro bias stay",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="draws the IMUs' errors and noise, an integer >= 0 (default 0)",
+    )
     p.add_argument(
         "--bend-only",
         action="store_true",
@@ -579,39 +716,45 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation')}",
               file=sys.stderr)  # fmt: skip
         return 2
-    if not (args.shear_ratio > 0.0 and math.isfinite(args.shear_ratio)):
-        print(f"{p.prog}: error: --shear-ratio must be G / E > 0, got {args.shear_ratio:g}",
-              file=sys.stderr)  # fmt: skip
-        return 2
-    if args.sim_dt is not None and not (args.sim_dt > 0.0 and math.isfinite(args.sim_dt)):
-        print(f"{p.prog}: error: --sim-dt must be a step > 0 s, got {args.sim_dt:g}",
-              file=sys.stderr)  # fmt: skip
-        return 2
+    imu = CALIBRATED_IMU if args.calibrated else DEFAULT_IMU
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        print(f"{p.prog}: error: {out}: exists and is not a folder", file=sys.stderr)
-        return 2
-    if not out.exists() and not out.absolute().parent.is_dir():  # a mistyped path
-        print(f"{p.prog}: error: {out}: folder {out.parent} does not exist", file=sys.stderr)
-        return 2
-    out.mkdir(exist_ok=True)  # (as the tendon generator makes its folder)
     name = args.name or args.scenario
+    try:  # every argument, and the folder, before anything is simulated or written
+        if not (0.0 < args.shear_ratio <= MAX_SHEAR_RATIO):  # NaN too
+            raise UserError(
+                f"--shear-ratio must be G / E > 0 and at most {MAX_SHEAR_RATIO:g}, got "
+                f"{args.shear_ratio:g}"
+            )
+        lo, hi = SIM_DT_RANGE
+        if args.sim_dt is not None and not (lo <= args.sim_dt <= hi):
+            raise UserError(
+                f"--sim-dt must be a step of {lo:g} to {hi:g} s (the records' spacing), "
+                f"got {args.sim_dt:g}"
+            )
+        check_generator_arguments(args.duration, args.seed, imu.sample_dt)
+        check_file_prefix(name)
+        check_new_folder(out, overwrite=True, names=())
+    except UserError as exc:
+        print(f"{p.prog}: error: {exc}", file=sys.stderr)
+        return 2
     sim_dt = default_sim_dt(args.shear_ratio) if args.sim_dt is None else args.sim_dt
     settings = SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=sim_dt, drive=args.drive)
-    imu = CALIBRATED_IMU if args.calibrated else DEFAULT_IMU
     try:
         if args.bend_only:
             n = recording_samples(settings, args.duration, imu)
-            print(write_bend_recording(out, name, settings, imu, args.seed, n), file=sys.stderr)
+            bend = bend_trajectory(settings)
+            out.mkdir(exist_ok=True)  # (as the tendon generator makes its folder)
+            path = write_bend_recording(out, name, settings, imu, args.seed, n, trajectory=bend)
+            print(path, file=sys.stderr)
             return 0
         info = write_section_recording(
             out, name, settings, args.scenario, args.duration, imu=imu, seed=args.seed
         )
-    except RuntimeError as err:  # the explicit integrator past its stable step
+    except RodDivergedError as err:  # the explicit integrator past its stable step
         print(
             f"{p.prog}: error: {err} with --sim-dt {sim_dt:g}: give a shorter step "
             f"(default_sim_dt gives {default_sim_dt(args.shear_ratio):g} for this "
-            "--shear-ratio; halve it if that diverges)",
+            "--shear-ratio; halve it if that diverges); nothing written",
             file=sys.stderr,
         )
         return 2

@@ -67,10 +67,14 @@ from continuum_mhe.simulation.cosserat import ImuSettings
 from continuum_mhe.simulation.cosserat_sections import (
     DEFAULT_IMU,
     SectionTrajectory,
+    check_file_prefix,
+    check_generator_arguments,
     imu_samples,
 )
 
 SCENARIOS = ("unloaded", "planar-s", "force-08", "force-29", "twist-08", "twist-29", "static")
+#: The equilibria's spacing, s (:func:`quasi_static_trajectory`), the IMUs' sample time.
+RECORD_DT = 2e-2
 #: The quasi-static peer's segments per disk: its section ends converge as ``ds^2``;
 #: at 2 the tip of a 120-degree bend is 0.3 to 0.7 mm from the converged rod's, at 4
 #: about 0.1 mm, at 8 a few hundredths.
@@ -196,6 +200,17 @@ def check_generated_robot(robot: Robot) -> None:
             )
 
 
+class EquilibriumError(RuntimeError):
+    """The discrete rod's energy minimisation (:func:`energy_equilibrium`) did not
+    converge."""
+
+
+def straight_phi(theta: float, phi: float) -> float:
+    """A section's ``phi``, 0 where it is straight (``theta = 0``: the bend's direction
+    is undefined there, and ``atan2(-0, -0)`` gave -pi), as docs/formats.md has it."""
+    return phi if theta > 0.0 else 0.0
+
+
 def truth_columns(n_sections: int) -> list[str]:
     """The truth file's columns: those of the tendon formulation's outputs."""
     from continuum_mhe.model.tendon import tendon_outputs
@@ -222,38 +237,44 @@ def write_tendon_recording(
     trajectory, already computed (the same motion with the errors of another seed);
     ``robot_name``: the robot as the info names it. A robot other than two sections
     with an IMU at each end (:func:`check_generated_robot`) is a
-    :class:`~continuum_mhe.errors.UserError`."""
+    :class:`~continuum_mhe.errors.UserError`; an equilibrium not found, an
+    :class:`EquilibriumError`. The folder ``out`` is made once the rod is simulated, in
+    a folder that exists (checked first: :func:`~continuum_mhe.io.output_files.
+    check_new_folder`)."""
     import casadi as ca
 
     from continuum_mhe.io.csv_files import tilt_columns
     from continuum_mhe.io.estimate_csv import write_table
+    from continuum_mhe.io.output_files import check_new_folder
     from continuum_mhe.io.raw_imu import raw_columns
     from continuum_mhe.model.imu import tilt_from_accelerometer
     from continuum_mhe.model.tendon_statics import swing_twist_sym
 
     check_generated_robot(robot)
+    check_new_folder(out, overwrite=True, names=())
     traj = trajectory or quasi_static_trajectory(
         robot, scenario, duration, settings, segments_per_disk=segments_per_disk
     )
     sec = traj.sections
     t, f, w, idx = imu_samples(sec, imu, seed)
     t = t - t[0]
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)
     n_imus = f.shape[1]
     cols = ["t", *(c for k in range(n_imus) for c in raw_columns(k, n_imus))]
     raw = np.column_stack([t] + [np.hstack([f[:, k], w[:, k]]) for k in range(n_imus)])
-    write_table(out / f"{name}_raw.csv", cols, np.round(raw, 6).tolist())
+    # (+ 0.0 after rounding: a tiny negative value is written 0, not "-0")
+    write_table(out / f"{name}_raw.csv", cols, (np.round(raw, 6) + 0.0).tolist())
     tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(n_imus)])
     write_table(
         out / f"{name}_tilt.csv",
         ["t", *tilt_columns(n_imus)],
-        np.round(np.column_stack([t, tilt]), 6).tolist(),
+        (np.round(np.column_stack([t, tilt]), 6) + 0.0).tolist(),
     )
     tcols = ["t"] + [f"tension_{i}" for i in range(1, robot.n_tendons + 1)]
     write_table(
         out / f"{name}_tensions.csv",
         tcols,
-        np.round(np.column_stack([t, traj.tensions[idx]]), 6).tolist(),
+        (np.round(np.column_stack([t, traj.tensions[idx]]), 6) + 0.0).tolist(),
     )
     Q = ca.SX.sym("Q", 3, 3)
     swing = ca.Function("swing", [Q], [ca.vertcat(*swing_twist_sym(Q))])
@@ -264,13 +285,14 @@ def write_tendon_recording(
         for k in range(2):
             R = sec.directors[j, k].T  # local-to-base
             th, ph, ps = np.asarray(swing(R_prev.T @ R), dtype=float).ravel()
+            ph = straight_phi(th, ph)
             p = sec.nodes[j, :, sec.end_nodes[k]] - sec.nodes[j, :, 0]
             row += [th, ph, *p, ps]
             R_prev = R
         row += list(traj.force[j])
         truth.append(row)
     tr = np.column_stack([t, np.array(truth)])
-    write_table(out / f"{name}_truth.csv", truth_columns(2), np.round(tr, 7).tolist())
+    write_table(out / f"{name}_truth.csv", truth_columns(2), (np.round(tr, 7) + 0.0).tolist())
     psi = tr[:, [9, 15]]
     # (theta is the swing of the section end's frame, at most 180 degrees: a bend past
     # 180 folds back below it, and is seen as it passes through 170 to 180 degrees)
@@ -299,33 +321,82 @@ def write_tendon_recording(
     return info
 
 
+#: The longest recording, s: an equilibrium every 20 ms, each some 60 ms of IPOPT, so
+#: 600 s (30,000 equilibria) runs for half an hour; past 1e6 s or so the arrays of the
+#: tensions and states no longer fit in memory (1e9 s was a numpy memory error).
+MAX_DURATION_S = 600.0
+
+PROG = "python -m continuum_mhe.simulation.cosserat_tendon"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    from continuum_mhe.io.output_files import check_new_folder
     from continuum_mhe.io.robot_file import read_robot
 
     p = argparse.ArgumentParser(
+        prog=PROG,
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     p.add_argument("--scenario", choices=SCENARIOS, default="unloaded", help="the motion")
-    p.add_argument("--duration", type=float, default=8.0, help="s (the shipped recordings' length)")
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=8.0,
+        help=f"s, {RECORD_DT:g} (the IMUs' sample time) to {MAX_DURATION_S:g}; the shipped "
+        "recordings' is 8",
+    )
     p.add_argument(
         "--robot",
         default="tendon-two-section",
         help="a robot file (or shipped name) of two sections with an IMU at each end",
     )
     p.add_argument("--name", help="the files' prefix, the scenario's name if not given")
-    p.add_argument("--seed", type=int, default=0, help="draws the IMUs' errors and noise")
-    p.add_argument("-o", "--output", type=Path, required=True, help="the folder to write to")
+    p.add_argument(
+        "--seed", type=int, default=0, help="draws the IMUs' errors and noise, an integer >= 0"
+    )
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        help="the folder to write to (made in a folder that exists)",
+    )
     a = p.parse_args(argv)
-    try:  # a robot it does not write is refused before anything is simulated or written
-        with one_line_warnings("cosserat_tendon"):
+    name = a.name or a.scenario
+    with one_line_warnings(p.prog):
+        try:  # the arguments, the folder and the robot before anything is simulated
+            check_generator_arguments(
+                a.duration, a.seed, max(RECORD_DT, DEFAULT_IMU.sample_dt), MAX_DURATION_S
+            )
+            check_file_prefix(name)
+            check_new_folder(a.output, overwrite=True, names=())
+            robot = read_robot(a.robot)  # its errors name the file
+        except UserError as exc:
+            print(f"{p.prog}: error: {exc}", file=sys.stderr)
+            return 2
+        try:
+            check_generated_robot(robot)
+        except UserError as exc:  # a robot it does not write
+            print(f"{p.prog}: error: {a.robot}: {exc}", file=sys.stderr)
+            return 2
+        try:
             info = write_tendon_recording(
-                a.output, a.name or a.scenario, read_robot(a.robot), a.scenario, a.duration,
-                TendonRodSettings(), a.seed, robot_name=a.robot,
+                a.output, name, robot, a.scenario, a.duration, TendonRodSettings(), a.seed,
+                robot_name=a.robot,
             )  # fmt: skip
-    except UserError as exc:
-        print(f"cosserat_tendon: error: {exc}", file=sys.stderr)
-        return 2
+        except UserError as exc:
+            print(f"{p.prog}: error: {exc}", file=sys.stderr)
+            return 2
+        except EquilibriumError as exc:
+            print(
+                f"{p.prog}: error: {a.robot}: {exc} (--scenario {a.scenario}): the tensions, "
+                "sized for tendon-two-section, likely bend or twist this robot further than "
+                "its rod can follow (a backbone far softer, or tendons further out); a "
+                "stiffer backbone or tendons nearer to it bend less; nothing written",
+                file=sys.stderr,
+            )
+            return 2
     print(json.dumps(info), file=sys.stderr)
     return 0
 
@@ -430,7 +501,7 @@ def energy_equilibrium(
     x0 = np.zeros(3 * n_seg) if start is None else start
     sol = solver(x0=x0, p=np.r_[tensions, force])
     if not solver.stats()["success"]:
-        raise RuntimeError("the rod's energy minimisation did not converge")
+        raise EquilibriumError("the rod's energy minimisation did not converge")
     w = np.asarray(sol["x"], dtype=float).ravel()
     return w, np.asarray(frames_fn(w), dtype=float)
 
@@ -440,11 +511,12 @@ def quasi_static_trajectory(
     scenario: str,
     duration: float,
     settings: TendonRodSettings | None = None,
-    record_dt: float = 2e-2,
+    record_dt: float = RECORD_DT,
     segments_per_disk: int = SEGMENTS_PER_DISK,
 ) -> TendonTrajectory:
     """The robot's equilibria (:func:`energy_equilibrium`) every ``record_dt`` s, warm
-    started; velocities and angular velocities by central differences."""
+    started; velocities and angular velocities by central differences. An
+    :class:`EquilibriumError` names the time of an equilibrium not found."""
     s = settings or TendonRodSettings()
     disks = [sec.disks for sec in robot.sections]
     n_rec = int(round(duration / record_dt)) + 1
@@ -457,7 +529,10 @@ def quasi_static_trajectory(
     force = np.array([tip_force(scenario, float(tk), s) for tk in t])
     w = None
     for i in range(n_rec):
-        w, fr = energy_equilibrium(robot, tensions[i], force[i], w, segments_per_disk)
+        try:
+            w, fr = energy_equilibrium(robot, tensions[i], force[i], w, segments_per_disk)
+        except EquilibriumError as exc:
+            raise EquilibriumError(f"{exc} at t = {t[i]:.2f} s") from None
         nodes[i, :, 1:] = fr[9:]
         for k, e in enumerate(end_seg):
             dirs[i, k] = fr[:9, e].reshape(3, 3, order="F").T  # rows: the frame's axes
