@@ -383,7 +383,7 @@ def test_the_section_rod_generator_refuses_bad_numbers_before_it_simulates(
     said: str,
 ) -> None:
     """A number out of range is one line naming its option, exit 2, before any
-    simulation (they were tracebacks, some after it: a numpy memory error at 1e9 s), no
+    simulation (not a traceback, nor a numpy memory error at 1e9 s after it), no
     folder made; a ``--name`` with a path separator would write outside ``-o``."""
     pytest.importorskip("elastica")
     from continuum_mhe.simulation import cosserat_sections
@@ -481,7 +481,7 @@ def test_an_equilibrium_the_tendon_generator_cannot_find_is_one_line(
 ) -> None:
     """An energy minimisation that does not converge (a backbone far softer than the
     tensions are sized for): one line naming the robot file, the time and the likely
-    cause, exit 2, nothing written (it was a RuntimeError traceback)."""
+    cause, exit 2, nothing written (not a RuntimeError traceback)."""
     from continuum_mhe.simulation import cosserat_tendon
 
     def not_converged(*args: object, **kwargs: object) -> None:
