@@ -1944,9 +1944,24 @@ def test_simulate_rest_of_a_tendon_robot_is_its_straight_readings_for_calibrate(
     robot straight and still, its tendons slack, read as its sections' geometry, raw or
     tilt, which ``calibrate --from`` takes with the same robot file (not refused, though
     the tendon generator has no rest)."""
-    rest = tmp_path / "rest.csv"
-    argv = ["simulate", "rest", "--robot", "tendon-two-section", "--imu", "raw", "-o", str(rest)]
+    rest, truth = tmp_path / "rest.csv", tmp_path / "truth.csv"
+    argv = ["simulate", "rest", "--robot", "tendon-two-section", "--imu", "raw", "-o", str(rest),
+            "--truth", str(truth)]  # fmt: skip
     assert main(argv) == 0
+    # the tendons' tensions, 0 N, beside it for estimate --inputs; the truth in the
+    # tendon robot's columns, no twist and no tip force
+    assert (tmp_path / "rest_tensions.csv").read_text() == (
+        "t,tension_1,tension_2,tension_3,tension_4,tension_5,tension_6\n"
+        "0,0,0,0,0,0,0\n20,0,0,0,0,0,0\n"
+    )
+    table = read_state_table(truth)
+    assert table.names == tuple(o.name for o in TendonFormulation(
+        robot=read_robot("tendon-two-section")).outputs)  # fmt: skip
+    for name in ("psi_1", "psi_2", "fx", "fy", "fz"):
+        assert np.all(table.values[:, table.names.index(name)] == 0.0)
+    assert np.all(table.values[:, table.names.index("z")] == pytest.approx(0.4))
+    assert main([*argv, "--seed", "1"]) == 2  # the tensions file is not replaced unasked
+    assert "rest_tensions.csv" in capsys.readouterr().err
     header, first = rest.read_text().splitlines()[:2]
     assert header == "t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,ay_2,az_2,gx_2,gy_2,gz_2"
     values = [float(v) for v in first.split(",")]
@@ -3502,13 +3517,9 @@ def test_a_still_straight_robot_is_not_ok_under_a_push_the_imus_cannot_see(
     such row is ok (they are drifted, and restarted after half a second), and the
     warning names the push."""
     meas, out = tmp_path / "rest.csv", tmp_path / "e.csv"
-    tensions = tmp_path / "tensions.csv"
+    tensions = tmp_path / "rest_tensions.csv"  # simulate writes it: the tendons slack
     assert main(["simulate", "rest", "--robot", "tendon-two-section", "--imu", "raw",
                  "--seed", "2", "-o", str(meas)]) == 0  # fmt: skip
-    zero = ",".join(["0"] * 6)
-    tensions.write_text(
-        "t," + ",".join(f"tension_{i}" for i in range(1, 7)) + f"\n0,{zero}\n20,{zero}\n"
-    )
     capsys.readouterr()
     argv = ["estimate", str(meas), "--robot", "tendon-two-section", "--inputs", str(tensions),
             "-o", str(out)]  # fmt: skip

@@ -13,10 +13,11 @@ from continuum_mhe.cli.options import add_overwrite_option, given_options
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError, UserError
-from continuum_mhe.io.estimate_csv import write_measurements, write_truth
+from continuum_mhe.io.estimate_csv import write_measurements, write_table, write_truth
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.simulation.scenarios import (
     NOISE_MODELS,
     REST_NOISE_DEG,
@@ -67,7 +68,16 @@ def run(args: argparse.Namespace) -> int:
                 f"{args.truth}: --truth names the measurement file -o too; give two files"
             )
     robot = robot_from_args(args)
+    tensions = None
     if robot.tendons and args.scenario == "rest":  # straight, still, its tendons slack:
+        tensions = tensions_path(args.output)
+        check_output_target(tensions, args.overwrite)
+        if args.truth and Path(args.truth).resolve() == tensions.resolve():
+            raise InputError(
+                f"{args.truth}: --truth names the tensions file that rest writes beside -o "
+                "for a tendon robot; give another"
+            )
+        n_tendons, n_sections = robot.n_tendons, robot.n_sections
         robot = replace(robot, tendons=(), backbone=None)  # its sections' geometry reads it
     try:
         rec = simulate_robot(
@@ -93,13 +103,30 @@ def run(args: argparse.Namespace) -> int:
         write_measurements(args.output, rec.t, values, names)
     else:
         write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
-    if args.truth:
-        try:
-            write_truth(args.truth, rec.t, rec.truth, rec.outputs)
-        except BaseException:  # (a full disk, a signal): no measurements without truth
-            Path(args.output).unlink(missing_ok=True)
-            raise
+    truth, outputs = rec.truth, rec.outputs
+    if tensions is not None:  # the tendon robot's outputs: no twist, no tip force
+        outputs = tendon_outputs(n_sections)
+        names = [o.name for o in rec.outputs]
+        truth = np.column_stack(
+            [rec.truth[:, names.index(o.name)] if o.name in names else np.zeros(len(rec.t))
+             for o in outputs]
+        )  # fmt: skip
+    try:
+        if args.truth:
+            write_truth(args.truth, rec.t, truth, outputs)
+        if tensions is not None:
+            columns = ["t", *(f"tension_{i}" for i in range(1, n_tendons + 1))]
+            write_table(tensions, columns, [[t, *[0.0] * n_tendons] for t in rec.t[[0, -1]]])
+    except BaseException:  # (a full disk, a signal): no measurements without truth
+        Path(args.output).unlink(missing_ok=True)
+        raise
     print(f"wrote {len(rec.t)} samples of {args.scenario} to {args.output}", file=sys.stderr)
+    if tensions is not None:
+        print(
+            f"{PROG}: note: the tendons are slack at rest: wrote their tensions, 0 N, to "
+            f"{tensions} (estimate --inputs {tensions})",
+            file=sys.stderr,
+        )
     beyond = _bends_beyond_bounds(rec.truth, [o.name for o in rec.outputs], robot)
     if beyond:
         print(
@@ -117,6 +144,13 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def tensions_path(output: str) -> Path:
+    """The tensions file ``simulate rest`` writes beside ``output`` for a tendon robot:
+    ``NAME_tensions.csv``."""
+    p = Path(output)
+    return p.with_name(f"{p.stem}_tensions.csv")
 
 
 def _bends_beyond_bounds(truth: np.ndarray, names: list[str], robot: Robot) -> str:
