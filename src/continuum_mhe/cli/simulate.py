@@ -103,17 +103,17 @@ def run(args: argparse.Namespace) -> int:
         write_measurements(args.output, rec.t, values, names)
     else:
         write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
-    truth, outputs = rec.truth, rec.outputs
+    true_values, outputs = rec.truth, rec.outputs
     if tensions is not None:  # the tendon robot's outputs: no twist, no tip force
         outputs = tendon_outputs(n_sections)
-        names = [o.name for o in rec.outputs]
-        truth = np.column_stack(
-            [rec.truth[:, names.index(o.name)] if o.name in names else np.zeros(len(rec.t))
-             for o in outputs]
+        pcc_names = [o.name for o in rec.outputs]
+        true_values = np.column_stack(
+            [rec.truth[:, pcc_names.index(o.name)] if o.name in pcc_names
+             else np.zeros(len(rec.t)) for o in outputs]
         )  # fmt: skip
     try:
         if args.truth:
-            write_truth(args.truth, rec.t, truth, outputs)
+            write_truth(args.truth, rec.t, true_values, outputs)
         if tensions is not None:
             columns = ["t", *(f"tension_{i}" for i in range(1, n_tendons + 1))]
             write_table(tensions, columns, [[t, *[0.0] * n_tendons] for t in rec.t[[0, -1]]])
