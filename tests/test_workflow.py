@@ -882,3 +882,29 @@ def test_a_key_at_the_options_files_top_applies_where_it_can(tmp_path: Path, cap
     own.write_text('[live]\ntopic = ["/imu1"]\n')
     assert main(["live", "--port", "/dev/null", "--config", str(own)]) == 2
     assert "line 2: topic is not an option of live" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("argv", "left_out", "kept"),
+    [
+        (["--method", "ekf"], ("reject-reset", "drift-reset", "horizon"), ("bad-start", "glitch")),
+        (["--loss", "huber"], ("bad-start", "glitch", "drift-reset"), ("reject-reset", "loss")),
+        ([], ("reject-reset", "drift-reset"), ("bad-start", "glitch", "horizon")),
+    ],
+)
+def test_the_options_line_records_the_options_the_run_used(
+    tmp_path: Path, argv: list[str], left_out: tuple[str, ...], kept: tuple[str, ...]
+) -> None:
+    """An estimate file's options line leaves out what the run did not use: the reject
+    reset but where a robust MHE rejects readings, the bad-start check and the glitch
+    skip for a robust MHE, the drift reset for a robot without tendons, an MHE option for
+    a filter."""
+    from continuum_mhe.cli.config import recorded_option
+
+    meas, out = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    assert main(["estimate", str(meas), "-o", str(out), *argv]) == 0
+    for key in left_out:
+        assert recorded_option(str(out), key) is None, key
+    for key in kept:
+        assert recorded_option(str(out), key) is not None, key

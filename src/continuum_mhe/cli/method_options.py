@@ -124,7 +124,14 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
     args.method = method
     parser = getattr(args, "options_parser", None)
     if parser is not None:  # the estimate file records the method that made it
-        leave_out = () if method == "mhe" else MHE_OPTIONS  # a profile's, unused
+        leave_out = {*(() if method == "mhe" else MHE_OPTIONS)}  # a profile's, unused
+        # recovery options the run leaves unused, recorded where they act
+        robust = method == "mhe" and getattr(args, "loss", "l2") != "l2"
+        leave_out |= {"bad_start", "glitch"} if robust else {"reject_reset"}
+        if formulation.change_test() is None or getattr(
+            formulation, "estimate_tension_gain", False
+        ):
+            leave_out.add("drift_reset")
         args.options_record = options_record(parser, args, leave_out)
     return method
 
