@@ -202,6 +202,10 @@ void cmhe::bind_horizon(nb::module_& m) {
       CMHE_VIEW(lam, size_t(h.n), size_t(h.nb))
       CMHE_VIEW(lam0, size_t(h.n), size_t(h.nb))
       CMHE_VIEW(w_first, size_t(h.nblk))
-      CMHE_VIEW(w_last, size_t(h.nblk));
+      CMHE_VIEW(w_last, size_t(h.nblk))
+      CMHE_VIEW(cov_free, size_t(h.nx), size_t(h.nx))
+      .def_ro("cov_free_ok", &MovingHorizon::cov_free_ok,
+              "Whether the last answer's node sits on a bending bound: cov_free (nx, nx) is "
+              "then its covariance not conditioned on that bound.");
 #undef CMHE_VIEW
 }

@@ -117,6 +117,13 @@ class PythonInference final : public PolicyInference {
     nb::gil_scoped_acquire gil;
     return nb::cast<bool>(obj_.attr("outlier")());
   }
+  bool bound_free_covariance(double* P) override {
+    nb::gil_scoped_acquire gil;
+    nb::object r = obj_.attr("bound_free_covariance")();
+    if (r.is_none()) return false;
+    read_into(r, size_t(nx_) * nx_, P, "bound_free_covariance");
+    return true;
+  }
   int rejected_every_reading() override {
     nb::gil_scoped_acquire gil;
     return nb::cast<int>(obj_.attr("rejected")());
@@ -237,6 +244,11 @@ class HorizonInference final : public PolicyInference {
       std::copy(h_.ystd.begin(), h_.ystd.end(), s);
     else
       h_.node.output_std(x, P, s);
+  }
+  bool bound_free_covariance(double* P) override {
+    if (!h_.cov_free_ok) return false;
+    std::copy(h_.cov_free.begin(), h_.cov_free.end(), P);
+    return true;
   }
   bool outlier() override {
     if (!robust_) return false;

@@ -249,7 +249,8 @@ void cmhe::bind_solver(nb::module_& m) {
 
   m.def(
       "last_block_covariance",
-      [](In X, In D, In E, In lo, In hi, IndexIn ball_idx, In ball_r2, double tol, Out out) {
+      [](In X, In D, In E, In lo, In hi, IndexIn ball_idx, In ball_r2, double tol, Out out,
+         bool condition_balls) {
         if (X.ndim() != 2) throw std::invalid_argument("X must be (n, nx)");
         const Index n = X.shape(0), nx = X.shape(1);
         check_shape(D, {n, nx, nx}, "D");
@@ -258,13 +259,14 @@ void cmhe::bind_solver(nb::module_& m) {
         const Feasible fs = feasible_of(lo, hi, ball_idx, ball_r2, nx);
         CovarianceScratch scratch;
         return last_block_covariance(n, nx, X.data(), D.data(), E.data(), fs, tol, out.data(),
-                                     scratch);
+                                     scratch, condition_balls);
       },
       nb::arg("X"), nb::arg("D"), nb::arg("E"), nb::arg("lo"), nb::arg("hi"),
       nb::arg("ball_idx"), nb::arg("ball_r2"), nb::arg("tol"), nb::arg("out"),
+      nb::arg("condition_balls") = true,
       "Into out (nx, nx): the last diagonal block of H^-1 for H = (D, E), conditioned on "
-      "the bounds active at X (n, nx) within tol; False if the reduced Hessian is not "
-      "positive definite.");
+      "the bounds active at X (n, nx) within tol (the balls only where condition_balls); "
+      "False if the reduced Hessian is not positive definite.");
   m.def(
       "btd_solve",
       [](In D, In E, In b, Out y) {

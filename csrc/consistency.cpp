@@ -181,6 +181,7 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   const int dof = static_cast<int>(rows_.size());
   nis_ = fit_ = fit_nis_ = shift_ = 0.0;
   dof_ = dof;
+  shift_ready_ = false;
   if (dof > max_dof_) {  // more readings than any sample before: learn their level anew
     max_dof_ = dof;
     quiet_scale_ = 1.0;
@@ -191,6 +192,9 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
       if (!Q || (s_.nu && !u))
         throw std::invalid_argument("the prediction from the previous estimate needs u and Q");
       const double dt = t - t0_;
+      last_dt_ = dt;
+      if (s_.nu) last_u_.assign(u, u + s_.nu);
+      shift_ready_ = shift_judged_;
       nis_ = predicted_nis(x0_.data(), P0_.data(), dt, z, mask, u, Q, rows_);
       // covariance matching: the average factor of the innovations over their predicted
       // size; a reading flagged on its own (an outlier) stays out of it
@@ -246,6 +250,16 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   }
   const bool unexplained = fit_nis_ > s_.limit[dof] && shift_ > s_.shift_limit[shift_dof_];
   return worst > s_.limit[dof] || (high && high_) || persists_ || unexplained;
+}
+
+double ConsistencyCheck::shift_inflation_at(const double* x, const double* P) {
+  if (!shift_ready_ || rows_.empty()) return 1.0;
+  const int kept = shift_dof_;
+  const double shift = shift_to_fit(x, P, s_.nu ? last_u_.data() : nullptr, last_dt_);
+  const int dof = shift_dof_;
+  shift_dof_ = kept;  // shift_inflation() stays the check's
+  if (!(shift > 0.0) || dof <= 0) return 1.0;
+  return std::max(1.0, shift / s_.shift_limit[dof]);
 }
 
 void ConsistencyCheck::weighted_jacobian(RowMatrix& Hs, RowMatrix& wh) {

@@ -154,6 +154,11 @@ class ConsistencyCheck {
     if (!(shift_ > 0.0) || shift_dof_ <= 0) return 1.0;
     return std::max(1.0, shift_ / s_.shift_limit[shift_dof_]);
   }
+  // shift_inflation() for the last check's readings at the estimate ``x`` with the
+  // covariance ``P`` instead (a covariance the check did not judge with: an estimate on
+  // a bound, its covariance not conditioned on it); 1 where the last check compared no
+  // prediction, or the model's shift test is off
+  double shift_inflation_at(const double* x, const double* P);
   int dof() const { return dof_; }     // this sample's judged readings
 
  private:
@@ -206,6 +211,10 @@ class ConsistencyCheck {
   double t0_ = 0.0;
   bool has_prev_ = false;
   bool shift_judged_ = false;  // some shift_limit is finite: the shift can matter
+  // the last check's inputs and time step to its prediction (shift_inflation_at)
+  std::vector<double> last_u_;
+  double last_dt_ = 0.0;
+  bool shift_ready_ = false;
   double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0, fit_nis_ = 0.0;
   double shift_ = 0.0, quiet_scale_ = 1.0;
   int avg_dof_ = 0, dof_ = 0, shift_dof_ = 0;

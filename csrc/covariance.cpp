@@ -11,7 +11,7 @@ namespace {
 // Mark the box bounds (wbox -1/+1) and balls (wball, unit normals nrm: of an active ball,
 // its coordinates' entries, the ones read) active at X.
 void active_constraints(Index n, Index nx, const double* X, const Feasible& fs, double tol,
-                        int8_t* wbox, int8_t* wball, double* nrm) {
+                        int8_t* wbox, int8_t* wball, double* nrm, bool balls) {
   const Index nbm = std::max<Index>(fs.nb, 1);
   for (Index i = 0; i < n; ++i) {
     const double* x = X + i * nx;
@@ -28,7 +28,7 @@ void active_constraints(Index n, Index nx, const double* X, const Feasible& fs, 
       const int64_t* idx = fs.ball + b * fs.bk;
       double q = 0.0;
       for (Index a = 0; a < fs.bk; ++a) q += x[idx[a]] * x[idx[a]];
-      if (q > 0.0 && q >= fs.ball_r2[b] * (1.0 - tol)) {
+      if (balls && q > 0.0 && q >= fs.ball_r2[b] * (1.0 - tol)) {
         wball[i * nbm + b] = 1;
         const double rq = std::sqrt(q);
         for (Index a = 0; a < fs.bk; ++a) nrm[(i * nbm + b) * nx + idx[a]] = x[idx[a]] / rq;
@@ -39,13 +39,25 @@ void active_constraints(Index n, Index nx, const double* X, const Feasible& fs, 
 
 }  // namespace
 
+bool last_node_on_a_ball(Index n, Index nx, const double* X, const Feasible& fs, double tol) {
+  const double* x = X + (n - 1) * nx;
+  for (Index b = 0; b < fs.nb; ++b) {
+    const int64_t* idx = fs.ball + b * fs.bk;
+    double q = 0.0;
+    for (Index a = 0; a < fs.bk; ++a) q += x[idx[a]] * x[idx[a]];
+    if (q > 0.0 && q >= fs.ball_r2[b] * (1.0 - tol)) return true;
+  }
+  return false;
+}
+
 bool last_block_covariance(Index n, Index nx, const double* X, const double* D,
                            const double* E, const Feasible& fs, double tol, double* out,
-                           CovarianceScratch& cs) {
+                           CovarianceScratch& cs, bool condition_balls) {
   QPScratch& s = cs.qp;
   s.resize(n, nx, fs.nb);
   const Index nbm = std::max<Index>(fs.nb, 1), bs = nx * nx;
-  active_constraints(n, nx, X, fs, tol, s.wbox.data(), s.wball.data(), s.nrm.data());
+  active_constraints(n, nx, X, fs, tol, s.wbox.data(), s.wball.data(), s.nrm.data(),
+                     condition_balls);
   const bool none = std::all_of(s.wbox.begin(), s.wbox.end(), [](int8_t w) { return w == 0; }) &&
                     std::all_of(s.wball.begin(), s.wball.end(), [](int8_t w) { return w == 0; });
   std::vector<double>&C = cs.C, &Li = cs.Li, &Tn = cs.Tn, &Tb = cs.Tb, &v = cs.v, &tmp = cs.tmp;

@@ -57,6 +57,7 @@ MovingHorizon::MovingHorizon(WindowSolver& solver_, NodeModel& node_, std::vecto
   E_sol.assign((n - 1) * bs, 0.0);
   state.assign(nx, 0.0);
   cov.assign(bs, 0.0);
+  cov_free.assign(bs, 0.0);
   y.assign(ny, 0.0);
   ystd.assign(ny, 0.0);
   Rl_.assign(nz * nz, 0.0);
@@ -362,7 +363,7 @@ void MovingHorizon::keep_outputs(const double* Xk, const double* D, const double
       node_weights(n - 1, Xk + (n - 1) * nx, w_last.data());
   }
   std::copy(Xk + (n - 1) * nx, Xk + n * nx, state.begin());
-  cov_ok = false;
+  cov_ok = cov_free_ok = false;
   if (!failed) {
     if (D == nullptr) {
       load(Xk, false);
@@ -375,6 +376,9 @@ void MovingHorizon::keep_outputs(const double* Xk, const double* D, const double
     if (D != nullptr)
       cov_ok = last_block_covariance(n, nx, Xk, D, E, solver.feasible(), kActiveTol, cov.data(),
                                      cov_scratch_);
+    if (cov_ok && last_node_on_a_ball(n, nx, Xk, solver.feasible(), kActiveTol))
+      cov_free_ok = last_block_covariance(n, nx, Xk, D, E, solver.feasible(), kActiveTol,
+                                          cov_free.data(), cov_scratch_, false);
   }
   node.output(state.data(), y.data());
   if (cov_ok) node.output_std(state.data(), cov.data(), ystd.data());

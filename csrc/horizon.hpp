@@ -119,6 +119,10 @@ class MovingHorizon {
   // the kept answer's last node, its covariance and outputs
   std::vector<double> state, cov, y, ystd;
   bool cov_ok = false;
+  // where the last node sits on a bending bound: the covariance not conditioned on it
+  // (for the standard deviations written; cov, conditioned, is the checks')
+  std::vector<double> cov_free;
+  bool cov_free_ok = false;
 
  private:
   // step without its timing

@@ -109,6 +109,7 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   mask_.resize(s_.nz);
   zero_mask_.assign(s_.nz, 0.0);
   bias_.resize(static_cast<size_t>(s_.nx) * s_.nx);
+  P_free_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   std_b_.resize(s_.ny);
   if (!s_.free_pairs.empty()) {
     // shapes spread evenly over each free section's reach (its disk of bend vectors,
@@ -843,7 +844,17 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   if (has_state) inference_.output(x, y);
   if (has_state && has_cov) {
     const int ny = s_.ny;
-    inference_.output_std(x, P, ystd);
+    // an estimate on a bending bound that the MHE held it to: the checks above judged it
+    // with its covariance conditioned on the bound (the estimate cannot leave it); its
+    // standard deviations are not, as the bound may not be the robot's, and they grow
+    // until the shift that fits the readings, beyond the bound, lies within them
+    const bool on_bound = status == ST_AT_BOUND && s_.checks_start &&
+                          inference_.bound_free_covariance(P_free_.data());
+    inference_.output_std(x, on_bound ? P_free_.data() : P, ystd);
+    if (on_bound)
+      shift_factor = std::sqrt(std::max(
+          1.0, consistency_.shift_inflation_at(x, P_free_.data()) /
+                   std::max(1.0, consistency_.noise_scale())));
     if (factor != 1.0)  // the model error the readings show (covariance matching)
       for (int i = 0; i < ny; ++i) ystd[i] *= factor;
     // the bends no reading pins (before the statuses that a wide tip makes uncertain)

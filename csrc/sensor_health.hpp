@@ -76,6 +76,10 @@ class PolicyInference {
   virtual void output_std(const double* x, const double* P, double* s) = 0;
   // whether the last infer down-weighted a reading (robust MHE); whether it rejected
   // every valid reading: 1, 0, or -1 when the sample had none
+  // where the last infer's estimate sits on a bending bound that its covariance P is
+  // conditioned on: the covariance not conditioned on it into ``P`` (nx x nx), true;
+  // else false (an estimator that does not hold its bounds)
+  virtual bool bound_free_covariance(double* /*P*/) { return false; }
   virtual bool outlier() { return false; }
   virtual int rejected_every_reading() { return 0; }
   // the same for the blocks that hold any of ``rows`` (reading rows): 1 when every such
@@ -367,7 +371,7 @@ class SensorHealth {
   // (before the glitch gate), and its reading came after a silence longer than the
   // unobserved window (its first one too) and has not yet entered a start
   std::vector<char> imu_seen_, reads_now_, late_pending_;
-  std::vector<double> z_, mask_, zero_mask_, bias_, std_b_;
+  std::vector<double> z_, mask_, zero_mask_, bias_, std_b_, P_free_;
   // the free bends' spread (free_pairs): the shapes' bends (FREE_SHAPES x pairs x 2),
   // a state and its outputs
   static constexpr size_t FREE_SHAPES = 64;

@@ -47,7 +47,7 @@ from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.pcc import free_sections
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Status
+from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import (
     FREEZE_MIN_SAMPLES,
     FREEZE_S,
@@ -268,6 +268,63 @@ def test_covariance_conditioned_on_an_active_disk_bound(solver) -> None:
         C = e.covariance[:2, :2]
         assert abs(n @ C @ n) < 1e-12
         assert np.array([-n[1], n[0]]) @ C @ np.array([-n[1], n[0]]) > 1e-8
+
+
+def test_at_bound_rows_std_grows_with_the_bend_beyond_the_bound(tmp_path: Path) -> None:
+    """The MHE held at a theta_max the robot bends past (planar-overbend bends to 2.2
+    rad; the bound 1 rad): its rows on the bound are `at-bound`, and their standard
+    deviations come from the covariance not conditioned on the bound, grown until the
+    shift that fits the readings lies within it, so that the true bend lies within 4 of
+    them on every such row (the conditioned covariance puts it up to 43 away)."""
+    meas, truth, out = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "planar-overbend", "-o", str(meas), "--truth", str(truth),
+                 "--seed", "1"]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "--theta-max", "1", "-o", str(out)]) == 0
+    est, true = read_state_table(out), read_state_table(truth)
+    on = est.status == Status.AT_BOUND.value
+    assert on.sum() > 100
+    k = est.names.index("theta")
+    assert est.std is not None
+    off = np.abs(est.values[on, k] - true.values[on, true.names.index("theta")])
+    assert off.max() > 0.8  # the truth lies far beyond the bound
+    assert np.all(off < 4 * est.std[on, k])
+
+
+def test_the_bound_free_covariance_is_the_unconstrained_one_on_both_backends() -> None:
+    """On the rows whose estimate sits on theta_max, each backend's covariance not
+    conditioned on the bound equals the last block of the inverse Gauss-Newton Hessian
+    with no bound at all (from the formulation's CasADi functions, at the same window
+    answer), and the two backends' written standard deviations agree."""
+    from continuum_mhe.estimators.fast.covariance import casadi_window_covariance
+
+    rec = simulate("planar-overbend", duration=7.5)
+    f = BendFormulation()
+    stds = {}
+    for solver in SOLVERS:
+        mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=10))
+        inference = mhe.inference
+        rows = []
+        for k in range(len(rec.t)):
+            e = mhe.step(Measurement(float(rec.t[k]), rec.z[k]))
+            free = inference.bound_free_covariance()
+            on = float(e.state[0] ** 2 + e.state[1] ** 2) >= f.robot.theta_max**2 * (1 - 1e-6)
+            assert (free is not None) == on
+            if free is None:
+                continue
+            X, problem = np.array(inference._window.X), inference.window_problem()
+            plain = casadi_window_covariance(f, problem, X, None)
+            assert plain is not None
+            # (the fast backend's at its SQP's last iterate, a certified step from it)
+            assert_allclose(free, plain, rtol=1e-3, atol=1e-12)
+            rows.append(k)
+        assert len(rows) > 10
+        series = step_all(MovingHorizonEstimator(f, solver_settings(solver, horizon=10)),
+                          rec.t, rec.z)  # fmt: skip
+        stds[solver] = {k: series[k].output_std for k in rows}
+    both = sorted(set(stds["fast"]) & set(stds["ipopt"]))  # (a row may touch one's bound)
+    assert len(both) > 10
+    for k in both:
+        assert_allclose(stds["fast"][k], stds["ipopt"][k], rtol=1e-3)
 
 
 def test_fast_and_ipopt_covariances_agree() -> None:

@@ -236,9 +236,9 @@ class WindowSolver:
     @watchdog.setter
     def watchdog(self, arg: bool, /) -> None: ...
 
-def last_block_covariance(X: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], tol: float, out: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> bool:
+def last_block_covariance(X: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], tol: float, out: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], condition_balls: bool = True) -> bool:
     """
-    Into out (nx, nx): the last diagonal block of H^-1 for H = (D, E), conditioned on the bounds active at X (n, nx) within tol; False if the reduced Hessian is not positive definite.
+    Into out (nx, nx): the last diagonal block of H^-1 for H = (D, E), conditioned on the bounds active at X (n, nx) within tol (the balls only where condition_balls); False if the reduced Hessian is not positive definite.
     """
 
 def btd_solve(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> bool:
@@ -639,6 +639,15 @@ class MovingHorizon:
 
     @property
     def w_last(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def cov_free(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def cov_free_ok(self) -> bool:
+        """
+        Whether the last answer's node sits on a bending bound: cov_free (nx, nx) is then its covariance not conditioned on that bound.
+        """
 
 STATUS_NAMES: tuple = ...
 

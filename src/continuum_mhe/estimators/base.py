@@ -151,6 +151,13 @@ class Inference(ABC):
         """Whether the last :meth:`infer` down-weighted its measurement (robust MHE only)."""
         return False
 
+    def bound_free_covariance(self) -> FloatArray | None:
+        """Where the last :meth:`infer`'s estimate sits on a bending bound that its
+        covariance is conditioned on (the MHE holds it there), the covariance not
+        conditioned on it (nx, nx), which its standard deviations are written from; else
+        None (an estimator that does not hold its bounds)."""
+        return None
+
     def rejected_every_reading(self, rows: Sequence[int] | None = None) -> bool | None:
         """Whether the last :meth:`infer` down-weighted every valid reading of its sample
         (the reject reset counts these), or every valid reading of the blocks that hold

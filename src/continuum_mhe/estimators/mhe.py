@@ -138,6 +138,9 @@ class ReferenceWindow:
         f, n, nx = formulation, settings.horizon, formulation.nx
         self.formulation, self.settings, self.feasible = formulation, settings, feasible
         self.n, self.nx = n, nx
+        #: where the answer's newest node sits on a ball: its covariance not conditioned
+        #: on the balls (:func:`casadi_window_covariance`), as the compiled window's
+        self.cov_free, self.cov_free_ok = np.zeros((nx, nx)), False
         self._R = np.asarray(f.meas_cov(), dtype=np.float64)
         self._Rinv = np.asarray(np.linalg.inv(self._R), dtype=np.float64)
         self._blocks = block_array(f.measurement_blocks)
@@ -282,7 +285,24 @@ class ReferenceWindow:
                 xbar=self.xbar, arrival=self.arrival,
             )  # fmt: skip
             cov = casadi_window_covariance(f, problem, X, self.feasible, loss=self._loss)
+        self.cov_free_ok = False
+        if cov is not None and self.feasible is not None and on_a_ball(x, self.feasible):
+            free = casadi_window_covariance(
+                f, problem, X, self.feasible, loss=self._loss, condition_balls=False
+            )
+            if free is not None:
+                self.cov_free, self.cov_free_ok = free, True
         return Answer(x, cov, f.output(x), None if cov is None else f.output_std(x, cov))
+
+
+def on_a_ball(x: FloatArray, feasible: Feasible, tol: float = 1e-6) -> bool:
+    """Whether the node ``x`` sits on one of ``feasible``'s balls (within ``tol`` of
+    its ``r^2``, as the covariance's active set)."""
+    for idx, r2 in zip(np.atleast_2d(feasible.ball_idx), feasible.ball_r2):
+        q = float(np.sum(np.asarray(x)[idx] ** 2))
+        if q > 0.0 and q >= r2 * (1.0 - tol):
+            return True
+    return False
 
 
 class MovingHorizonInference(Inference):
@@ -772,6 +792,12 @@ class MovingHorizonInference(Inference):
     def _node_weights(self, i: int, x: FloatArray) -> FloatArray:
         """Robust weights ``rho'(s_b)`` (nblocks,) of window node ``i`` at state ``x``."""
         return np.asarray(self._window.node_weights(i, np.ascontiguousarray(x, dtype=np.float64)))
+
+    def bound_free_covariance(self) -> FloatArray | None:
+        """The kept answer's covariance not conditioned on the bending bound its newest
+        node sits on, or None where it sits on none (the window's ``cov_free``)."""
+        window = self._window
+        return np.array(window.cov_free) if window.cov_free_ok else None
 
     def outlier(self) -> bool:
         """True when the last solve down-weighted a block of the newest sample below

@@ -202,6 +202,9 @@ class PythonInference:
     def outlier(self) -> bool:
         return self.inference.outlier()
 
+    def bound_free_covariance(self) -> FloatArray | None:
+        return self.inference.bound_free_covariance()
+
     def rejected(self, rows: list[int] | None = None) -> int:
         """:meth:`~.base.Inference.rejected_every_reading` (of the blocks that hold any
         of the reading ``rows``, where given) as 1, 0, or -1 for None."""

@@ -7,7 +7,11 @@ linearised model (a Laplace approximation). Its inverse's last block is the
 covariance of the estimate. Active bounds are conditioned on: a coordinate on its box
 bound, and the normal of an active ball, carry no variance (the reduced Hessian on
 the active constraints' null space, the same elimination as the QP's
-equality-constrained step, ``csrc/qp.hpp``).
+equality-constrained step, ``csrc/qp.hpp``). That covariance is the one the
+sensor-health checks judge an estimate with (an estimate on a bound cannot leave it).
+Where the newest node sits on a ball (a section's bending bound, which may not be the
+robot's: status ``at-bound``), the covariance not conditioned on the balls
+(``condition_balls=False``) is kept beside it for the standard deviations written.
 
 The last block needs no full inverse: with ``H = L L^T`` block-bidiagonal, ``L^-1`` is
 lower triangular and its last block column is ``(0, ..., L_n^-1)``, so
@@ -44,10 +48,12 @@ def last_block_covariance(
     ball_r2: FloatArray,
     tol: float,
     out: FloatArray,
+    condition_balls: bool = True,
 ) -> bool:
     """``out`` (nx, nx): the last diagonal block of ``H^-1`` for ``H = (D, E)``,
     conditioned on the bounds active at ``X`` (see the module doc; the compiled core's
-    ``last_block_covariance``). False if the reduced Hessian is not positive definite."""
+    ``last_block_covariance``), the balls only where ``condition_balls``. False if the
+    reduced Hessian is not positive definite."""
     f64 = np.ascontiguousarray
     balls = f64(ball_idx, dtype=np.int64)
     balls = balls.reshape(len(ball_r2), -1) if len(ball_r2) else np.zeros((0, 1), np.int64)
@@ -55,7 +61,7 @@ def last_block_covariance(
         _core.last_block_covariance(
             f64(X, dtype=float), f64(D, dtype=float), f64(E, dtype=float), f64(lo, dtype=float),
             f64(hi, dtype=float), balls,
-            f64(ball_r2, dtype=float), float(tol), out,
+            f64(ball_r2, dtype=float), float(tol), out, condition_balls,
         )
     )  # fmt: skip
 
@@ -93,12 +99,14 @@ def casadi_window_covariance(
     feasible: Feasible | None,
     tol: float = 1e-6,
     loss: LossKernel | None = None,
+    condition_balls: bool = True,
 ) -> FloatArray | None:
     """The same quantity as :func:`window_covariance`, with the Jacobians from the
     formulation's CasADi functions (the IPOPT backend's; no compiled model).
-    ``feasible`` None: no bound is conditioned on. IPOPT's answers lie within its
-    tolerance of a bound, hence the looser default ``tol``. ``loss``: the measurement
-    loss (None: quadratic), whose weights enter the Hessian as in the fast backend."""
+    ``feasible`` None: no bound is conditioned on; ``condition_balls`` False: no ball.
+    IPOPT's answers lie within its tolerance of a bound, hence the looser default
+    ``tol``. ``loss``: the measurement loss (None: quadratic), whose weights enter the
+    Hessian as in the fast backend."""
     f = formulation
     n, nx, nz = X.shape[0], f.nx, f.nz
     fns = f.functions
@@ -144,5 +152,5 @@ def casadi_window_covariance(
     )  # fmt: skip
     D, E = solver.D[0], solver.E[0]
     out = np.empty((nx, nx))
-    ok = last_block_covariance(Xc, D, E, lo, hi, ball_idx, ball_r2, tol, out)
+    ok = last_block_covariance(Xc, D, E, lo, hi, ball_idx, ball_r2, tol, out, condition_balls)
     return out if ok else None
