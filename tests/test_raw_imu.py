@@ -469,6 +469,12 @@ def test_a_logger_header_with_other_imu_names_is_told_the_names_to_use(
             "gyro_x_1 -> gx_1, gyro_y_1 -> gy_1, gyro_z_1 -> gz_1, ...",
         ),
         ("t,ax,ay,az,wx,wy,wz", [], "wx -> gx, wy -> gy, wz -> gz"),
+        ("t,ax,ay,az,gx_1,gy_1,gz_1", [], "gx_1 -> gx, gy_1 -> gy, gz_1 -> gz"),
+        (
+            "t,ax,ay,az,gyro_x_1,gyro_y_1,gyro_z_1",
+            [],
+            "gyro_x_1 -> gx, gyro_y_1 -> gy, gyro_z_1 -> gz",
+        ),
     ],
 )
 def test_gyro_columns_named_otherwise_beside_the_accelerometer_are_not_left_out(

@@ -231,7 +231,7 @@ def test_text_in_windows_1252_names_the_byte_and_the_conversion(tmp_path: Path) 
     with pytest.raises(InputError) as info:
         read_measurements(path)
     assert str(info.value) == (
-        f"{path}: line 1: not UTF-8 text: byte 0xB0 at character 15 ('°' in "
+        f"{path}: line 1: not UTF-8 text: byte 15 of the line, 0xB0 ('°' in "
         "Windows-1252), text saved in an 8-bit encoding; save it as UTF-8 (iconv -f CP1252 "
         f"-t UTF-8 {path} > NEW.csv)"
     )
@@ -244,15 +244,17 @@ def test_text_in_windows_1252_names_the_byte_and_the_conversion(tmp_path: Path) 
 def test_nul_bytes_a_logger_left_at_the_end_name_the_lines_to_keep(
     tmp_path: Path, tail: bytes
 ) -> None:
-    """A logger that stopped mid-write pads its last line with NUL bytes: one line
-    saying so, with the lines to keep; a NUL byte inside a line stays a binary file's."""
+    """A logger that stopped or restarted mid-write pads a line with NUL bytes: one line
+    saying so, with the command that removes them; a NUL byte inside a line stays a
+    binary file's."""
     path = tmp_path / "m.csv"
     path.write_bytes(b"t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1\n" + tail)
     with pytest.raises(InputError) as info:
         read_measurements(path)
     assert str(info.value) == (
-        f"{path}: line 4: ends in NUL bytes, as a logger that stopped mid-write leaves them: "
-        f"keep the lines before it (head -n 3 {path} > NEW.csv)"
+        f"{path}: line 4: ends in NUL bytes, as a logger that stopped or restarted mid-write "
+        f"leaves them: remove them (tr -d '\\000' < {path} > NEW.csv; a line they cut short "
+        "is then refused, or skipped with --skip-bad)"
     )
     path.write_bytes(b"t,roll,pitch\n0,0.1,0.1\n0.05,\x000.1,0.1\n")
     with pytest.raises(InputError, match=r"line 3: contains a NUL byte \(a binary file"):

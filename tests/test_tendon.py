@@ -3014,10 +3014,10 @@ def test_drifted_rows_with_tilt_imus_say_that_tilt_does_not_follow_a_twisting_ro
     assert main(argv) == 0
     said = [ln for ln in capsys.readouterr().err.splitlines() if "estimates drifted" in ln]
     assert len(said) == 1
-    assert "and the robot file (the IMUs' places, the backbone); or the tip force" in said[0]
+    assert "the robot file: the IMUs' places, the backbone); or the tip force" in said[0]
     assert said[0].endswith(
-        "the IMUs barely see the force); with tilt IMUs a loaded robot that twists is not "
-        "followed with the right inputs either (raw IMUs are: docs/tendon.md, Limits)"
+        "presses on something); with tilt IMUs a loaded robot that twists is not followed "
+        "with the right inputs either (raw IMUs are: docs/tendon.md, Limits)"
     )
 
 

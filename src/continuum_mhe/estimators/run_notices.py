@@ -491,17 +491,17 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
     push = (
         f"; or the tip force pushed along the backbone harder than "
         f"{BUCKLED_PUSH_MULTIPLE:g} times its buckling load "
-        f"({BUCKLED_PUSH_MULTIPLE * buckling:.3g} N), an equilibrium the backbone cannot "
-        "hold (a still, nearly straight robot, along whose axis the IMUs barely see the "
-        "force)"
+        f"({BUCKLED_PUSH_MULTIPLE * buckling:.3g} N), which a free tip cannot hold and the "
+        "IMUs barely see along a nearly straight backbone (a still robot, or one whose tip "
+        "presses on something)"
         if buckling is not None
         else ""
     )
     return (
         f"{drifted} of {n} estimates drifted: the IMUs' error states left their prior or "
-        "changed faster than their model allows, so the model follows the readings only "
-        f"with IMU errors these IMUs are not taken to have; check {tensions}the robot file "
-        f"(the IMUs' places, the backbone){push}{tilt}"
+        "changed faster than their model allows, where the model follows the readings "
+        f"only with IMU errors these IMUs are not taken to have (check {tensions}the robot "
+        f"file: the IMUs' places, the backbone){push}{tilt}"
     )
 
 

@@ -303,6 +303,28 @@ def _other_raw_renames(rows: TextRows, gyro_only: bool = False) -> list[str]:
     return renames
 
 
+def _other_gyro_renames(rows: TextRows, suffixes: Sequence[str]) -> list[str]:
+    """``"gyro_x -> gx"`` for each header column that names a gyro axis
+    (:data:`_OTHER_RAW_NAME`, ``gx_1`` included) but is not one of the gyro columns of
+    the IMUs ``suffixes`` (``[""]`` for one IMU's, ``["_1", ...]``) that the reader
+    takes: its name for the robot's IMUs (a file's numbers from 0 read from 1)."""
+    wanted = {c + s for s in suffixes for c in GYRO_COLUMNS}
+    matches = [
+        (h, m)
+        for h in rows.header
+        if h not in wanted and (m := _OTHER_RAW_NAME.match(h)) and m.group(2)
+    ]
+    numbers = [int(m.group(4)) for _, m in matches if m.group(4)]
+    shift = 1 if numbers and min(numbers) == 0 else 0
+    renames = []
+    for h, m in matches:
+        axis = "g" + m.group(3).lower()
+        number = int(m.group(4)) + shift if m.group(4) else 1
+        name = axis if suffixes == [""] else f"{axis}_{number}"
+        renames.append(f"{rows.as_written(h)} -> {name}")
+    return renames
+
+
 def _refuse_other_raw_names(rows: TextRows) -> None:
     """A one-line error for a header with neither tilt nor raw columns but with columns
     that name accelerometer or gyro axes otherwise (:data:`_OTHER_RAW_NAME`): the names
@@ -385,7 +407,7 @@ def raw_layout(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tuple[tuple
             f"{rows.name}: line 1: {lacks}, IMU {_imu_list([s[1:] for s in gyro])} {have} "
             "them: give every IMU's gyro or none"
         )
-    if not gyro and (renames := _other_raw_renames(rows, gyro_only=True)):
+    if not gyro and (renames := _other_gyro_renames(rows, suffixes)):
         shown = ", ".join(renames[:3]) + (", ..." if len(renames) > 3 else "")
         raise InputError(
             f"{rows.name}: line 1: columns named like gyro readings that this reader does "

@@ -28,6 +28,7 @@ import io
 import itertools
 import os
 import re
+import shlex
 import sys
 import warnings
 from collections.abc import Iterator, Sequence
@@ -274,8 +275,9 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
             raise InputError(f"{name}: line 1: not UTF-8 text but {UTF16.format(encoding)}")
         if n > 1 and b"\x00" not in body.rstrip(b"\x00"):
             raise InputError(
-                f"{name}: line {n}: ends in NUL bytes, as a logger that stopped mid-write "
-                f"leaves them: keep the lines before it (head -n {n - 1} {name} > NEW.csv)"
+                f"{name}: line {n}: ends in NUL bytes, as a logger that stopped or restarted "
+                f"mid-write leaves them: remove them (tr -d '\\000' < {shlex.quote(name)} > "
+                "NEW.csv; a line they cut short is then refused, or skipped with --skip-bad)"
             )
         raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
     # a binary file's bytes hold CRs too: said as not text, not as its line ends
@@ -293,9 +295,10 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
             raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
         byte = body[exc.start]
         raise InputError(
-            f"{name}: line {n}: not UTF-8 text: byte 0x{byte:02X} at character {exc.start + 1} "
+            f"{name}: line {n}: not UTF-8 text: byte {exc.start + 1} of the line, 0x{byte:02X} "
             f"({bytes([byte]).decode('cp1252', 'replace')!r} in Windows-1252), text saved in "
-            f"an 8-bit encoding; save it as UTF-8 (iconv -f CP1252 -t UTF-8 {name} > NEW.csv)"
+            "an 8-bit encoding; save it as UTF-8 (iconv -f CP1252 -t UTF-8 "
+            f"{shlex.quote(name)} > NEW.csv)"
         ) from None
     return line.rstrip("\r")
 

@@ -22,7 +22,7 @@ The paper's Sec. 3.3 recordings are not public. This module builds a stand-in th
 Regenerate the shipped example (needs the ``rod`` extra, ``pip install
 continuum-mhe[rod]``)::
 
-    python -m continuum_mhe.simulation.cosserat -o src/continuum_mhe/data/rod_planar.csv
+    python -m continuum_mhe.simulation.cosserat -o src/continuum_mhe/data/rod_planar.csv --overwrite
 """
 
 from __future__ import annotations

@@ -127,8 +127,8 @@ RECORD_DT = 1e-3
 MAX_STRAIN = 0.01
 #: The longest recording, s: the trajectory keeps a record every ``RECORD_DT`` of
 #: about 1 kB (31 nodes, the section ends' frames and velocities), and the rest
-#: recording a copy of it, so 600 s holds about 1.2 GB (a longer one ran out of
-#: memory, or would run for hours: 600 s is about 25 minutes at the default step).
+#: recording a copy of it, so 600 s holds about 1.2 GB (a longer one runs out of
+#: memory, or runs for hours: 600 s is about 25 minutes at the default step).
 MAX_DURATION_S = 600.0
 #: ``--sim-dt``'s range, s: beyond the records' 1 ms the records would be a step
 #: apart, and below 1e-7 s (200 times shorter than the default) a 12 s recording

@@ -207,7 +207,7 @@ class EquilibriumError(RuntimeError):
 
 def straight_phi(theta: float, phi: float) -> float:
     """A section's ``phi``, 0 where it is straight (``theta = 0``: the bend's direction
-    is undefined there, and ``atan2(-0, -0)`` gave -pi), as docs/formats.md has it."""
+    is undefined there, and ``atan2(-0, -0)`` gives -pi), as docs/formats.md has it."""
     return phi if theta > 0.0 else 0.0
 
 
@@ -323,7 +323,7 @@ def write_tendon_recording(
 
 #: The longest recording, s: an equilibrium every 20 ms, each some 60 ms of IPOPT, so
 #: 600 s (30,000 equilibria) runs for half an hour; past 1e6 s or so the arrays of the
-#: tensions and states no longer fit in memory (1e9 s was a numpy memory error).
+#: tensions and states do not fit in memory (1e9 s: a numpy memory error).
 MAX_DURATION_S = 600.0
 
 PROG = "python -m continuum_mhe.simulation.cosserat_tendon"
