@@ -674,7 +674,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<double> freeze_tolerance, double silent_after, double glitch_factor,
              double drift_reset, double whole_gap_reset,
              std::vector<std::pair<int, int>> free_pairs, std::vector<double> free_reach,
-             std::vector<int> wrapped_outputs) {
+             std::vector<int> wrapped_outputs, std::vector<double> bound_std_limit) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -715,6 +715,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
                 if (!(v > 0.0)) throw std::invalid_argument("std_limit must be positive");
             }
             s.std_limit = std::move(std_limit);
+            if (!bound_std_limit.empty() && bound_std_limit.size() != static_cast<size_t>(ny))
+              throw std::invalid_argument("bound_std_limit needs one value per output (ny)");
+            s.bound_std_limit = std::move(bound_std_limit);
             s.jump_hold = jump_hold;
             if (freeze_tolerance.empty()) freeze_tolerance.assign(static_cast<size_t>(nz), 0.0);
             if (freeze_tolerance.size() != static_cast<size_t>(nz))
@@ -787,6 +790,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("free_pairs") = std::vector<std::pair<int, int>>(),
           nb::arg("free_reach") = std::vector<double>(),
           nb::arg("wrapped_outputs") = std::vector<int>(),
+          nb::arg("bound_std_limit") = std::vector<double>(),
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
@@ -800,7 +804,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "limit by dof from index 1, lag s; no rows: off); ``confirm_samples``: readings "
           "that must agree with an unconfirmed start once one disagreed with it; "
           "``std_limit`` (ny, or empty: none): each output's largest standard deviation, "
-          "half the width of its range (inf: no range); ``jump_hold``: rows within the "
+          "half the width of its range (inf: no range); ``bound_std_limit``: the same for an "
+          "estimate held on a bending bound (empty: std_limit); ``jump_hold``: rows within the "
           "unobserved window of a reading beyond one sample's limit are uncertain; "
           "``freeze_tolerance`` (nz, or empty: 0): how far a reading may move from a "
           "freeze's first one and still repeat it; ``silent_after`` (s): an IMU silent for "

@@ -71,6 +71,7 @@ MovingHorizon::MovingHorizon(WindowSolver& solver_, NodeModel& node_, std::vecto
 
 void MovingHorizon::restart() {
   k = 0;
+  cov_ok = cov_free_ok = false;
   std::fill(tw.begin(), tw.end(), 0.0);
   std::fill(zw.begin(), zw.end(), 0.0);
   std::fill(zmask.begin(), zmask.end(), 0.0);

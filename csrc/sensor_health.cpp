@@ -844,17 +844,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   if (has_state) inference_.output(x, y);
   if (has_state && has_cov) {
     const int ny = s_.ny;
-    // an estimate on a bending bound that the MHE held it to: the checks above judged it
-    // with its covariance conditioned on the bound (the estimate cannot leave it); its
-    // standard deviations are not, as the bound may not be the robot's, and they grow
-    // until the shift that fits the readings, beyond the bound, lies within them
-    const bool on_bound = status == ST_AT_BOUND && s_.checks_start &&
-                          inference_.bound_free_covariance(P_free_.data());
-    inference_.output_std(x, on_bound ? P_free_.data() : P, ystd);
-    if (on_bound)
-      shift_factor = std::sqrt(std::max(
-          1.0, consistency_.shift_inflation_at(x, P_free_.data()) /
-                   std::max(1.0, consistency_.noise_scale())));
+    inference_.output_std(x, P, ystd);
     if (factor != 1.0)  // the model error the readings show (covariance matching)
       for (int i = 0; i < ny; ++i) ystd[i] *= factor;
     // the bends no reading pins (before the statuses that a wide tip makes uncertain)
@@ -867,6 +857,21 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       // with it confirm it
       if (tip_std(ystd) > s_.uncertain_fraction * s_.length) wide_t_ = t;
       if (status == ST_OK && t - wide_t_ < unobserved_window()) status = ST_UNCERTAIN;
+    }
+    // an estimate on a bending bound that the MHE held it to: the checks judged it with
+    // its covariance conditioned on the bound (the estimate cannot leave it), and so do
+    // the statuses above; its standard deviations are not, as the bound may not be the
+    // robot's, and they grow until the shift that fits the readings, beyond the bound,
+    // lies within them
+    const bool on_bound = status == ST_AT_BOUND && s_.checks_start &&
+                          inference_.bound_free_covariance(P_free_.data());
+    if (on_bound) {
+      inference_.output_std(x, P_free_.data(), ystd);
+      if (factor != 1.0)
+        for (int i = 0; i < ny; ++i) ystd[i] *= factor;
+      if (!s_.free_pairs.empty()) widen_by_free_bends(x, y, ystd);
+      shift_factor = std::sqrt(std::max(1.0, consistency_.shift_inflation_at(x, P_free_.data()) /
+                                                 std::max(1.0, consistency_.noise_scale())));
     }
     if (shift_factor != 1.0)
       for (int i = 0; i < ny; ++i) ystd[i] *= shift_factor;
@@ -901,8 +906,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // half its width: beyond it (a covariance widened to the shift that fits readings
     // this estimate cannot explain), the estimate may lie anywhere in the range, and
     // that is what the limit says (after the statuses: it changes none)
-    if (!s_.std_limit.empty())
-      for (int i = 0; i < s_.ny; ++i) ystd[i] = std::min(ystd[i], s_.std_limit[i]);
+    const std::vector<double>& limit =
+        on_bound && !s_.bound_std_limit.empty() ? s_.bound_std_limit : s_.std_limit;
+    if (!limit.empty())
+      for (int i = 0; i < s_.ny; ++i) ystd[i] = std::min(ystd[i], limit[i]);
     out.has_std = true;
   }
   if (!s_.change_rows.empty() && s_.checks_start) {

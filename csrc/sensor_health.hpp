@@ -74,12 +74,12 @@ class PolicyInference {
   // of a state with covariance P
   virtual void output(const double* x, double* y) = 0;
   virtual void output_std(const double* x, const double* P, double* s) = 0;
-  // whether the last infer down-weighted a reading (robust MHE); whether it rejected
-  // every valid reading: 1, 0, or -1 when the sample had none
   // where the last infer's estimate sits on a bending bound that its covariance P is
   // conditioned on: the covariance not conditioned on it into ``P`` (nx x nx), true;
   // else false (an estimator that does not hold its bounds)
   virtual bool bound_free_covariance(double* /*P*/) { return false; }
+  // whether the last infer down-weighted a reading (robust MHE); whether it rejected
+  // every valid reading: 1, 0, or -1 when the sample had none
   virtual bool outlier() { return false; }
   virtual int rejected_every_reading() { return 0; }
   // the same for the blocks that hold any of ``rows`` (reading rows): 1 when every such
@@ -181,6 +181,9 @@ struct PolicySettings {
   // ny, or empty: the largest standard deviation of each output, half the width of the
   // range its value has on the robot (inf: no range); a written one is held to it
   std::vector<double> std_limit;
+  // ny, or empty (std_limit): the same for an estimate held on a bending bound, whose
+  // standard deviations are not conditioned on it: a section's bend within 0 and pi
+  std::vector<double> bound_std_limit;
   // The bend pairs (state rows) of the sections whose bend the IMUs leave free, each
   // with its section's reach (theta_max, rad), and the wrapped outputs: each written
   // standard deviation carries the root mean square of how far the output moves from

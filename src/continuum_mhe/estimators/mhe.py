@@ -166,6 +166,7 @@ class ReferenceWindow:
     def restart(self) -> None:
         f, n, nx = self.formulation, self.n, self.nx
         self.k = 0  # samples in the window
+        self.cov_free_ok = False
         self.tw = np.zeros(n)
         self.zw = np.zeros((n, f.nz))  # 0 where masked
         self.zmask = np.zeros((n, f.nz))

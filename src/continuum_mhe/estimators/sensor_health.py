@@ -408,6 +408,10 @@ class Estimator(Generic[InferenceT]):
             # a covariance's standard deviations (not the paper formulation's weight W,
             # whose position std grows as its model implies)
             std_limit=f.output_std_limit().tolist() if f.calibrated_covariance else [],
+            # an estimate held on a bending bound: its bend may lie beyond it
+            bound_std_limit=(
+                f.output_std_limit(beyond_bound=True).tolist() if f.calibrated_covariance else []
+            ),
             # IMUs without gyros: a burst of wrong readings agrees with the estimate that
             # moved onto it (gyros see that it turned nothing)
             jump_hold=all(b.kind == "tilt" for b in blocks if b.is_imu),

@@ -334,18 +334,19 @@ class Formulation:
         (:meth:`~continuum_mhe.estimators.consistency.ConsistencyCheck.constant_error_cov`)."""
         return np.full(self.nx, np.inf)
 
-    def output_std_limit(self) -> FloatArray:
+    def output_std_limit(self, beyond_bound: bool = False) -> FloatArray:
         """(ny,) the largest standard deviation each output can have: half the width of
         the range its value has on this robot, as no distribution within a range has a
         larger one (inf where an output has none). A point's coordinates (m) lie within
         the length of the backbone up to it of the base, an angle wrapped to a turn
         within pi of any value, a section's bend ``theta`` (rad) within 0 and its
-        ``theta_max``; a force or a gain has no range. The estimators hold the standard
-        deviations they write to it where their covariance is one
-        (:attr:`calibrated_covariance`: not the paper formulation's weight)."""
+        ``theta_max`` (``beyond_bound``: within 0 and pi, for an estimate held on a
+        bound that may not be the robot's); a force or a gain has no range. The
+        estimators hold the standard deviations they write to it where their covariance
+        is one (:attr:`calibrated_covariance`: not the paper formulation's weight)."""
         robot = self.robot
         reach = np.cumsum(robot.lengths)
-        bound = [s.theta_max for s in robot.sections]
+        bound = [math.pi if beyond_bound else s.theta_max for s in robot.sections]
         limit = np.full(self.ny, np.inf)
         for i, o in enumerate(self.outputs):
             if o.unit == "m":
