@@ -220,6 +220,9 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
       if (shift_judged_ && fit_nis_ > s_.limit[dof]) shift_ = shift_to_fit(x, P, u, dt);
     } else {
       evaluate(residual_, x, zeros_u_.data(), 0.0, r_.data());
+      last_dt_ = 0.0;  // shift_inflation_at: the readings at this estimate alone
+      if (s_.nu) last_u_.assign(zeros_u_.begin(), zeros_u_.end());
+      shift_ready_ = shift_judged_;
     }
     const double* r = r_.data();
     for (int i : rows_) fit_ += r[i] * r[i] * r_inv_[i];

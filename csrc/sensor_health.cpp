@@ -863,8 +863,11 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // the statuses above; its standard deviations are not, as the bound may not be the
     // robot's, and they grow until the shift that fits the readings, beyond the bound,
     // lies within them
-    const bool on_bound = status == ST_AT_BOUND && s_.checks_start &&
-                          inference_.bound_free_covariance(P_free_.data());
+    const bool held = status == ST_AT_BOUND ||
+                      (status == ST_RESET &&  // a restart's row on the bound
+                       (s_.checks ? s_.checks->at_bound(x) : inference_.at_bound(x)));
+    const bool on_bound =
+        held && s_.checks_start && inference_.bound_free_covariance(P_free_.data());
     if (on_bound) {
       inference_.output_std(x, P_free_.data(), ystd);
       if (factor != 1.0)

@@ -290,6 +290,32 @@ def test_at_bound_rows_std_grows_with_the_bend_beyond_the_bound(tmp_path: Path) 
     assert np.all(off < 4 * est.std[on, k])
 
 
+def test_rows_held_on_the_bound_of_a_two_section_rod_cover_its_bend(tmp_path: Path) -> None:
+    """The shipped planar-s rod (tilt) with both sections held to 0.5 rad, which it
+    bends past: on every row the MHE holds on the bound, the rows of its restarts
+    (`reset`) among them, the true bend of section 1 lies within 4 of the written
+    standard deviations (a covariance conditioned on the bound puts it up to 37 away)."""
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
+    robot = tmp_path / "tight.toml"
+    robot.write_text(
+        (data / "robots" / "two_section.toml")
+        .read_text()
+        .replace("theta_max = 3.0", "theta_max = 0.5")
+    )
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(data / "rod2" / "planar-s_tilt.csv"), "--robot", str(robot),
+                 "-o", str(out)]) == 0  # fmt: skip
+    est, true = read_state_table(out), read_state_table(data / "rod2" / "planar-s_truth.csv", ())
+    k = est.names.index("theta_1")
+    held = np.abs(est.values[:, k] - 0.5) < 1e-3
+    assert np.count_nonzero(held & (est.status == Status.RESET.value)) > 20
+    assert np.count_nonzero(held & (est.status == Status.AT_BOUND.value)) > 100
+    assert est.std is not None
+    off = np.abs(est.values[held, k] - true.values[held, true.names.index("theta_1")])
+    assert off.max() > 0.3  # the truth lies far beyond the bound
+    assert np.all(off < 4 * est.std[held, k])
+
+
 @pytest.mark.parametrize("loss", ["l2", "huber"])
 def test_at_bound_standard_deviations_change_no_status_nor_estimate(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, loss: str
@@ -298,7 +324,8 @@ def test_at_bound_standard_deviations_change_no_status_nor_estimate(
     estimate with the at-bound rows' unconditioned standard deviations, and the same
     through the policy's Python path with none (every row's from the covariance
     conditioned on the bound): the same statuses and outputs on every row, and standard
-    deviations that differ on at-bound rows only."""
+    deviations that differ on the rows held on the bound only (at-bound, and a
+    restart's)."""
     import continuum_mhe.estimators.mhe as mhe_module
 
     data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
@@ -321,6 +348,7 @@ def test_at_bound_standard_deviations_change_no_status_nor_estimate(
     assert_allclose(free.values, held.values, rtol=0, atol=1e-12)
     on = free.status == Status.AT_BOUND.value
     assert on.sum() > 20
+    on |= free.status == Status.RESET.value  # (a restart's row on the bound, as the MHE's)
     assert_allclose(free.std[~on], held.std[~on], rtol=1e-9)
     assert np.any(free.std[on] > 2 * held.std[on])
 
