@@ -290,18 +290,25 @@ def test_at_bound_rows_std_grows_with_the_bend_beyond_the_bound(tmp_path: Path) 
     assert np.all(off < 4 * est.std[on, k])
 
 
+SHIPPED_DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
+
+
+def _two_section_held_to(folder: Path, theta_max: float) -> Path:
+    """The shipped two-section robot file with each section's ``theta_max`` (rad), in
+    ``folder``."""
+    robot = folder / "tight.toml"
+    shipped = (SHIPPED_DATA / "robots" / "two_section.toml").read_text()
+    robot.write_text(shipped.replace("theta_max = 3.0", f"theta_max = {theta_max}"))
+    return robot
+
+
 def test_rows_held_on_the_bound_of_a_two_section_rod_cover_its_bend(tmp_path: Path) -> None:
     """The shipped planar-s rod (tilt) with both sections held to 0.5 rad, which it
     bends past: on every row the MHE holds on the bound, the rows of its restarts
     (`reset`) among them, the true bend of section 1 lies within 4 of the written
     standard deviations (a covariance conditioned on the bound puts it up to 37 away)."""
-    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
-    robot = tmp_path / "tight.toml"
-    robot.write_text(
-        (data / "robots" / "two_section.toml")
-        .read_text()
-        .replace("theta_max = 3.0", "theta_max = 0.5")
-    )
+    data = SHIPPED_DATA
+    robot = _two_section_held_to(tmp_path, 0.5)
     out = tmp_path / "e.csv"
     assert main(["estimate", str(data / "rod2" / "planar-s_tilt.csv"), "--robot", str(robot),
                  "-o", str(out)]) == 0  # fmt: skip
@@ -328,13 +335,8 @@ def test_at_bound_standard_deviations_change_no_status_nor_estimate(
     restart's)."""
     import continuum_mhe.estimators.mhe as mhe_module
 
-    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
-    robot = tmp_path / "tight.toml"
-    robot.write_text(
-        (data / "robots" / "two_section.toml")
-        .read_text()
-        .replace("theta_max = 3.0", "theta_max = 0.8")
-    )
+    data = SHIPPED_DATA
+    robot = _two_section_held_to(tmp_path, 0.8)
     argv = ["estimate", str(data / "rod2" / "planar-s_tilt.csv"), "--robot", str(robot),
             "--loss", loss, "-o"]  # fmt: skip
     assert main([*argv, str(tmp_path / "free.csv")]) == 0
