@@ -8,6 +8,15 @@ namespace cmhe {
 
 namespace {
 
+// Whether ball ``b`` is active at the node ``x`` (within ``tol`` of r^2); ``q`` its
+// coordinates' squared norm.
+bool on_ball(const double* x, const Feasible& fs, Index b, double tol, double& q) {
+  const int64_t* idx = fs.ball + b * fs.bk;
+  q = 0.0;
+  for (Index a = 0; a < fs.bk; ++a) q += x[idx[a]] * x[idx[a]];
+  return q > 0.0 && q >= fs.ball_r2[b] * (1.0 - tol);
+}
+
 // Mark the box bounds (wbox -1/+1) and balls (wball, unit normals nrm: of an active ball,
 // its coordinates' entries, the ones read) active at X.
 void active_constraints(Index n, Index nx, const double* X, const Feasible& fs, double tol,
@@ -27,8 +36,7 @@ void active_constraints(Index n, Index nx, const double* X, const Feasible& fs, 
       wball[i * nbm + b] = 0;
       const int64_t* idx = fs.ball + b * fs.bk;
       double q = 0.0;
-      for (Index a = 0; a < fs.bk; ++a) q += x[idx[a]] * x[idx[a]];
-      if (balls && q > 0.0 && q >= fs.ball_r2[b] * (1.0 - tol)) {
+      if (balls && on_ball(x, fs, b, tol, q)) {
         wball[i * nbm + b] = 1;
         const double rq = std::sqrt(q);
         for (Index a = 0; a < fs.bk; ++a) nrm[(i * nbm + b) * nx + idx[a]] = x[idx[a]] / rq;
@@ -40,13 +48,9 @@ void active_constraints(Index n, Index nx, const double* X, const Feasible& fs, 
 }  // namespace
 
 bool last_node_on_a_ball(Index n, Index nx, const double* X, const Feasible& fs, double tol) {
-  const double* x = X + (n - 1) * nx;
-  for (Index b = 0; b < fs.nb; ++b) {
-    const int64_t* idx = fs.ball + b * fs.bk;
-    double q = 0.0;
-    for (Index a = 0; a < fs.bk; ++a) q += x[idx[a]] * x[idx[a]];
-    if (q > 0.0 && q >= fs.ball_r2[b] * (1.0 - tol)) return true;
-  }
+  double q = 0.0;
+  for (Index b = 0; b < fs.nb; ++b)
+    if (on_ball(X + (n - 1) * nx, fs, b, tol, q)) return true;
   return false;
 }
 

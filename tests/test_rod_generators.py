@@ -402,8 +402,8 @@ def test_the_section_rod_generator_refuses_bad_numbers_before_it_simulates(
 def test_both_generators_help_names_them_as_run_and_says_each_default(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    """Both tools call themselves ``python -m continuum_mhe.simulation.NAME`` (the
-    tendon one said ``cosserat_tendon.py``), and the section generator's ``--scenario``
+    """Both tools call themselves ``python -m continuum_mhe.simulation.NAME`` (not
+    ``cosserat_tendon.py``), and the section generator's ``--scenario``
     and ``--seed`` say what they are and their default."""
     from continuum_mhe.simulation import cosserat_sections, cosserat_tendon
 
@@ -452,9 +452,9 @@ def test_the_tendon_generator_refuses_bad_arguments_before_it_simulates(
     said: str,
 ) -> None:
     """The tendon generator's numbers, ``-o`` and robot layout: one line naming the
-    option (or the robot file), exit 2, before the rod is simulated (some were
-    tracebacks after 10 s of it; a missing parent of ``-o`` was made, an existing file
-    a FileExistsError after the simulation), nothing written."""
+    option (or the robot file), exit 2, before the rod is simulated (not a traceback
+    after 10 s of it; a missing parent of ``-o`` is not made, an existing file not a
+    FileExistsError after the simulation), nothing written."""
     from continuum_mhe.simulation import cosserat_tendon
 
     def no_simulation(*args: object, **kwargs: object) -> None:
@@ -502,8 +502,8 @@ def test_an_equilibrium_the_tendon_generator_cannot_find_is_one_line(
 def test_the_tendon_truth_of_a_straight_robot_has_phi_0_and_no_minus_zero(
     tmp_path: Path,
 ) -> None:
-    """A straight section's ``phi`` is 0 (docs/formats.md; it was -pi, from
-    ``atan2(-0, -0)``), and no file holds a ``-0`` cell. (A straight trajectory given to
+    """A straight section's ``phi`` is 0 (docs/formats.md; not -pi, which
+    ``atan2(-0, -0)`` gives), and no file holds a ``-0`` cell. (A straight trajectory given to
     the writer stands in for the rod's simulation.)"""
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.simulation.cosserat_tendon import (

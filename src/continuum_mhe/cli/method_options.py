@@ -128,9 +128,7 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
         # recovery options the run leaves unused, recorded where they act
         robust = method == "mhe" and getattr(args, "loss", "l2") != "l2"
         leave_out |= {"bad_start", "glitch"} if robust else {"reject_reset"}
-        if formulation.change_test() is None or getattr(
-            formulation, "estimate_tension_gain", False
-        ):
+        if not formulation.drift_resets():
             leave_out.add("drift_reset")
         args.options_record = options_record(parser, args, leave_out)
     return method
@@ -210,19 +208,18 @@ def _refuse_drift_reset(args: argparse.Namespace, formulation: Formulation) -> N
     estimates have no slowly varying error states to drift (a robot without tendons), or
     whose drift is its tension gains settling (``--estimate-tension-gain``): it would
     change nothing."""
-    if "drift_reset" not in given_options(args):
+    if "drift_reset" not in given_options(args) or formulation.drift_resets():
         return
     if getattr(formulation, "estimate_tension_gain", False):
         raise InputError(
             "--drift-reset does not apply with --estimate-tension-gain (the estimates' "
             "drift is then the tension gains settling, which no restart helps)"
         )
-    if formulation.change_test() is None:
-        raise InputError(
-            "--drift-reset does not apply: it restarts a tendon robot's estimate whose IMU "
-            "error states drift (a robot file with [[tendon]] entries and a [backbone]); "
-            "this model has no such states"
-        )
+    raise InputError(
+        "--drift-reset does not apply: it restarts a tendon robot's estimate whose IMU "
+        "error states drift (a robot file with [[tendon]] entries and a [backbone]); "
+        "this model has no such states"
+    )
 
 
 def check_robot_replaces(args: argparse.Namespace) -> None:

@@ -374,13 +374,8 @@ class Estimator(Generic[InferenceT]):
             # the start would restart it onto them); its reject reset covers a lost start
             bad_start=off(None if self.flags_outliers else r.bad_start),
             reject_reset=off(r.reject_reset),
-            # the formulations whose drift is that of their slowly varying error states;
-            # not where they estimate tension gains, whose drift is the gains settling
-            drift_reset=off(
-                r.drift_reset
-                if change is not None and not getattr(f, "estimate_tension_gain", False)
-                else None
-            ),
+            # the formulations whose drift is that of their slowly varying error states
+            drift_reset=off(r.drift_reset if f.drift_resets() else None),
             # a tendon robot's tensions missing: no reading is used, and the prediction
             # has no tensions (it leaves the robot within a fraction of a second)
             whole_gap_reset=off(

@@ -281,15 +281,10 @@ _OTHER_RAW_NAME = re.compile(
 )
 
 
-def _other_raw_renames(rows: TextRows, gyro_only: bool = False) -> list[str]:
+def _other_raw_renames(rows: TextRows) -> list[str]:
     """``"ax1 -> ax_1"`` for each header column that names an accelerometer or gyro axis
-    otherwise than this reader takes (:data:`_OTHER_RAW_NAME`; its gyro columns alone
-    where ``gyro_only``)."""
-    matches = [
-        (h, m)
-        for h in rows.header
-        if (m := _OTHER_RAW_NAME.match(h)) and not (gyro_only and m.group(1))
-    ]
+    otherwise than this reader takes (:data:`_OTHER_RAW_NAME`)."""
+    matches = [(h, m) for h in rows.header if (m := _OTHER_RAW_NAME.match(h))]
     numbers = [int(m.group(4)) for _, m in matches if m.group(4)]
     first = min(numbers, default=1)  # IMUs count from 1: a file's 0 is IMU 1
     several = len(set(numbers)) > 1

@@ -528,6 +528,12 @@ class Formulation:
         model allows (the estimate-change test, status ``drifted``), or None: none."""
         return None
 
+    def drift_resets(self) -> bool:
+        """Whether a drift reset (``RecoverySettings.drift_reset``) can act: the model has
+        slowly varying error states whose drift a restart from the last ``ok``
+        estimate's clears (:meth:`change_test`)."""
+        return self.change_test() is not None
+
     # --- shared -------------------------------------------------------------------
     def meas_cov(self) -> FloatArray:
         """``R``: block-diagonal, one block per IMU (roll, pitch: ``measurement_std``)."""
