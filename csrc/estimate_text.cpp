@@ -9,9 +9,11 @@ namespace cmhe {
 namespace {
 
 // ``v`` as "%.10g" writes it: std::to_chars with a precision formats as printf does in
-// the "C" locale, correctly rounded (the digits of Python's ``"%.10g" % v``).
+// the "C" locale, correctly rounded (the digits of Python's ``"%.10g" % v``); a negative
+// zero as 0 (adding +0 turns -0 into +0 and leaves every other value as it is)
 void append_number(std::string& out, double v) {
   char buf[32];
+  v += 0.0;
   auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 10);
   out.append(buf, r.ptr);
 }
@@ -27,6 +29,7 @@ void append_finite(std::string& out, double v, const char* what) {
 // a device clock past 1e6 s keeps samples a millisecond or less apart distinct
 void append_time(std::string& out, double t) {
   if (!std::isfinite(t)) throw std::domain_error("refusing to write a non-finite time");
+  t += 0.0;  // a negative zero as 0
   char buf[40];
   auto r = std::to_chars(buf, buf + sizeof buf, t, std::chars_format::general, 10);
   double back = 0.0;

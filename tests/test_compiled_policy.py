@@ -22,7 +22,13 @@ from estimator_helpers import recovery_estimators
 from continuum_mhe.errors import SampleTimeError, UserError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter
-from continuum_mhe.io.estimate_csv import estimate_lines, estimate_row, format_cells, format_time
+from continuum_mhe.io.estimate_csv import (
+    estimate_lines,
+    estimate_row,
+    format_cells,
+    format_number,
+    format_time,
+)
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.bend import DIVERGED_RATE, BendFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN
@@ -198,9 +204,10 @@ def test_the_block_writer_writes_the_row_writers_lines() -> None:
 
 
 def test_the_block_writer_writes_python_s_digits() -> None:
-    """The compiled writer's numbers are Python's ``"%.10g" % v`` to the character, over
-    every magnitude, random bit patterns (subnormals, the largest doubles), negative
-    zero and ties at the tenth digit; its times :func:`format_time`'s."""
+    """The compiled writer's numbers are :func:`format_number`'s (Python's ``"%.10g" %
+    v``) to the character, over every magnitude, random bit patterns (subnormals, the
+    largest doubles), negative zero and ties at the tenth digit; its times
+    :func:`format_time`'s."""
     rng = np.random.default_rng(7)
     scaled = rng.normal(size=20_000) * 10.0 ** rng.integers(-30, 30, 20_000)
     bits = rng.integers(0, 2**63, 20_000, dtype=np.uint64).view(np.float64)
@@ -212,7 +219,9 @@ def test_the_block_writer_writes_python_s_digits() -> None:
     t, ms = values[:n], values[n : 2 * n]
     out = std = np.zeros((n, 0))
     lines = estimate_lines("x.csv", t, out, std, None, ["ok"] * n, ms).splitlines()
-    assert lines == [f"{format_time(a)},ok,{b:.10g}" for a, b in zip(t.tolist(), ms.tolist())]
+    assert lines == [
+        f"{format_time(a)},ok,{format_number(b)}" for a, b in zip(t.tolist(), ms.tolist())
+    ]
     # a time as "%.10g" where that keeps it to half a microsecond, else to the microsecond:
     # samples half a millisecond apart on a device clock past 1e6 s stay distinct
     t = np.array([0.15000000000000002, 9999.1234565, 4294957.296, 4294957.2965, -1.5e7 - 1e-3])
@@ -220,6 +229,24 @@ def test_the_block_writer_writes_python_s_digits() -> None:
                            np.ones(5)).splitlines()  # fmt: skip
     assert [ln.split(",")[0] for ln in lines] == [
         "0.15", "9999.123456", "4294957.296", "4294957.2965", "-15000000.001"]  # fmt: skip
+
+
+def test_no_writer_writes_a_negative_zero() -> None:
+    """A negative zero (a straight robot's ``x``, a time of ``-0.0``) is written ``0`` by
+    the compiled block writer, the row writer and the table writer alike; other numbers
+    keep their sign."""
+    t = np.array([-0.0, 0.05])
+    out = np.array([[-0.0, -1e-300, 0.0], [-0.0, -0.0, -2.5]])
+    std = np.array([[-0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+    block = estimate_lines("x.csv", t, out, std, None, ["ok", "ok"], np.array([-0.0, 1.0]))
+    rows = "".join(
+        ",".join(format_cells("x.csv", estimate_row(t[i], out[i], "ok", [-0.0, 1.0][i], 3, std[i])))
+        + "\n"
+        for i in range(2)
+    )
+    expected = "0,0,-1e-300,0,0,0,1,ok,0\n0.05,0,0,-2.5,0,0,0,ok,1\n"
+    assert block == rows == expected
+    assert format_number(-0.0) == "0" and format_time(-0.0) == "0"
 
 
 def test_the_compiled_ekf_in_the_policy_is_the_casadi_ekf() -> None:

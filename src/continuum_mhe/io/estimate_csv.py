@@ -45,17 +45,21 @@ def estimate_columns(outputs: Sequence[OutputSpec], outlier: bool = False) -> tu
 ESTIMATE_COLUMNS = estimate_columns(pcc_outputs(1))
 
 
-def _fmt(v: float) -> str:
-    return f"{v:.10g}"
+def format_number(v: float) -> str:
+    """A number as the estimate and truth files write it: ``"%.10g"``, a negative zero
+    as ``0`` (the sign of a zero carries nothing a reader can use)."""
+    return f"{v + 0.0:.10g}"
 
 
 def format_time(t: float) -> str:
     """An estimate row's time ``t`` (s) as written: ``"%.10g"`` where that keeps it to
     half a microsecond (below 1e4 s it always does) or ``|t| >= 1e15``, else six decimals
     without trailing zeros, so that samples a millisecond or less apart on a device clock
-    past 1e6 s stay distinct (the compiled writer's rule, to the character)."""
+    past 1e6 s stay distinct; a negative zero as ``0`` (the compiled writer's rule, to
+    the character)."""
     if not math.isfinite(t):
         raise UserError("refusing to write a non-finite time")
+    t += 0.0  # a negative zero as 0
     short = f"{t:.10g}"
     if abs(float(short) - t) <= 5e-7 or abs(t) >= 1e15:
         return short
@@ -128,7 +132,7 @@ def format_cells(path: str | os.PathLike[str], row: Sequence[object]) -> list[st
         if isinstance(v, (float, np.floating)):
             if not math.isfinite(v):
                 raise UserError(f"refusing to write a non-finite value to {path}")
-            cells.append(_fmt(float(v)))
+            cells.append(format_number(float(v)))
         else:
             cells.append(str(v))
     return cells

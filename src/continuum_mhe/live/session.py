@@ -31,7 +31,7 @@ from continuum_mhe.estimators.run_notices import (
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
-from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
+from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row, format_number
 from continuum_mhe.io.input_options import MountingError
 from continuum_mhe.io.raw_imu import RawImuConverter
 from continuum_mhe.io.raw_units import (
@@ -1044,7 +1044,7 @@ class LiveSession:
         ny = self.formulation.ny
         flag = est.outlier if self.flags_outliers else None
         row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny, est.output_std, flag)
-        self.out.write_row([f"{v:.10g}" if isinstance(v, float) else str(v) for v in row])
+        self.out.write_row([format_number(v) if isinstance(v, float) else str(v) for v in row])
 
     def _describe(self, est: Estimate) -> str:
         outputs = self.formulation.outputs
