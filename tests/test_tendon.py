@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.errors import InputError
+from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.csv_files import DropoutWarning
 from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.input_options import OptionWarning
@@ -126,6 +126,30 @@ def test_one_tendon_on_a_straight_rod_gives_a_circular_arc() -> None:
         tangent = math.sin(theta) * towards + [0, 0, math.cos(theta)]
         np.testing.assert_allclose(R[:, 2], tangent, atol=1e-8)
         np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-7)
+
+
+def test_shape_gives_the_arc_of_one_tendon_and_phi_0_where_straight() -> None:
+    """``TendonFormulation.shape``: one tendon at 0 deg on a weightless section bends it
+    to ``tension * radius / EI * L`` towards +x (``phi`` pi: the tangent is
+    ``(-cos phi sin theta, -sin phi sin theta, cos theta)``), its end where the arc
+    ends; with no tension the section is straight and its ``phi`` is 0, not -pi (the
+    exact clip of a slack tendon: a one-IMU robot's default smooth one pulls 0.5 mN)."""
+    robot = _one_section(Tendon(0, 0.0, 0.01))
+    f = TendonFormulation(robot, slack_smoothing=0.0)
+    straight = f.shape([0.0])
+    assert straight["theta_1"] == 0.0 and straight["phi_1"] == 0.0
+    assert straight["psi_1"] == 0.0 and straight["z"] == pytest.approx(0.2, abs=1e-12)
+    bent = f.shape([1.5])
+    kappa = 1.5 * 0.01 / EI
+    assert bent["theta_1"] == pytest.approx(kappa * 0.2, rel=1e-9)
+    assert abs(bent["phi_1"]) == pytest.approx(math.pi, abs=1e-9)
+    assert bent["x"] == pytest.approx((1 - math.cos(kappa * 0.2)) / kappa, rel=1e-7)
+    assert bent["z"] == pytest.approx(math.sin(kappa * 0.2) / kappa, rel=1e-9)
+    assert (bent["fx"], bent["fy"], bent["fz"]) == (0.0, 0.0, 0.0)
+    with pytest.raises(UserError, match="non-negative tensions"):
+        f.shape([-1.0])
+    with pytest.raises(UserError, match="1 finite"):
+        f.shape([1.0, 2.0])
 
 
 def test_the_backbone_points_of_one_tendon_lie_on_its_arc_evenly_spaced() -> None:

@@ -874,6 +874,41 @@ class TendonFormulation(Formulation):
         return ca.vertcat(*parts, x[3:6], x[g0 : g0 + self.n_tension_gain])
 
     # --- numeric helpers ----------------------------------------------------------
+    def shape(
+        self,
+        tensions: Sequence[float] | FloatArray,
+        force: Sequence[float] | FloatArray = (0, 0, 0),
+    ) -> dict[str, float]:
+        """The robot's equilibrium as the estimators' model computes it, under the
+        tendon tensions ``tensions`` (N, the robot file's tendon order; a slack tendon
+        at 0) and the tip force ``force`` (N, base frame): the estimate file's columns
+        (:attr:`outputs`, by name): the tip ``x, y, z`` (m), then per section ``theta_k,
+        phi_k`` (rad; ``phi_k`` 0 where straight), its end ``x_k, y_k, z_k`` (m) and twist
+        ``psi_k`` (rad), then ``fx, fy, fz`` (N), and each tension gain at 1. For
+        checking a robot file against a pose measured on the robot.
+
+        Raises:
+            UserError: if ``tensions`` is not one finite, non-negative tension per
+                tendon, or ``force`` not three finite values.
+            ArithmeticError: if the rod holds no equilibrium under these loads.
+        """
+        tau = np.asarray(tensions, dtype=float).reshape(-1)
+        f = np.asarray(force, dtype=float).reshape(-1)
+        k = self.robot.n_tendons
+        if tau.size != k or not np.all(np.isfinite(tau)) or np.any(tau < 0):
+            raise UserError(
+                f"shape: give {k} finite, non-negative tensions (N) in the robot file's "
+                f"tendon order, got {np.array2string(tau, precision=4)}"
+            )
+        if f.size != 3 or not np.all(np.isfinite(f)):
+            raise UserError(f"shape: the tip force is three finite values (N), got {f}")
+        k0, _ = self.statics.solve(f, tau)
+        x = np.zeros(self.nx)
+        x[:3], x[3:6], x[6 : 6 + k] = k0, f, tau
+        g0 = self.tension_gain_start
+        x[g0 : g0 + self.n_tension_gain] = 1.0
+        return dict(zip((o.name for o in self.outputs), map(float, self.output(x))))
+
     def imus_determine_shape(self, imus: tuple[int, ...]) -> bool:
         """With the tensions given, the shape follows from the tip force: three unknowns.
         Each IMU pins two of them at once through its gravity direction, so two IMUs

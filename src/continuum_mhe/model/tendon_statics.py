@@ -403,9 +403,11 @@ def swing_twist_sym(Q: Sym) -> tuple[Sym, Sym, Sym]:
     """``(theta, phi, psi)`` of a relative rotation ``Q``: the bend (the tangent
     ``Q e3 = (-cos phi sin theta, -sin phi sin theta, cos theta)``, the PCC
     convention) and the twist ``psi`` about the tangent, rad (``Q = R(theta, phi)
-    Rz(psi)`` with ``R(theta, phi)`` the twist-free PCC rotation)."""
+    Rz(psi)`` with ``R(theta, phi)`` the twist-free PCC rotation); ``phi`` is 0 where
+    the section is straight (its tangent along ``e3``), as the PCC formulations write it."""
     t = Q[:, 2]
     theta = ca.atan2(ca.sqrt(t[0] ** 2 + t[1] ** 2), t[2])
-    phi = ca.atan2(-t[1], -t[0])
+    straight = ca.logic_and(t[0] == 0, t[1] == 0)  # atan2(-0, -0) would give -pi
+    phi = ca.atan2(ca.if_else(straight, 0.0, -t[1]), ca.if_else(straight, 1.0, -t[0]))
     psi = 2 * ca.atan2(Q[1, 0] - Q[0, 1], 1 + Q[0, 0] + Q[1, 1] + Q[2, 2])
     return theta, phi, psi
