@@ -221,6 +221,12 @@ BAD_INPUTS = {
         "the columns Roll_1 and pitch_1 look swapped",
     ),
     "truncated-row": ("t,roll,pitch\n0,0.1,0.1\n0.05\n", "line 3: expected 3 fields"),
+    # a field missing from a column no estimator reads: which one is unknown, and the
+    # values after it may be their neighbours'
+    "unread-field-missing": (
+        "t,roll,pitch,x\n0,0.1,0.1,5\n0.05,0.1,0.1,5\n0.1,0.1,0.1\n",
+        "line 4: expected 4 fields, found 3 (truncated row?)",
+    ),
     "extra-field": (
         "t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1,0.2\n",
         "line 3: expected 3 fields, found 4 (an extra field or separator?)",
@@ -396,6 +402,19 @@ def test_evaluate_of_a_one_row_estimate_says_so(tmp_path, capsys):
     assert capsys.readouterr().err.endswith(f"{est}: one row: evaluate needs at least two\n")
 
 
+def test_evaluate_of_a_one_row_truth_says_so(tmp_path, capsys):
+    """A truth of one row is named, not the estimate whose rows it cannot cover."""
+    est = _write(
+        tmp_path / "est.csv",
+        "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n0.05,0,0,0.2,0,0,ok,1\n",
+    )
+    truth = _write(tmp_path / "truth.csv", "t,x,y,z\n0,0,0,0.2\n")
+    assert main(["evaluate", str(est), str(truth)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {truth}: one row: evaluate needs a truth of at least two\n"
+    )
+
+
 def test_evaluate_reads_a_standard_deviation_beyond_the_value_limit(tmp_path, capsys):
     """An estimate may say it knows nothing (a std of 1e7 rad, as the EKF of a soft
     tendon robot wrote): the readers take what estimate writes."""
@@ -408,6 +427,24 @@ def test_evaluate_reads_a_standard_deviation_beyond_the_value_limit(tmp_path, ca
     assert main(["evaluate", str(est), str(truth)]) == 0
     table = read_state_table(est)  # the value itself, not a dropout
     assert table.std is not None and table.std[:, 3].tolist() == [1e7, 1e7]
+
+
+@pytest.mark.parametrize("value", ["inf", "nan", "-0.1", "1e400"])
+def test_evaluate_refuses_a_standard_deviation_that_is_no_finite_number_at_least_0(
+    tmp_path, capsys, value
+):
+    """A ``std_`` cell infinite, not a number or negative is refused in one line that
+    says what it must be."""
+    est = _write(
+        tmp_path / "est.csv",
+        "t,x,y,z,theta,phi,std_x,std_y,std_z,std_theta,std_phi,status,solve_ms\n"
+        f"0,0,0,0.2,0,0,1,1,1,1,1,ok,1\n0.05,0,0,0.2,0,0,{value},1,1,1,1,ok,1\n",
+    )
+    truth = _write(tmp_path / "truth.csv", "t,x,y,z\n0,0,0,0.2\n0.05,0,0,0.2\n")
+    assert main(["evaluate", str(est), str(truth)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {est}: line 3: std_x must be a finite number >= 0, got {value!r}\n"
+    )
 
 
 def test_evaluate_refuses_an_estimate_given_as_the_truth(tmp_path, capsys):

@@ -362,3 +362,25 @@ def test_a_share_of_shapes_under_one_never_reads_100_percent() -> None:
     assert [_percent(f) for f in (0.9995, 1.0, 0.0, 1e-5, 0.5, 0.999)] == [
         "99.95", "100.0", "0.0", "0.001", "50.0", "99.9",
     ]  # fmt: skip
+
+
+@pytest.mark.parametrize(("sections", "noted"), [(9, False), (10, True)])
+def test_check_robot_of_many_sections_says_first_that_it_takes_a_while(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    sections: int, noted: bool,
+) -> None:  # fmt: skip
+    """From ten sections on, ``check-robot`` says before its long check that it takes a
+    minute or more (the check itself stands in here: it is what takes long)."""
+    import continuum_mhe.analysis.observability as observability
+    from continuum_mhe.errors import UserError
+
+    def refused(*args: object, **kwargs: object) -> None:
+        raise UserError("stand-in")
+
+    monkeypatch.setattr(observability, "observability_report", refused)
+    path = tmp_path / "many.toml"
+    path.write_text("[[section]]\nlength = 0.02\n" * sections + "[[imu]]\nsection = 1\n")
+    assert main(["check-robot", str(path)]) == 2
+    err = capsys.readouterr().err
+    note = f"note: checking {sections} sections: the check's cost grows with about the cube"
+    assert (note in err) == noted

@@ -1140,6 +1140,39 @@ def _assert_refused_in_one_line(
     assert not out.exists()
 
 
+#: Tension rows 0.0045 and 0.0055 s apart in turn (uneven: the noise estimate grids
+#: them) over the recording of :func:`_recording`, 0 to 0.1 s.
+_UNEVEN_TENSION_ROWS = [[round(0.005 * i + 0.0005 * (i % 2), 4), 1 + 0.01 * i] for i in range(21)]
+
+
+def test_one_tension_row_far_after_the_others_is_named_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A row 1e9 s after the others (a logger's clock that jumped) is refused at once in
+    one line naming its line and the jump, not gridded over the whole span (which asks
+    for hundreds of GiB)."""
+    meas, tensions = _recording(tmp_path)
+    _write_text_table(tensions, ["t", "tension_1"], [*_UNEVEN_TENSION_ROWS, [1e9, 1.2]])
+    message = (
+        "line 23: its t jumps by 1e+09 s from the row before (0.1 to 1e+09 s; the rows "
+        "step by 0.0055 s): a logger's clock that jumped? Cut the file to the recording's "
+        "times"
+    )
+    _assert_refused_in_one_line(tmp_path, capsys, meas, tensions, message)
+
+
+def test_one_tension_row_far_before_the_recording_is_left_out(tmp_path: Path) -> None:
+    """A first row stamped 1e9 s before the others (a logger's clock not yet set) is
+    not one the recording uses: the estimate is written from the other rows' tensions."""
+    meas, tensions = _recording(tmp_path)
+    _write_text_table(tensions, ["t", "tension_1"], [[-1e9, 0.0], *_UNEVEN_TENSION_ROWS])
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
+            str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
+    assert main(argv) == 0
+    assert len(read_state_table(out).t) == len(_recording_rows())
+
+
 def test_tensions_at_a_slow_rate_in_seconds_are_read(tmp_path: Path) -> None:
     """A tensions file that spans the recording with a second or more between rows
     (tensions 1 s apart beside a 50 Hz recording) is no millisecond file: read in

@@ -10,6 +10,10 @@ from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import robot_from_args, robot_name_arg
 from continuum_mhe.errors import InputError, UserError
 
+#: From this many sections on, ``check-robot`` says first that it takes a while (its
+#: cost grows with about the cube of the sections: docs/formats.md gives a time).
+SLOW_CHECK_SECTIONS = 10
+
 
 def run(args: argparse.Namespace) -> int:
     from continuum_mhe.analysis.observability import (
@@ -19,6 +23,13 @@ def run(args: argparse.Namespace) -> int:
     )
 
     robot = robot_from_args(args)
+    if robot.n_sections >= SLOW_CHECK_SECTIONS:  # a long wait without a word looks hung
+        print(
+            f"{PROG}: note: checking {robot.n_sections} sections: the check's cost grows "
+            "with about the cube of their number, so it takes a minute or more (docs/"
+            "formats.md)",
+            file=sys.stderr,
+        )
     try:
         report = observability_report(robot, samples=args.samples, seed=args.seed)
     except UserError as exc:  # the robot's own: its file named

@@ -82,6 +82,8 @@ def _align(
     t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
+    if len(t_truth) < 2:
+        raise InputError(f"{path_truth}: one row: evaluate needs a truth of at least two")
     i_est, rows, interpolated = aligned_truth(t_est, t_truth, truth.values, truth.names, warn=False)
     n, k = len(t_est), len(i_est)
     if interpolated:

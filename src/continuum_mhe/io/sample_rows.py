@@ -380,7 +380,9 @@ class _SampleChecks:
                     self.problems.whole += 1
                     vals = [math.nan] * (len(columns) - 1)
                     break
-                if j >= len(row):
+                # a field missing, even one no estimator reads: which one is unknown, and
+                # every value after it may be its neighbour's
+                if len(row) < width:
                     bad(line, truncated.format(width, len(row)))
                     self.problems.whole += 1
                     vals = [math.nan] * (len(columns) - 1)

@@ -392,7 +392,10 @@ def _edit_distance_one(a: str, b: str) -> bool:
 def _parse_std(path: str, line: int, name: str, text: str) -> float:
     v = parse_float(path, line, STD_PREFIX + name, text)
     if not (math.isfinite(v) and v >= 0):
-        raise InputError(f"{path}: line {line}: {STD_PREFIX}{name} must be >= 0, got {text!r}")
+        raise InputError(
+            f"{path}: line {line}: {STD_PREFIX}{name} must be a finite number >= 0, "
+            f"got {shorten(text)!r}"
+        )
     return v
 
 

@@ -29,6 +29,10 @@ TENSION_RATE_NOISE = 0.04
 TENSION_ACCELERATION_NOISE = 0.2
 #: The longest local cubic the tensions are smoothed over, s.
 MAX_SMOOTHING_S = 1.5
+
+#: The longest gap, in median steps, that an even grid of unevenly timed tension rows
+#: fills by interpolation (:func:`_on_even_grid`); beyond it the grid skips the gap.
+MAX_GRID_GAP_STEPS = 10
 #: The order of the differences whose spread gives the tensions' noise
 #: (:func:`tension_noise_std`): high enough that a smooth motion's part in them is far
 #: below a load cell's noise.
@@ -147,11 +151,19 @@ def _cubic_gains(rows: int, step: float) -> tuple[float, float]:
 
 def _on_even_grid(t: FloatArray, values: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
     """``(t, values)`` where the rows' steps are within ``tol`` of their median, else the
-    rows interpolated onto an even grid at the median step from ``t[0]``."""
-    step = float(np.median(np.diff(t)))
-    if np.all(np.abs(np.diff(t) - step) <= tol * step):
+    rows interpolated onto an even grid at the median step from ``t[0]``. A gap of more
+    than :data:`MAX_GRID_GAP_STEPS` median steps is not filled: the rows on each side
+    get their own grid, so that one row far from the others (a logger's clock that
+    jumped) does not make a grid of the whole span."""
+    steps = np.diff(t)
+    step = float(np.median(steps))
+    if np.all(np.abs(steps - step) <= tol * step):
         return t, values
-    grid = np.arange(t[0], t[-1] + 0.5 * step, step)
+    starts = np.concatenate(([0], np.flatnonzero(steps > MAX_GRID_GAP_STEPS * step) + 1))
+    ends = np.concatenate((starts[1:], [len(t)]))
+    grid = np.concatenate(
+        [np.arange(t[a], t[b - 1] + 0.5 * step, step) for a, b in zip(starts, ends)]
+    )
     return grid, _at_rows(grid, t, values)
 
 

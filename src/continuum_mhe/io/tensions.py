@@ -350,8 +350,9 @@ class Tensions:
         recording's times ``first`` to ``last`` (s) and either its rows step by a second
         or more or, read in milliseconds, it would cover the recording (a log faster
         than 1 kHz): ``t`` in milliseconds read as seconds, which the coverage check does
-        not see (the recording lies within the file's first rows). A file at a slow rate
-        that spans the recording passes."""
+        not see (the recording lies within the file's first rows); one row so far from
+        the others that its jump is most of the span is named instead (a logger's clock
+        that jumped). A file at a slow rate that spans the recording passes."""
         if len(self.t) < 2 or not last > first:
             return
         step = float(np.median(np.diff(self.t)))
@@ -359,6 +360,16 @@ class Tensions:
         # within a millisecond of each end, read in milliseconds (seconds)
         as_ms_covers = self.t[0] / 1e3 <= first + 1e-3 and self.t[-1] / 1e3 >= last - 1e-3
         if span > 100.0 * (last - first) and (step >= 1.0 or as_ms_covers):
+            steps = np.diff(self.t)
+            j = int(np.argmax(steps))
+            if steps[j] > 0.9 * span and steps[j] > 1000.0 * step:  # one row far off
+                line = f"line {self.lines[j + 1]}: " if self.lines is not None else ""
+                raise InputError(
+                    f"{self.name}: {line}its {self.time_column} jumps by {steps[j]:g} s from "
+                    f"the row before ({self.t[j]:g} to {self.t[j + 1]:g} s; the rows step by "
+                    f"{step:g} s): a logger's clock that jumped? Cut the file to the "
+                    "recording's times"
+                )
             unit = (
                 "if t_ms is in microseconds, give milliseconds; if it is in milliseconds"
                 if self.time_column == "t_ms"
