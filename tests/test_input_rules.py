@@ -617,7 +617,7 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
         (ROBOT + "[[section]]\n\nlength = -0.14\n", "line 7: section 2: length: section "
          "length must be positive, got -0.14 m"),
         (ROBOT.replace("length = 0.2", "length = 0.2\ntheta_max = 4"), "line 3: section 1: "
-         "theta_max must lie in (0, pi) rad"),
+         "theta_max must lie in [0.01, pi) rad"),
         (ROBOT.replace("length = 0.2", "length = 0.2\ndisks = -1"), "line 3: section 1: "
          "disks must be a whole number"),
     ],

@@ -221,6 +221,7 @@ def test_theta_max_in_degrees_in_the_library() -> None:
         ("6.3", "degrees? give radians, e.g. 1.5708 for 90 degrees"),  # over 2 pi: degrees
         ("90", "degrees? give radians"),
         ("0", ""),
+        ("1e-12", "a section that bends no further is no bending section"),
     ],
 )
 def test_theta_max_hint_says_degrees_only_where_it_cannot_be_radians(
@@ -233,7 +234,7 @@ def test_theta_max_hint_says_degrees_only_where_it_cannot_be_radians(
     robot.write_text(f"[[section]]\nlength = 0.16\ntheta_max = {value}\n[[imu]]\nsection = 1\n")
     assert main(["check-robot", str(robot), "--samples", "10"]) == 2
     err = capsys.readouterr().err
-    line = f"line 3: section 1: theta_max must lie in (0, pi) rad, got {float(value)!r}"
+    line = f"line 3: section 1: theta_max must lie in [0.01, pi) rad, got {float(value)!r}"
     assert err.startswith(f"continuum-mhe: error: {robot}: {line}") and err.count("\n") == 1
     assert hint in err and ("degrees" in err) == ("degrees" in hint)
     meas = tmp_path / "m.csv"

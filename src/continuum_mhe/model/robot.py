@@ -52,7 +52,7 @@ DEFAULT_THETA_MAX = 3.0
 
 
 def theta_max_hint(value: float) -> str:
-    """The likely cause of a bending bound outside ``(0, pi)`` rad, or ``""``: degrees
+    """The likely cause of a bending bound of pi or more, or ``""``: degrees
     only where the value cannot be radians (over 2 pi: 90, 180); from pi to 2 pi a
     radian value at or past the fold (3.1416 is pi rounded up)."""
     if not math.isfinite(value) or value < math.pi:
@@ -90,17 +90,25 @@ def mount_rpy_hint(rpy: Sequence[float], name: str = "mount_rpy") -> str:
     return f"radians? {name} is in degrees ([{degrees}] if these are radians)"
 
 
+#: The smallest bending bound a section takes, rad (0.6 degrees): one below it holds
+#: every estimate on the bound, and no reading could tell the section's bend.
+MIN_THETA_MAX = 0.01
+
+
 def check_theta_max(value: object) -> None:
     """A :class:`~continuum_mhe.errors.FieldError` unless ``value`` is a bending bound in
-    ``(0, pi)`` rad."""
+    ``[MIN_THETA_MAX, pi)`` rad."""
     hint = ""
     if is_real(value):
-        if 0 < float(value) < math.pi:
+        if MIN_THETA_MAX <= float(value) < math.pi:
             return
         hint = theta_max_hint(float(value))
+        if 0 < float(value) < MIN_THETA_MAX:
+            hint = "a section that bends no further is no bending section; give its largest bend"
     raise FieldError(
         "theta_max",
-        f"theta_max must lie in (0, pi) rad, got {value!r}" + (f" ({hint})" if hint else ""),
+        f"theta_max must lie in [{MIN_THETA_MAX:g}, pi) rad, got {value!r}"
+        + (f" ({hint})" if hint else ""),
     )
 
 
@@ -110,7 +118,7 @@ class Section:
 
     Attributes:
         length: arc length, m, in ``[0.001, 5]``.
-        theta_max: bound on the section's bending angle, rad, in ``(0, pi)``
+        theta_max: bound on the section's bending angle, rad, in ``[0.01, pi)``
             (default :data:`DEFAULT_THETA_MAX`).
         disks: spacer disks, evenly spaced, the last one at the section's end (0: none
             given; the tendon model routes tendons continuously either way).

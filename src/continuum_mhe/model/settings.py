@@ -31,7 +31,7 @@ class RobotSettings:
         theta_max: upper bound on the bending angle ``theta`` in radians; the default
             is the paper's ``pi/2`` (eq. 11), which clips a robot that bends further (a
             :class:`~continuum_mhe.model.robot.Section` and a robot file default to 3.0,
-            a bound a robot does not reach). Must lie in ``(0, pi)``.
+            a bound a robot does not reach). Must lie in ``[0.01, pi)``.
         mounting: ``"z-up"`` (base z against gravity) or ``"z-down"`` (hanging).
     """
 
