@@ -620,6 +620,8 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
          "theta_max must lie in [0.01, pi) rad"),
         (ROBOT.replace("length = 0.2", "length = 0.2\ndisks = -1"), "line 3: section 1: "
          "disks must be a whole number"),
+        (ROBOT.replace("length = 0.2", "length = 2000-01-01"), "line 2: section 1: length: "
+         "expected a finite number, got 2000-01-01 (a TOML date or time)"),
     ],
 )  # fmt: skip
 def test_a_robot_file_problem_names_its_line(tmp_path: Path, text: str, message: str) -> None:

@@ -53,6 +53,7 @@ The IMUs are numbered in the file's order, and the measurement columns follow it
 
 from __future__ import annotations
 
+import datetime
 import difflib
 import math
 import os
@@ -151,7 +152,10 @@ def warn_tendon_twins(path: Path, tendons: Sequence[Tendon]) -> None:
 
 
 def _shown(value: object) -> str:
-    """``repr(value)`` for a message, cut short (a value may be a list of thousands)."""
+    """``repr(value)`` for a message, cut short (a value may be a list of thousands); a
+    TOML date or time as the file writes it (``2000-01-01``, not Python's repr)."""
+    if isinstance(value, (datetime.date, datetime.time)):  # datetime is a date too
+        return f"{value.isoformat()} (a TOML date or time)"
     return shorten(repr(value), 60)
 
 
