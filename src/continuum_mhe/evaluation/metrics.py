@@ -304,8 +304,9 @@ class Calibration:
         tip_nees: average normalised estimation error squared of the tip position,
             ``mean(sum_xyz (e / std)^2)`` (3 where the std is right; the per-axis variances
             only, as an estimate file keeps no correlations).
-        tip_nees_band: its 95 % band under calibration, ``chi2(3 m) / m`` quantiles for
-            ``m = tip_n_eff`` (:func:`nees_band`).
+        tip_nees_band: its 95 % band under calibration for ``m = tip_n_eff`` samples
+            and the tip axes' correlation that the normalised errors show
+            (:func:`nees_band`; ``chi2(3 m) / m`` quantiles for uncorrelated axes).
         tip_n: samples in ``tip_nees``.
         tip_n_eff: the independent samples whose average NEES varies as this one does
             (:func:`effective_samples` of the per-sample NEES: an estimate's errors are
@@ -341,13 +342,33 @@ class Calibration:
         return asdict(self)
 
 
-def nees_band(dof: int, n: float, level: float = 0.95) -> tuple[float, float]:
-    """Two-sided ``level`` band of the average of ``n`` independent ``chi2(dof)`` (``n``
-    may be an effective count, :func:`effective_samples`)."""
+def nees_band(
+    dof: int, n: float, level: float = 0.95, corr: FloatArray | None = None
+) -> tuple[float, float]:
+    """Two-sided ``level`` band of the average over ``n`` independent samples (``n`` may
+    be an effective count, :func:`effective_samples`) of ``z^T z``, ``z`` ``dof``
+    standard normals with correlation matrix ``corr`` (None: independent, ``chi2(dof)``
+    each). Correlated axes keep the mean ``dof`` but widen the variance to ``2 tr(C^2)``
+    a sample; the band is that of the scaled ``chi2`` with the same mean and variance
+    (Satterthwaite): ``dof / nu * chi2(nu)`` with ``nu = dof^2 n / tr(C^2)``, which is
+    ``chi2(dof n) / n`` for independent axes."""
     from scipy.stats import chi2
 
+    trace_c2 = float(dof) if corr is None else float(np.sum(np.asarray(corr, float) ** 2))
+    nu = dof * dof * n / trace_c2
     a = (1 - level) / 2
-    return float(chi2.ppf(a, dof * n) / n), float(chi2.ppf(1 - a, dof * n) / n)
+    return float(dof / nu * chi2.ppf(a, nu)), float(dof / nu * chi2.ppf(1 - a, nu))
+
+
+def normalised_error_correlation(z: FloatArray) -> FloatArray | None:
+    """The correlation matrix (k, k) of normalised errors ``z`` (n, k) across their
+    axes (Pearson, each axis' mean removed), or None with fewer than 3 rows or an axis
+    without spread: an estimate file keeps each axis' standard deviation, not their
+    correlations, so the NEES of its rows takes them from the errors."""
+    z = np.asarray(z, dtype=float)
+    if len(z) < 3 or not np.all(np.std(z, axis=0) > 0):
+        return None
+    return np.asarray(np.corrcoef(z, rowvar=False), dtype=float)
 
 
 def effective_samples(series: FloatArray) -> float:
@@ -445,9 +466,10 @@ def compute_calibration(
             worst_row = int(np.flatnonzero(compared)[int(np.argmax(per_row[compared]))])
             worst = float(per_row[worst_row])
     if n_tip:
-        each = np.sum((err[rows][:, tip] / sd[rows][:, tip]) ** 2, axis=1)
+        z = err[rows][:, tip] / sd[rows][:, tip]
+        each = np.sum(z**2, axis=1)
         nees, n_eff = float(np.mean(each)), effective_samples(each)
-        band = nees_band(3, n_eff)
+        band = nees_band(3, n_eff, corr=normalised_error_correlation(z))
     else:
         nees, band, n_eff = math.nan, (math.nan, math.nan), 0.0
     return Calibration(
