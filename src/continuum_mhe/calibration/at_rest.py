@@ -445,6 +445,41 @@ def _settled(block: FloatArray, valid: FloatArray, knocked: FloatArray, noise: f
     )
 
 
+def creep_at_rest(values: FloatArray, n_imus: int) -> list[str]:
+    """One line per IMU whose raw samples ``values`` (n, 6 * n_imus; knocks left out as
+    NaN) turn while their spreads pass as still: the angle between the mean
+    accelerometer vectors of the first and the last third of its valid samples beyond
+    :data:`SETTLE_DEG` and :data:`SETTLE_SIGMAS` standard errors of that difference (the
+    accelerometer's noise from each third's spread). A robot that creeps through a rest
+    recording puts its motion's mean rate into the gyro bias and its mean tilt into the
+    mounting; the stillness bounds judge each axis's spread, which a slow, steady turn
+    stays within. An IMU with samples left out (a knock: :func:`knocks_at_rest`, whose
+    warning compares the poses before and after it) is not judged here."""
+    said = []
+    for i in range(n_imus):
+        acc = values[:, 6 * i : 6 * i + 3]
+        if not np.all(np.isfinite(acc)):
+            continue
+        third = len(acc) // 3
+        if third < MIN_REST_SAMPLES:
+            continue
+        first, last = acc[:third], acc[-third:]
+        a, b = first.mean(axis=0), last.mean(axis=0)
+        g = max(float(np.linalg.norm(a)), 1e-12)
+        cos = float(a @ b) / max(g * float(np.linalg.norm(b)), 1e-12)
+        angle = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
+        noise = float(np.median(np.concatenate([first.std(axis=0), last.std(axis=0)])))
+        error = math.degrees(noise / g * math.sqrt(2.0 / third))
+        if angle > max(SETTLE_DEG, SETTLE_SIGMAS * error):
+            said.append(
+                f"IMU {i + 1}'s gravity direction turned by {angle:.2f} degrees from the "
+                "first third of the rest to the last, slowly enough to pass as still: the "
+                "robot crept, and its gyro bias and mounting take in the motion; hold it "
+                "still and record the rest again"
+            )
+    return said
+
+
 #: A gyro spread this many times its bound, with every accelerometer still, reads as a
 #: gyro in deg/s: a MEMS gyro's noise at rest is a few hundredths of a deg/s to half a
 #: deg/s, which read as rad/s is many times :data:`STILL_GYRO_STD`.
@@ -572,11 +607,12 @@ def format_report(
                 f"IMU {i}: accelerometer mean (m/s^2) ax={m[0]:.4f} ay={m[1]:.4f} az={m[2]:.4f} "
                 f"(|a| = {g:.4f}); noise std ax={s[0]:.4f} ay={s[1]:.4f} az={s[2]:.4f}",
                 f"IMU {i}: gyro bias (rad/s) gx={m[3]:.5f} gy={m[4]:.5f} gz={m[5]:.5f} (robot "
-                f"file: gyro_bias = [{m[3]:.5f}, {m[4]:.5f}, {m[5]:.5f}]); noise std "
+                f"file: gyro_bias = [{m[3] + 0:.6f}, {m[4] + 0:.6f}, {m[5] + 0:.6f}]); noise std "
                 f"gx={s[3]:.5f} gy={s[4]:.5f} gz={s[5]:.5f}",
             ]
             assert imu.mount_rpy is not None
-            r, p, _ = imu.mount_rpy
+            # as --write-robot writes them (3 decimals; a negative zero as 0)
+            r, p = (float(f"{v:.3f}") + 0.0 for v in imu.mount_rpy[:2])
             tilt_noise = math.degrees(float(np.hypot(s[0], s[1])) / g) if g > 0 else math.nan
             yaw = 0.0 if yaws_deg is None else float(yaws_deg[i - 1])
             if bend:
@@ -586,21 +622,22 @@ def format_report(
             else:
                 yaw_hint = "see docs/hardware.md"
             lines.append(
-                f"IMU {i}: mounting with the robot straight: --mount-rpy {r:.2f},{p:.2f},"
-                f"{yaw:g} (robot file: mount_rpy = [{r:.2f}, {p:.2f}, {yaw:g}]); yaw: "
+                f"IMU {i}: mounting with the robot straight: --mount-rpy {r:g},{p:g},"
+                f"{yaw:g} (robot file: mount_rpy = [{r:g}, {p:g}, {yaw:g}]); yaw: "
                 f"{yaw_hint}; accelerometer noise as tilt: {tilt_noise:.2f} deg at rest "
                 "(not estimate's --noise-deg, the scatter in motion: keep its default)"
             )
             if bend:
                 y = bend[2][i - 1]
+                yaw_w = float(f"{y.yaw_deg:.3f}") + 0.0
                 lines += [
                     f"IMU {i}: yaw from the bend towards phi = {bend[1]:g} deg in {bend[0]}: "
                     f"{y.yaw_deg:.2f} deg (gyro rate axis, standard error "
                     f"{y.yaw_std_deg:.3f} deg; the gravity direction gives "
                     f"{y.gravity_yaw_deg:.2f} deg); tilt up to {y.tilt_deg:.0f} deg, rates "
                     f"across the bending axis {100 * y.off_axis:.1f} %",
-                    f"IMU {i}: mounting: --mount-rpy {r:.2f},{p:.2f},{y.yaw_deg:.2f} (robot "
-                    f"file: mount_rpy = [{r:.2f}, {p:.2f}, {y.yaw_deg:.2f}])",
+                    f"IMU {i}: mounting: --mount-rpy {r:g},{p:g},{yaw_w:g} (robot "
+                    f"file: mount_rpy = [{r:g}, {p:g}, {yaw_w:g}])",
                 ]
         else:
             lines.append(

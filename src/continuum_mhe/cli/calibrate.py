@@ -18,6 +18,7 @@ from continuum_mhe.calibration.at_rest import (
     calibrate,
     check_rest_mounting,
     collect,
+    creep_at_rest,
     format_report,
     frozen_at_rest,
     knocks_at_rest,
@@ -145,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
     knocks: list[str] = []
     if fmt == "raw":
         values, knocks = knocks_at_rest(t, values, robot.n_imus, args.still_acc_std, gyro_std)
+        knocks += creep_at_rest(values, robot.n_imus)
     try:
         cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
     except InputError as exc:  # name the recording
