@@ -1047,17 +1047,24 @@ def test_write_robot_takes_a_robot_file_that_starts_with_a_byte_order_mark(
     assert written[0] == b"# saved on Windows\n" + written[1]
 
 
+def _noisy_two_imu_rest(n: int, seed: int) -> np.ndarray:
+    """(n, 12) raw samples of two still IMUs (:func:`_rest_values`) with MEMS-like white
+    noise: 0.05 m/s^2 and 0.005 rad/s per axis."""
+    rng = np.random.default_rng(seed)
+    values = np.hstack([_rest_values(n, 0.0, 0.0), _rest_values(n, 0.0, 0.0)])
+    values[:, [0, 1, 2, 6, 7, 8]] += rng.normal(0.0, 0.05, (n, 6))
+    values[:, [3, 4, 5, 9, 10, 11]] += rng.normal(0.0, 0.005, (n, 6))
+    return values
+
+
 def test_a_short_knock_at_rest_is_left_out_and_said(tmp_path: Path, capsys) -> None:
     """A 50 ms knock on IMU 2 (gx +0.3 rad/s, ay +0.5 m/s^2 for 5 of 500 samples), within
     the stillness bounds over the whole rest: its samples are left out of IMU 2's means
     (the gyro bias printed is the mean of the other samples; with them it would be
     0.003 rad/s higher) and said in one warning line; the same rest without the knock,
     noise alone, has no sample left out."""
-    rng = np.random.default_rng(3)
     n = 500
-    values = np.hstack([_rest_values(n, 0.0, 0.0), _rest_values(n, 0.0, 0.0)])
-    values[:, [0, 1, 2, 6, 7, 8]] += rng.normal(0.0, 0.05, (n, 6))
-    values[:, [3, 4, 5, 9, 10, 11]] += rng.normal(0.0, 0.005, (n, 6))
+    values = _noisy_two_imu_rest(n, seed=3)
     quiet = tmp_path / "quiet.csv"
     _write_rest(quiet, values)
     code, _, err = _calibrate_main(capsys, "--from", str(quiet), "--robot", "two-section")
@@ -1084,11 +1091,8 @@ def test_a_knock_after_which_the_robot_rests_in_another_pose_is_said(
     about y from its pose before (within the stillness bounds over the whole rest): the
     knock's warning says the IMU rests in another pose and to record again (the printed
     pitch, about -0.75, is a mix of the two poses); a knock with the pose kept does not."""
-    rng = np.random.default_rng(5)
     n = 500
-    values = np.hstack([_rest_values(n, 0.0, 0.0), _rest_values(n, 0.0, 0.0)])
-    values[:, [0, 1, 2, 6, 7, 8]] += rng.normal(0.0, 0.05, (n, 6))
-    values[:, [3, 4, 5, 9, 10, 11]] += rng.normal(0.0, 0.005, (n, 6))
+    values = _noisy_two_imu_rest(n, seed=5)
     values[250:255, [4, 10]] += 0.3
     path = tmp_path / "knock.csv"
     _write_rest(path, values)
@@ -1113,11 +1117,8 @@ def test_a_robot_that_creeps_through_its_rest_is_said(
     each axis's spread within the stillness bounds; the gyros read the turn as a bias):
     one warning per IMU that the robot crept, with the turn between the first and last
     thirds (1.9 degrees); the same rest held still has none."""
-    rng = np.random.default_rng(7)
     n, rate = 500, 0.01
-    values = np.hstack([_rest_values(n, 0.0, 0.0), _rest_values(n, 0.0, 0.0)])
-    values[:, [0, 1, 2, 6, 7, 8]] += rng.normal(0.0, 0.05, (n, 6))
-    values[:, [3, 4, 5, 9, 10, 11]] += rng.normal(0.0, 0.005, (n, 6))
+    values = _noisy_two_imu_rest(n, seed=7)
     path = tmp_path / "rest.csv"
     _write_rest(path, values)
     code, _, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
