@@ -377,7 +377,7 @@ def test_a_missing_peer_is_skipped_with_the_line_that_installs_it(
     report = bm.run_benchmark([3], 0.4, ("ipopt", "acados", "fatrop", "ekf"), 0, ())
     assert report["skipped"] == {
         "acados": "needs comma-deps-acados: " + peers.ACADOS_HINT,
-        "fatrop": "this CasADi has no fatrop: pip install 'casadi>=3.6.5'",
+        "fatrop": "this CasADi has no fatrop: pip install 'casadi>=3.8.2'",
     }
     assert "pip install --no-deps --target DIR comma-deps-acados" in peers.ACADOS_HINT
     assert {r["method"] for r in report["results"]} == {"ipopt", "ekf"}

@@ -351,7 +351,10 @@ def test_a_hanging_robot_that_starts_bent_is_said_naming_the_mounting(tmp_path) 
         said.append([str(w.message) for w in seen if w.category is MountingWarning])
     assert len(said[0]) == 1 and said[1] == []
     assert "mounting: the robot is described as z-up" in said[0][0]
-    shipped = DATA / "robots" / "two_section.toml"  # a shipped robot: a copy of its file
+    # a shipped robot: a copy of its file, named where the package is installed
+    import continuum_mhe
+
+    shipped = Path(continuum_mhe.__file__).parent / "data" / "robots" / "two_section.toml"
     assert (
         f'if the robot hangs from its base, set mounting = "z-down" in a copy of the shipped '
         f"robot file {shipped} (given as --robot two-section) (the estimates"

@@ -41,6 +41,28 @@ def test_require_names_the_extra(monkeypatch):
     assert require("json", "peers", "x").dumps([1]) == "[1]"
 
 
+def test_an_installed_package_that_does_not_import_is_not_called_missing(monkeypatch, tmp_path):
+    """A package that is installed but whose import fails (a version older than the
+    extra asks for: do-mpc 4.6 under CasADi 3.8) is said to be installed and not to
+    import, with the error and the ``pip install ... --upgrade``; one that is not
+    installed is said to be missing."""
+    package = tmp_path / "stale_peer"
+    package.mkdir()
+    (package / "__init__.py").write_text(
+        "raise ImportError(\"cannot import name 'Inf' from 'numpy'\")\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(MissingExtraError) as info:
+        require("stale_peer", "peers", "benchmark", package="stale-peer")
+    assert str(info.value) == (
+        "benchmark needs stale-peer, which is installed but does not import here "
+        "(ImportError: cannot import name 'Inf' from 'numpy'): a version too old?: "
+        "pip install 'continuum-mhe[peers]' --upgrade"
+    )
+    with pytest.raises(MissingExtraError, match="which is not installed: pip install"):
+        require("no_such_peer_here", "peers", "benchmark")
+
+
 def test_benchmark_without_do_mpc_times_the_rest(monkeypatch, tmp_path, capsys):
     """A peer that is not installed is not timed, and the report says what to install,
     as for acados: the other contenders are timed."""

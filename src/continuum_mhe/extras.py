@@ -21,6 +21,7 @@ test      all of the above, pytest, hypothesis,        the test suite
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import warnings
 from types import ModuleType
 
@@ -49,11 +50,13 @@ def install_hint(extra: str) -> str:
     return f"pip install 'continuum-mhe[{extra}]'"
 
 
-def missing(package: str, extra: str, feature: str) -> MissingExtraError:
-    """The error for ``feature`` needing ``package`` from ``extra``."""
-    return MissingExtraError(
-        f"{feature} needs {package}, which is not installed: {install_hint(extra)}"
-    )
+def missing(
+    package: str, extra: str, feature: str, why: str = "which is not installed"
+) -> MissingExtraError:
+    """The error for ``feature`` needing ``package`` from ``extra`` (``why``: as
+    :func:`import_problem` says it)."""
+    upgrade = " --upgrade" if "does not import" in why else ""
+    return MissingExtraError(f"{feature} needs {package}, {why}: {install_hint(extra)}{upgrade}")
 
 
 def require(module: str, extra: str, feature: str, package: str | None = None) -> ModuleType:
@@ -65,19 +68,31 @@ def require(module: str, extra: str, feature: str, package: str | None = None) -
         feature: what needs it, for the message (``live``, ``benchmark's do-mpc row``).
         package: the package's name on PyPI when it differs from ``module``.
     """
-    try:
-        return _quiet_import(module)
-    except ImportError:
-        raise missing(package or module, extra, feature) from None
+    why = import_problem(module)
+    if why is not None:
+        raise missing(package or module, extra, feature, why)
+    return _quiet_import(module)
 
 
 def available(module: str) -> bool:
     """True if ``module`` can be imported (the import is attempted)."""
+    return import_problem(module) is None
+
+
+def import_problem(module: str) -> str | None:
+    """None if ``module`` imports, else why not, as the end of a sentence on what needs
+    it: ``"which is not installed"``, or, where its package is installed but its import
+    fails (a version older than the extra asks for, or one that does not fit the other
+    packages), ``"which is installed but does not import here (ImportError: ...)"``."""
     try:
         _quiet_import(module)
-    except ImportError:
-        return False
-    return True
+    except ImportError as exc:
+        if importlib.util.find_spec(module.split(".")[0]) is None:
+            return "which is not installed"
+        text = " ".join(f"{type(exc).__name__}: {exc}".split())
+        shown = text if len(text) <= 120 else text[:120] + "..."
+        return f"which is installed but does not import here ({shown}): a version too old?"
+    return None
 
 
 def _quiet_import(module: str) -> ModuleType:

@@ -56,12 +56,16 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.window_nlp import WindowParameters, WindowProblem, pack_parameters
-from continuum_mhe.extras import available, install_hint
+from continuum_mhe.extras import import_problem, install_hint
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording
 
 PEERS = ("acados", "fatrop", "sqp-hpipm", "ipopt-warm")
+
+#: The CasADi whose fatrop and sqpmethod with HPIPM solve the peers' windows (the
+#: ``peers`` extra's; older wheels lack fatrop, or their sqpmethod stops short).
+CASADI_PEERS = "casadi>=3.8.2"
 
 #: What each peer's time covers.
 PEER_NOTES: dict[str, str] = {
@@ -608,15 +612,16 @@ def missing_peers(acados_folder: str | None = None) -> dict[str, str]:
     """The peers that cannot run here, each with the one line that says what to
     install."""
     why: dict[str, str] = {}
-    if not available("do_mpc"):
-        why["do-mpc"] = f"needs do-mpc, which is not installed: {install_hint('peers')}"
+    if (problem := import_problem("do_mpc")) is not None:
+        upgrade = " --upgrade" if "does not import" in problem else ""
+        why["do-mpc"] = f"needs do-mpc, {problem}: {install_hint('peers')}{upgrade}"
     if find_acados(acados_folder) is None:
         where = f" (not in {acados_folder})" if acados_folder else ""
         why["acados"] = f"needs {ACADOS_PACKAGE}{where}: {ACADOS_HINT}"
     elif shutil.which("make") is None or shutil.which("cc") is None:
         why["acados"] = "needs a C compiler (cc) and make to build its generated solver"
     if not ca.has_nlpsol("fatrop"):
-        why["fatrop"] = "this CasADi has no fatrop: pip install 'casadi>=3.6.5'"
+        why["fatrop"] = f"this CasADi has no fatrop: pip install '{CASADI_PEERS}'"
     if not ca.has_conic("hpipm"):
-        why["sqp-hpipm"] = "this CasADi has no HPIPM: pip install 'casadi>=3.6.5'"
+        why["sqp-hpipm"] = f"this CasADi has no HPIPM: pip install '{CASADI_PEERS}'"
     return why
