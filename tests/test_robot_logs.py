@@ -231,15 +231,22 @@ def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
     tiny.write_bytes(b"hello\n")
     tail_cut = tmp_path / "tail_cut.mcap"  # cut inside a record near its end: said so
     tail_cut.write_bytes(est.read_bytes()[:-500])
+    zeroed = tmp_path / "zeroed.mcap"  # 64 bytes zeroed inside its compressed chunk
+    data = bytearray(est.read_bytes())
+    data[len(data) // 2 : len(data) // 2 + 64] = bytes(64)
+    zeroed.write_bytes(bytes(data))
     for path, why in ((tmp_path / "none.mcap", "no such file"), (tmp_path, "a folder"),
                       (cut, "cannot read it as an estimate MCAP"),
                       (tail_cut, "cannot read it as an estimate MCAP \\(the file ends "
                                  "inside a record, or is damaged: cut short\\?\\)$"),
-                      (tiny, "cannot read it as an estimate MCAP \\(too short")):  # fmt: skip
+                      (tiny, "cannot read it as an estimate MCAP \\(too short"),
+                      (zeroed, "cannot read it as an estimate MCAP \\(a compressed chunk "
+                               "is damaged: ")):  # fmt: skip
         with pytest.raises(InputError, match=f"^{re.escape(str(path))}: {why}"):
             read_estimates_mcap(path)
     png = str(tmp_path / "t.png")
-    for argv in (["evaluate", str(tiny), str(tiny)], ["plot", str(tiny), "-o", png]):
+    for argv in (["evaluate", str(tiny), str(tiny)], ["plot", str(tiny), "-o", png],
+                 ["evaluate", str(zeroed), str(tiny)], ["plot", str(zeroed), "-o", png]):  # fmt: skip
         assert main(argv) == 2
         assert capsys.readouterr().err.count("\n") == 1
 
@@ -383,6 +390,27 @@ def test_corrupt_log_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert main(["estimate", str(bad), "-o", str(tmp_path / "e.csv")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("continuum-mhe: error: ") and "\n" not in err
+
+
+def test_a_damaged_record_in_an_uncompressed_chunk_is_said_not_read_past(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One byte of an uncompressed MCAP damaged (the opcode of its fourth message): the
+    chunk's CRC says so in one line, exit 2, nothing written; the reader without the
+    check would end the chunk's messages there and estimate the rest without a word."""
+    import struct
+
+    good = write_mcap(tmp_path / "run.mcap", recording)
+    data = bytearray(good.read_bytes())
+    data[data.find(struct.pack("<Q", int(recording["stamps"][3]))) - 15] = 0
+    bad = tmp_path / "damaged.mcap"
+    bad.write_bytes(bytes(data))
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(bad), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{bad}: cannot read robot log (crc validation" in err
+    assert not out.exists()
+    assert main(["estimate", str(good), "-o", str(out)]) == 0
 
 
 def test_a_log_named_without_its_suffix_is_read_as_the_log_it_is(

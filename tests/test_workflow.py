@@ -357,8 +357,13 @@ def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, c
         ('[estimat]\nmethod = "ekf"\n', "line 1: [estimat] is not a table of an options file"),
         ('method = "ekf"\n[estimate]\nhorizn = 3\n', "line 3: horizn is not an option of"),
         ("[estimate.noise]\ngyro-std = 0.1\n", "line 1: [estimate.noise] is not a table"),
+        ('[[estimate]]\nmethod = "ekf"\n',
+         "line 1: [[estimate]]: the estimate options are one table, [estimate]"),
+        ("estimate = 5\n", "line 1: estimate = ...: the estimate options are one table"),
+        ('[[live]]\nport = "x"\n', "line 1: [[live]]: the live options are one table, [live]"),
+        ("a = " + "[" * 600 + "]" * 600 + "\n", "opts.toml: nested too deep to be an options"),
     ],
-)
+)  # fmt: skip
 def test_a_bad_options_file_is_one_line_naming_it(tmp_path: Path, capsys, text, needle) -> None:
     cfg = tmp_path / "opts.toml"
     cfg.write_text(text)

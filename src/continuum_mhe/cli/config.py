@@ -159,6 +159,8 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
         raise UnreadableOptions(
             toml_error_line(path, exc, first_line=offset + 1, first_column=indent + 1, text=text)
         ) from None
+    except RecursionError:  # arrays or tables nested hundreds deep
+        raise InputError(f"{path}: nested too deep to be an options file") from None
     if estimate:
         data = data[OPTIONS_LINE]
     return data, text, offset
@@ -249,6 +251,13 @@ def apply_config(
     by_key = _by_key(options)
     tables = {"estimate", "live"}
     flat = {k: v for k, v in data.items() if k not in tables}
+    for name in tables:  # [estimate] and [live] are tables of options, once each
+        if name in data and not isinstance(data[name], dict):
+            shown = "[[" + name + "]]" if isinstance(data[name], list) else f"{name} = ..."
+            raise InputError(
+                f"{path}: {_line(text, name, offset)}{shown}: the {name} options are one "
+                f"table, [{name}]"
+            )
     own = data.get(command, {})
     recorded = Path(path).suffix.lower() in (".csv", ".mcap")  # an estimate file
     defaults: dict[str, Any] = {}

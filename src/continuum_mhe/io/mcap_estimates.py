@@ -315,6 +315,12 @@ def read_estimates_mcap(
 #: of a few bytes: struct.error)
 _FOREIGN_FILE_ERRORS = (ValueError, KeyError, TypeError, IndexError, EOFError, struct.error)
 
+def _decompression_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is a decompressor's error on damaged data (zstandard's or lz4's,
+    which an MCAP's compressed chunks raise; their modules are not imported here)."""
+    return type(exc).__module__.split(".")[0] in ("zstandard", "lz4", "_zstd")
+
+
 #: the MCAP metadata record of an estimate file's notes (options, model, partial)
 NOTES_RECORD = "continuum-mhe"
 
@@ -353,7 +359,8 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
     has_std = False
     try:
         with Path(path).open("rb") as fh:
-            for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
+            reader = make_reader(fh, validate_crcs=True)  # damage in a chunk is said
+            for _, _, message in reader.iter_messages(topics=["/continuum/estimate"]):
                 row = json.loads(message.data)
                 if not names:
                     names = [
@@ -388,6 +395,13 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
             else repr(exc)
         )
         raise InputError(f"{path}: cannot read it as an estimate MCAP ({why})") from None
+    except Exception as exc:  # a damaged compressed chunk: the compressor's own error
+        if not _decompression_error(exc):
+            raise
+        raise InputError(
+            f"{path}: cannot read it as an estimate MCAP (a compressed chunk is damaged: "
+            f"{' '.join(str(exc).split())})"
+        ) from None
     if not t:
         raise InputError(
             f"{path}: no /continuum/estimate messages: not an estimate MCAP (a robot log? "

@@ -353,7 +353,9 @@ def _mcap_reader(fh: Any) -> tuple[Any, Any]:
         fh.seek(0)
         return NonSeekingReader(fh), None
     fh.seek(0)
-    return make_reader(fh), summary
+    # the chunks' CRCs checked: a damaged record in an uncompressed chunk would otherwise
+    # end the chunk's messages there, without a word
+    return make_reader(fh, validate_crcs=True), summary
 
 
 def _mcap_messages(reader: Any, topics: list[str] | None = None) -> Any:
