@@ -245,8 +245,9 @@ def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
         with pytest.raises(InputError, match=f"^{re.escape(str(path))}: {why}"):
             read_estimates_mcap(path)
     png = str(tmp_path / "t.png")
-    for argv in (["evaluate", str(tiny), str(tiny)], ["plot", str(tiny), "-o", png],
-                 ["evaluate", str(zeroed), str(tiny)], ["plot", str(zeroed), "-o", png]):  # fmt: skip
+    unread = [["evaluate", str(tiny), str(tiny)], ["plot", str(tiny), "-o", png],
+              ["evaluate", str(zeroed), str(tiny)], ["plot", str(zeroed), "-o", png]]  # fmt: skip
+    for argv in unread:
         assert main(argv) == 2
         assert capsys.readouterr().err.count("\n") == 1
 
