@@ -203,6 +203,38 @@ def test_a_device_clock_in_seconds_is_said_once(
         ), told
 
 
+@pytest.mark.parametrize(
+    ("step_ms", "arrival_step", "lines", "fast"),
+    [
+        (20_000, 0.02, 200, True),  # micros() at 50 Hz: every line far ahead, dropped
+        (10_000, 0.01, 200, True),  # at 100 Hz: every line a gap of 10 s, kept
+        (1_000, 0.001, 400, True),  # at 1 kHz
+        (20, 0.02, 200, False),  # milliseconds in real time
+        (20, 0.0005, 200, False),  # a file replayed 40 times faster
+        (1, 1e-6, 2000, False),  # 1 kHz lines written into a pseudo-terminal at once
+    ],
+)
+def test_a_device_clock_in_microseconds_stops_the_session(
+    step_ms: int, arrival_step: float, lines: int, fast: bool
+) -> None:
+    """A device that sends ``micros()`` as ``t_ms``: its clock advances a thousand times
+    as fast as its lines arrive, which stops the session in one line naming microseconds
+    (its estimates not kept), where each line was dropped as a corrupted ``t_ms`` or
+    taken as a gap; milliseconds, or lines faster than real time, do not."""
+    s, said = _session()
+    now = time.monotonic()
+    for i in range(lines):
+        s.handle_line(f"{1500 + step_ms * i},0.1,0.1".encode(), now + arrival_step * i)
+        if s.fatal is not None:
+            break
+    if fast:
+        assert s.fatal is not None and "t_ms in microseconds?" in s.fatal, (s.fatal, said)
+        assert s.wrong_units and s.discarded == "made from readings in the wrong units"
+        assert i < 0.3 / arrival_step  # within a third of a second of arrivals
+    else:
+        assert s.fatal is None, s.fatal
+
+
 def test_a_banner_after_samples_is_a_board_reset_even_without_a_first_banner() -> None:
     """A board that streamed before live saw its banner, then reset: the banner after
     samples arms the restart, so its clock stepping back by less than a second (2,500

@@ -315,6 +315,7 @@ def read_estimates_mcap(
 #: of a few bytes: struct.error)
 _FOREIGN_FILE_ERRORS = (ValueError, KeyError, TypeError, IndexError, EOFError, struct.error)
 
+
 def _decompression_error(exc: BaseException) -> bool:
     """Whether ``exc`` is a decompressor's error on damaged data (zstandard's or lz4's,
     which an MCAP's compressed chunks raise; their modules are not imported here)."""

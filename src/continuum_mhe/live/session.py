@@ -95,6 +95,15 @@ SHOWN_CHARS = 48
 CLOCK_CHECK_S = 2.0
 CLOCK_CHECK_SAMPLES = 20
 CLOCK_SLOW_FACTOR = 0.01
+#: A device clock whose lines advance this many times as fast as the host's arrivals
+#: (the median step of the lines over at least :data:`FAST_CLOCK_WINDOW_S` s of arrival
+#: and :data:`FAST_CLOCK_LINES` lines), sends microseconds as ``t_ms`` (``micros()``):
+#: the session stops. A file replayed faster than real time through a serial port
+#: stays far below (the baud rate bounds its lines a second), and one written into a
+#: pseudo-terminal at once arrives within a few milliseconds, not over the window.
+FAST_CLOCK_FACTORS = (300.0, 3000.0)
+FAST_CLOCK_WINDOW_S = 0.2
+FAST_CLOCK_LINES = 10
 #: A stream that starts this many seconds after its tensions file's first row is said:
 #: a file that starts with the stream on another clock gives every sample another
 #: time's tensions.
@@ -319,6 +328,8 @@ class LiveSession:
         self._clock_checked = False
         self._clock_since: tuple[float, float] | None = None
         self._clock_samples = 0
+        #: the last lines' device times (ms) and arrivals (s), for the fast clock's check
+        self._fast_lines: deque[tuple[float, float]] = deque()
         #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
         #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no
         #: line is handled after
@@ -518,6 +529,9 @@ class LiveSession:
                 self._comment(text.strip(), arrival)
             return None
         self._garbage_since, self._garbage_lines = None, 0
+        self._check_fast_clock(sample.t_ms, arrival)
+        if self.fatal is not None:
+            return None
         if joined:  # the first line since the port opened: whole, or the tail of a line?
             self._held = (sample, arrival)
             return None
@@ -697,6 +711,34 @@ class LiveSession:
                 f"{host:.3g} s of arrival time: t_ms in seconds? (the first field "
                 "is milliseconds, as millis() gives; every step reads a thousand times too "
                 "short)"
+            )
+
+    def _check_fast_clock(self, t_ms: float, arrival: float) -> None:
+        """Set :attr:`fatal` where the lines' device clock (``t_ms``, arriving at
+        ``arrival``, s) advances :data:`FAST_CLOCK_FACTORS` times as fast as the host's
+        arrivals: ``t_ms`` in microseconds. Each of its lines lands far ahead of the last
+        (dropped as a corrupted ``t_ms``) or seconds after it (a gap), so no other check
+        sees the unit. A step back (a restart, a wrap, a stray line) starts the count
+        again; the median step keeps one corrupted line from moving it."""
+        lines = self._fast_lines
+        if lines and t_ms <= lines[-1][0]:
+            lines.clear()
+        lines.append((t_ms, arrival))
+        while len(lines) > FAST_CLOCK_LINES and arrival - lines[1][1] >= FAST_CLOCK_WINDOW_S:
+            lines.popleft()
+        host = arrival - lines[0][1]
+        if len(lines) < FAST_CLOCK_LINES or host < FAST_CLOCK_WINDOW_S:
+            return
+        step = statistics.median(b[0] - a[0] for a, b in zip(lines, list(lines)[1:]))
+        factor = step * (len(lines) - 1) / (1e3 * host)
+        low, high = FAST_CLOCK_FACTORS
+        if low <= factor <= high:
+            self.wrong_units = True
+            self.fatal = (
+                f"{self.settings.port}: the device clock advanced {factor:.0f} times as fast "
+                f"as the lines arrived over the last {len(lines)} lines (steps of "
+                f"{step:g} ms in t_ms): t_ms in microseconds? (the first field is "
+                "milliseconds, as millis() gives; micros() / 1000.0 keeps the decimals)"
             )
 
     def _out_of_order(
