@@ -184,23 +184,27 @@ def test_device_clock_restart_gives_estimates_and_says_so() -> None:
         ([20 * i for i in range(200)], 0.0005, False),  # a file replayed 40 times faster
     ],
 )
-def test_a_device_clock_in_seconds_is_said_once(
+def test_a_device_clock_in_seconds_stops_the_session(
     t_ms: list[float], arrival_step: float, slow: bool
 ) -> None:
     """A device that sends seconds as ``t_ms`` (0.02 a line at 50 Hz): its clock
-    advances 2 ms in 2 s of arrival, which the session says once (the steps are not
-    read a thousand times too short without a word); milliseconds, or a replay faster than
-    real time, say nothing."""
+    advances 2 ms in 2 s of arrival, which stops the session in one line (the steps are
+    not read a thousand times too short; its estimates are not kept); milliseconds, or a
+    replay faster than real time, go on without a word."""
     s, said = _session()
     now = time.monotonic()
     for i, t in enumerate(t_ms):
         s.handle_line(f"{t:g},0.1,0.1".encode(), now + arrival_step * i)
-    told = [m for m in said if "t_ms in seconds?" in m]
-    assert len(told) == (1 if slow else 0), said
+    assert not [m for m in said if "t_ms in seconds?" in m], said
     if slow:  # the times as a user reads them (three digits, not a float's repr)
+        assert s.fatal is not None and s.wrong_units, said
         assert re.match(
-            r"the device clock advanced \d\.?\d{0,2} ms in \d\.?\d{0,2} s of ", told[0]
-        ), told
+            r"x: the device clock advanced \d\.?\d{0,2} ms in \d\.?\d{0,2} s of .*t_ms in "
+            r"seconds\?",
+            s.fatal,
+        ), s.fatal
+    else:
+        assert s.fatal is None, s.fatal
 
 
 @pytest.mark.parametrize(
@@ -677,6 +681,21 @@ def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
     )
     _feed(s, [200])  # one valid sample: the session is not a failure
     assert s.only_garbled() is None
+
+
+def test_fields_named_in_another_order_stop_the_session() -> None:
+    """A device whose ``# fields:`` line names live's fields in another order (pitch
+    before roll) stops the session in one line saying so and giving live's order (every
+    reading would be taken for another); fields named otherwise are said, and the
+    session goes on."""
+    s, said = _session()
+    s.handle_line(b"# fields: t_ms,pitch,roll (ms, rad, rad)", time.monotonic())
+    assert s.fatal is not None and s.wrong_units
+    assert "the same fields in another order: the device must send them in live's order, " \
+        "t_ms,roll,pitch" in s.fatal, s.fatal  # fmt: skip
+    s, said = _session()
+    s.handle_line(b"# fields: t_ms,r,p (ms, rad, rad)", time.monotonic())
+    assert s.fatal is None and any("check --format and --robot" in m for m in said), said
 
 
 def test_a_line_cut_after_the_device_named_its_fields_gets_no_other_format_hint() -> None:

@@ -91,7 +91,7 @@ SHOWN_CHARS = 48
 #: The device clock is held against the host's arrival times once this many seconds
 #: of arrival have passed since the first sample of a run of the clock (and
 #: :data:`CLOCK_CHECK_SAMPLES` samples): a clock that advanced less than
-#: :data:`CLOCK_SLOW_FACTOR` times as much sends seconds as ``t_ms`` (said once).
+#: :data:`CLOCK_SLOW_FACTOR` times as much sends seconds as ``t_ms`` (the session stops).
 CLOCK_CHECK_S = 2.0
 CLOCK_CHECK_SAMPLES = 20
 CLOCK_SLOW_FACTOR = 0.01
@@ -642,7 +642,7 @@ class LiveSession:
             self._fields_match = names == want
             if names != want:
                 tensions = f" and {self.n_tensions} tensions" if self.n_tensions else ""
-                self.say(
+                said = (
                     f"the device names {len(names)} fields ({','.join(names)}) but "
                     f"--format {self.settings.fmt} with {self.n_imus} IMU(s){tensions} "
                     f"expects {len(want)} ({','.join(want)}); "
@@ -650,6 +650,11 @@ class LiveSession:
                         names, self.settings.fmt, self.n_imus, self.n_tensions, self._file_tensions
                     )
                 )
+                if sorted(names) == sorted(want):  # every reading would be another's
+                    self.wrong_units = True
+                    self.fatal = f"{self.settings.port}: {said}"
+                else:
+                    self.say(said)
 
     def unended_bytes(self, nbytes: int, arrival: float) -> None:
         """``nbytes`` have arrived since the last line end, more than a line may hold: a
@@ -688,11 +693,12 @@ class LiveSession:
         self.units_mark = mark() if mark is not None else None
 
     def _check_clock_rate(self, t: float, arrival: float, restart: bool) -> None:
-        """Say once where the device clock (``t``, s) advanced less than
+        """Set :attr:`fatal` where the device clock (``t``, s) advanced less than
         :data:`CLOCK_SLOW_FACTOR` times the arrival time over the first
         :data:`CLOCK_CHECK_S` s of its run: ``t_ms`` sent in seconds (a 50 Hz stream's
         steps of 0.02 read as 0.02 ms). A faster device clock is a feed faster than real
-        time (a file replayed through a port), not a unit."""
+        time (a file replayed through a port), not a unit, up to
+        :meth:`_check_fast_clock`'s microseconds."""
         if self._clock_checked:
             return
         if restart or self._clock_since is None:
@@ -706,8 +712,9 @@ class LiveSession:
         self._clock_checked = True
         device = t - t0
         if device < CLOCK_SLOW_FACTOR * host:
-            self.say(
-                f"the device clock advanced {1e3 * device:.3g} ms in "
+            self.wrong_units = True
+            self.fatal = (
+                f"{self.settings.port}: the device clock advanced {1e3 * device:.3g} ms in "
                 f"{host:.3g} s of arrival time: t_ms in seconds? (the first field "
                 "is milliseconds, as millis() gives; every step reads a thousand times too "
                 "short)"

@@ -268,6 +268,12 @@ def header_hint(
             f"it names the robot's {file_tensions} tendon tensions, which --inputs gives too; "
             "leave --inputs out (live then reads the line's), or send the IMUs' fields alone"
         )
+    expected = line_fields(fmt, n_imus, n_tensions)
+    if names != expected and sorted(names) == sorted(expected):
+        return (
+            "the same fields in another order: the device must send them in live's order, "
+            f"{','.join(expected)} (live reads fields by place, and would take one for another)"
+        )
     return "check --format and --robot"
 
 
