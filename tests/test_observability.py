@@ -308,6 +308,30 @@ def test_check_robot_says_an_imu_near_its_sections_base_sees_the_bend_weakly(
             "within about" in line) is weak  # fmt: skip
 
 
+@pytest.mark.parametrize(("at", "weak"), [(0.3, True), (1.0, False)])
+def test_check_robot_is_weak_where_estimate_would_mark_rows_uncertain(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], at: float, weak: bool
+) -> None:
+    """Three sections of 0.1 m with each IMU at 0.3 of its section: one sample of tilt
+    places the tip within about a fifth of the length, beyond the tenth at which
+    ``estimate`` marks a row uncertain, so the verdict says ``but weakly`` with the share
+    of shapes beyond it, and ``--json`` says ``"weakly": true`` beside ``"observable":
+    "yes"``; IMUs at the sections' ends are not weak."""
+    robot = tmp_path / "r.toml"
+    robot.write_text(
+        "[[section]]\nlength = 0.1\n" * 3
+        + "".join(f"[[imu]]\nsection = {k}\nat = {at}\n" for k in (1, 2, 3))
+    )
+    assert main(["check-robot", str(robot), "--samples", "300", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["observable"] == "yes" and report["weakly"] is weak
+    tip = report["tip_noise_std"]
+    assert (tip > 0.1 * report["length"]) is weak
+    assert ("beyond 10 % at " in report["verdict"]) is weak
+    share = report["tip_wide_share"]
+    assert (share > 0.5) is weak and 0.0 <= share <= 1.0
+
+
 @pytest.mark.parametrize(
     ("imus", "free"),
     [

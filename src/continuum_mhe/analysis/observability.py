@@ -41,6 +41,7 @@ from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.model.tendon_statics import Station, TendonStatics
+from continuum_mhe.settings import RecoverySettings
 
 #: Relative singular-value threshold for "rank-deficient".
 RANK_TOL = 1e-6
@@ -88,6 +89,10 @@ class ObservabilityReport:
     #: the tip position's standard deviation, m, that one sample of tilt readings with
     #: :data:`VERDICT_NOISE` gives (:func:`tip_noise_std`), at the median sampled shape
     tip_noise_std: float = math.nan
+    #: the share of the sampled shapes at which that standard deviation exceeds
+    #: :data:`WEAK_TIP_FRACTION` of the robot's length (rows ``estimate`` marks
+    #: ``uncertain`` there)
+    tip_wide_share: float = math.nan
     #: the robot's length, m
     length: float = math.nan
     #: the sections (1-based) whose bend the IMUs leave free, or see by less than the
@@ -102,10 +107,12 @@ class ObservabilityReport:
         own["tip_noise_std"] = self.tip_noise_std if math.isfinite(self.tip_noise_std) else None
         # the sections' lengths summed: 0.1 + 0.1 + 0.1 written as 0.3
         own["length"] = round(self.length, 12) if math.isfinite(self.length) else None
+        own["tip_wide_share"] = self.tip_wide_share if math.isfinite(self.tip_wide_share) else None
         return {
             **own,
             "model_check": model_check(self),
             "observable": observability(self),
+            "weakly": weakly(self),
             "verdict": verdict(self),
         }
 
@@ -117,10 +124,12 @@ OBSERVABLE_FRACTION = 0.99
 #: command line's default ``--noise-deg``).
 VERDICT_NOISE = math.radians(2.0)
 #: A robot whose tip one sample of tilt readings places within more than this fraction
-#: of its length (:attr:`ObservabilityReport.tip_noise_std`, at the median shape) is
-#: observable only weakly: an IMU at a section's end gives 0.03 of the length on one
-#: section, 0.05 to 0.06 on three or four sections; one at 0.05 of its section 0.38.
-WEAK_TIP_FRACTION = 0.2
+#: of its length (:attr:`ObservabilityReport.tip_noise_std`, the median over the sampled
+#: shapes) is observable only weakly: the fraction beyond which ``estimate`` marks a row
+#: ``uncertain`` (:attr:`~continuum_mhe.settings.RecoverySettings.uncertain_fraction`).
+#: An IMU at a section's end gives 0.03 of the length on one section, 0.05 to 0.06 on
+#: three or four sections; one at 0.05 of its section 0.38.
+WEAK_TIP_FRACTION = RecoverySettings.uncertain_fraction
 
 
 def observability(r: ObservabilityReport) -> Literal["yes", "except-near-some", "no"]:
@@ -131,6 +140,17 @@ def observability(r: ObservabilityReport) -> Literal["yes", "except-near-some", 
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return "yes"
     return "no" if t.full_rank_fraction == 0.0 else "except-near-some"
+
+
+def weakly(r: ObservabilityReport) -> bool:
+    """Whether the IMUs determine the shape only weakly: one sample of tilt readings
+    places the tip within more than :data:`WEAK_TIP_FRACTION` of the robot's length at
+    the median sampled shape, or leaves a section's bend free
+    (:attr:`ObservabilityReport.free_sections`). Not judged for a tendon robot, whose
+    verdict is its tip force's."""
+    if r.tendon_force is not None or r.tilt.full_rank_fraction == 0.0:
+        return False
+    return bool(r.tip_noise_std > WEAK_TIP_FRACTION * r.length or r.free_sections)
 
 
 def verdict(r: ObservabilityReport) -> str:
@@ -147,8 +167,10 @@ def verdict(r: ObservabilityReport) -> str:
             f"; but weakly: one sample of tilt readings with {math.degrees(VERDICT_NOISE):g} "
             f"degrees of noise places the tip within about {_mm(r.tip_noise_std)} (a "
             f"standard deviation, {100 * r.tip_noise_std / r.length:.0f} % of the robot's "
-            "length, at the median shape): an IMU near its section's base barely turns "
-            "with the bend (put each section's IMU at its end, at = 1)"
+            f"length, the median over the sampled shapes; beyond {100 * WEAK_TIP_FRACTION:.0f} "
+            f"% at {_percent(r.tip_wide_share)} % of them, where estimate marks its rows "
+            "uncertain): an IMU near its section's base barely turns with the bend (put "
+            "each section's IMU at its end, at = 1)"
         )
     if r.free_sections:
         weak += (
@@ -397,7 +419,9 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
     x = _sample_states(robot, samples, seed)
     tilt_jacs = _eval(j_tilt, x)
     tilt, rel = _summary(tilt_jacs)
-    tip_std = float(np.median(tip_noise_std(tilt_jacs, _eval(j_tip, x), VERDICT_NOISE)))
+    tip_stds = tip_noise_std(tilt_jacs, _eval(j_tip, x), VERDICT_NOISE)
+    tip_std = float(np.median(tip_stds))
+    tip_wide = float(np.mean(tip_stds > WEAK_TIP_FRACTION * sum(robot.lengths)))
     tilt2, _ = _summary(_eval(j_tilt2, x))
     gyro2, _ = _summary(_eval(j_dir2, x))
     worst = np.argsort(rel)[:3]
@@ -425,13 +449,14 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
         free = tuple(k + 1 for k in free_sections(robot, VERDICT_NOISE))
         return ObservabilityReport(
             samples, tilt, tilt2, gyro2, examples, known, n_imus=robot.n_imus,
-            tip_noise_std=tip_std, length=sum(robot.lengths), free_sections=free,
+            tip_noise_std=tip_std, tip_wide_share=tip_wide, length=sum(robot.lengths),
+            free_sections=free,
         )  # fmt: skip
     m = min(samples, TENDON_SAMPLES)
     tendon, unsolved = tendon_force_summary(robot, m, seed)
     return ObservabilityReport(
         samples, tilt, tilt2, gyro2, examples, known, tendon, m, unsolved, robot.n_tendons,
-        robot.n_imus, tip_std, sum(robot.lengths),
+        robot.n_imus, tip_std, tip_wide, sum(robot.lengths),
     )  # fmt: skip
 
 
