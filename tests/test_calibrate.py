@@ -1137,6 +1137,30 @@ def test_a_robot_that_creeps_through_its_rest_is_said(
     assert err.count("the robot crept") == 2
 
 
+def test_calibrate_prints_and_writes_no_negative_zero(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A gyro bias of -3e-7 rad/s and a roll of -6e-5 degrees, which round to zero from
+    below: the report and the robot file both say 0, never -0, and the report's numbers
+    are the file's."""
+    values = _noisy_two_imu_rest(400, seed=9)
+    values[:, :6] -= values[:, :6].mean(axis=0)  # IMU 1: its means set exactly below
+    values[:, :6] += [0.0, -1e-5, G, -3e-7, 0.1, 0.1]  # roll -6e-5 degrees, gx -3e-7
+    path = tmp_path / "rest.csv"
+    _write_rest(path, values)
+    out_robot = tmp_path / "cal.toml"
+    code, out, err = _calibrate_main(
+        capsys, "--from", str(path), "--robot", "two-section", "--write-robot", str(out_robot)
+    )
+    assert code == 0, err
+    written = out_robot.read_text()
+    negative_zero = re.compile(r"-0(\.0*)?(?![.\d])")  # -0, -0.0, -0.000000
+    assert not negative_zero.search(out) and not negative_zero.search(written), (out, written)
+    assert "gyro_bias = [0.000000, 0.100000, 0.100000]" in out
+    assert "--mount-rpy 0,0,0 " in out
+    assert "gyro_bias = [0.0, 0.1, 0.1]" in written and "mount_rpy = [0.0, 0.0, 0.0]" in written
+
+
 def test_calibrate_port_given_a_recording_says_calibrate_from(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -235,6 +235,23 @@ BAD_INPUTS = {
 }
 
 
+@pytest.mark.parametrize(
+    ("text", "rows"),
+    [
+        # a separator at the header's end: no column, rows without it are whole
+        ("t,roll,pitch,\n0,0.1,0.1\n0.05,0.1,0.1\n", 2),
+        # a last line without its line end, short of a column no estimator reads: read as
+        # written (with the warning that it may be cut)
+        ("t,roll,pitch,x\n0,0.1,0.1,5\n0.05,0.1,0.1,5\n0.1,0.1,0.1", 3),
+    ],
+)
+def test_rows_short_of_no_named_column_are_read(tmp_path, text, rows):
+    meas = _write(tmp_path / "meas.csv", text)
+    est = tmp_path / "est.csv"
+    assert main(["estimate", str(meas), "-o", str(est)]) == 0
+    assert len(read_state_table(est).t) == rows
+
+
 @pytest.mark.parametrize("case", sorted(BAD_INPUTS))
 def test_bad_measurement_file_is_rejected_cleanly(tmp_path, capsys, case):
     text, expected = BAD_INPUTS[case]

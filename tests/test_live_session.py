@@ -212,10 +212,11 @@ def test_a_device_clock_in_seconds_stops_the_session(
     [
         (20_000, 0.02, 200, True),  # micros() at 50 Hz: every line far ahead, dropped
         (10_000, 0.01, 200, True),  # at 100 Hz: every line a gap of 10 s, kept
-        (1_000, 0.001, 400, True),  # at 1 kHz
+        (2_000, 0.002, 400, True),  # at 500 Hz
         (20, 0.02, 200, False),  # milliseconds in real time
         (20, 0.0005, 200, False),  # a file replayed 40 times faster
-        (1, 1e-6, 2000, False),  # 1 kHz lines written into a pseudo-terminal at once
+        (20, 2e-5, 12_000, False),  # 50 Hz lines written into a pseudo-terminal at once
+        (1_000, 1 / 420, 200, False),  # a 1 Hz recording replayed through a 115200-baud port
     ],
 )
 def test_a_device_clock_in_microseconds_stops_the_session(

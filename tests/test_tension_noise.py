@@ -509,3 +509,23 @@ def test_a_recordings_own_noisy_tension_columns_are_said_as_live_says_them(tmp_p
         assert bool(notes) == said
         if said:
             assert re.search(r"scatter by about 0\.00\d+ N .*--inputs TENSIONS\.csv", notes[0])
+
+
+def test_a_logger_hole_keeps_the_smoothed_rates_of_the_rows_beside_it() -> None:
+    """Noisy tensions of a slow swing at 50 Hz with jittered times and a 0.5 s hole (a
+    logger that paused): the smoothed rates beside the hole follow the swing's as they
+    do without the hole (the even grid fills the hole; rows either side are not taken
+    as one step apart)."""
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 6.0, 0.02) + rng.uniform(-2e-3, 2e-3, 300)
+    t.sort()
+    keep = (t < 3.0) | (t > 3.5)  # the hole
+    swing = lambda tt: 2.0 + np.sin(2 * np.pi * 0.3 * tt)  # noqa: E731
+    rate = lambda tt: 2 * np.pi * 0.3 * np.cos(2 * np.pi * 0.3 * tt)  # noqa: E731
+    values = (swing(t) + rng.normal(0.0, 0.02, len(t)))[:, None]
+    whole = tension_derivatives(t, values)
+    holed = tension_derivatives(t[keep], values[keep])
+    near = (np.abs(t[keep] - 3.0) < 0.2) | (np.abs(t[keep] - 3.5) < 0.2)
+    err_whole = np.max(np.abs(whole.rates[keep][near, 0] - rate(t[keep][near])))
+    err_holed = np.max(np.abs(holed.rates[near, 0] - rate(t[keep][near])))
+    assert err_holed < 2.0 * err_whole + 0.3, (err_holed, err_whole)

@@ -361,6 +361,7 @@ def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, c
          "line 1: [[estimate]]: the estimate options are one table, [estimate]"),
         ("estimate = 5\n", "line 1: estimate = ...: the estimate options are one table"),
         ('[[live]]\nport = "x"\n', "line 1: [[live]]: the live options are one table, [live]"),
+        ("live = [1, 2]\n", "line 1: live = ...: the live options are one table, [live]"),
         ("a = " + "[" * 600 + "]" * 600 + "\n", "opts.toml: nested too deep to be an options"),
     ],
 )  # fmt: skip

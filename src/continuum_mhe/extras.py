@@ -86,7 +86,7 @@ def import_problem(module: str) -> str | None:
     packages), ``"which is installed but does not import here (ImportError: ...)"``."""
     try:
         _quiet_import(module)
-    except ImportError as exc:
+    except Exception as exc:  # an old package may fail otherwise (np.Inf: AttributeError)
         if importlib.util.find_spec(module.split(".")[0]) is None:
             return "which is not installed"
         text = " ".join(f"{type(exc).__name__}: {exc}".split())

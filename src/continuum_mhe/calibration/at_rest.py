@@ -474,8 +474,9 @@ def creep_at_rest(values: FloatArray, n_imus: int) -> list[str]:
             said.append(
                 f"IMU {i + 1}'s gravity direction turned by {angle:.2f} degrees from the "
                 "first third of the rest to the last, slowly enough to pass as still: the "
-                "robot crept, and its gyro bias and mounting take in the motion; hold it "
-                "still and record the rest again"
+                "robot crept (its gyro bias and mounting take in the motion: hold it still "
+                "and record the rest again), or the accelerometer drifted as it warmed up "
+                "(record after a few minutes powered)"
             )
     return said
 
@@ -582,6 +583,12 @@ def motion_at_rest(
     )
 
 
+def _written(value: float, decimals: int) -> str:
+    """``value`` rounded to ``decimals`` (as ``--write-robot`` writes a mounting and a
+    bias), a negative zero (a value that rounds to 0 from below) as 0."""
+    return f"{round(float(value), decimals) + 0.0:.{decimals}f}"
+
+
 def format_report(
     cal: Calibration,
     source: str,
@@ -604,15 +611,18 @@ def format_report(
         if cal.fmt == "raw":
             g = float(np.linalg.norm(m[:3]))
             lines += [
-                f"IMU {i}: accelerometer mean (m/s^2) ax={m[0]:.4f} ay={m[1]:.4f} az={m[2]:.4f} "
+                f"IMU {i}: accelerometer mean (m/s^2) ax={_written(m[0], 4)} "
+                f"ay={_written(m[1], 4)} az={_written(m[2], 4)} "
                 f"(|a| = {g:.4f}); noise std ax={s[0]:.4f} ay={s[1]:.4f} az={s[2]:.4f}",
-                f"IMU {i}: gyro bias (rad/s) gx={m[3]:.5f} gy={m[4]:.5f} gz={m[5]:.5f} (robot "
-                f"file: gyro_bias = [{m[3] + 0:.6f}, {m[4] + 0:.6f}, {m[5] + 0:.6f}]); noise std "
+                f"IMU {i}: gyro bias (rad/s) gx={_written(m[3], 5)} gy={_written(m[4], 5)} "
+                f"gz={_written(m[5], 5)} (robot "
+                f"file: gyro_bias = [{_written(m[3], 6)}, {_written(m[4], 6)}, "
+                f"{_written(m[5], 6)}]); noise std "
                 f"gx={s[3]:.5f} gy={s[4]:.5f} gz={s[5]:.5f}",
             ]
             assert imu.mount_rpy is not None
             # as --write-robot writes them (3 decimals; a negative zero as 0)
-            r, p = (float(f"{v:.3f}") + 0.0 for v in imu.mount_rpy[:2])
+            r, p = (float(_written(v, 3)) for v in imu.mount_rpy[:2])
             tilt_noise = math.degrees(float(np.hypot(s[0], s[1])) / g) if g > 0 else math.nan
             yaw = 0.0 if yaws_deg is None else float(yaws_deg[i - 1])
             if bend:
@@ -629,7 +639,7 @@ def format_report(
             )
             if bend:
                 y = bend[2][i - 1]
-                yaw_w = float(f"{y.yaw_deg:.3f}") + 0.0
+                yaw_w = float(_written(y.yaw_deg, 3))
                 lines += [
                     f"IMU {i}: yaw from the bend towards phi = {bend[1]:g} deg in {bend[0]}: "
                     f"{y.yaw_deg:.2f} deg (gyro rate axis, standard error "

@@ -253,7 +253,9 @@ def apply_config(
     flat = {k: v for k, v in data.items() if k not in tables}
     for name in tables:  # [estimate] and [live] are tables of options, once each
         if name in data and not isinstance(data[name], dict):
-            shown = "[[" + name + "]]" if isinstance(data[name], list) else f"{name} = ..."
+            value = data[name]
+            array_of_tables = isinstance(value, list) and all(isinstance(v, dict) for v in value)
+            shown = f"[[{name}]]" if array_of_tables and value else f"{name} = ..."
             raise InputError(
                 f"{path}: {_line(text, name, offset)}{shown}: the {name} options are one "
                 f"table, [{name}]"

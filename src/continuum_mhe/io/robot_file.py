@@ -668,9 +668,9 @@ def with_imu_calibration(
     if len(imus) != len(mount_rpy):
         raise InputError(f"{path}: {len(imus)} [[imu]] tables, calibrated {len(mount_rpy)} IMUs")
     for i, table in enumerate(imus):
-        table["mount_rpy"] = [round(float(v), 3) for v in mount_rpy[i]]
+        table["mount_rpy"] = [round(float(v), 3) + 0.0 for v in mount_rpy[i]]  # no -0.0
         if gyro_bias is not None:
-            table["gyro_bias"] = [round(float(v), 6) for v in gyro_bias[i]]
+            table["gyro_bias"] = [round(float(v), 6) + 0.0 for v in gyro_bias[i]]
     out = tomlkit.dumps(doc)
     parse_robot(tomllib.loads(out), Path(path))
     return out

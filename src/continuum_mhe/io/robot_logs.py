@@ -351,7 +351,7 @@ def _mcap_reader(fh: Any) -> tuple[Any, Any]:
         if not (cut_short(exc) or shorter):
             raise
         fh.seek(0)
-        return NonSeekingReader(fh), None
+        return NonSeekingReader(fh, validate_crcs=True), None
     fh.seek(0)
     # the chunks' CRCs checked: a damaged record in an uncompressed chunk would otherwise
     # end the chunk's messages there, without a word

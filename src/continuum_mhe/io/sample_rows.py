@@ -329,6 +329,10 @@ class _SampleChecks:
         """The checked samples of ``(line, fields)`` rows, one at a time."""
         columns, idx, bad, shown = self.columns, self.idx, self.bad, self.shown
         name, scale, width = self.table.name, self.table.time_scale, len(self.table.header)
+        # a separator at the header's end names no column: rows without it are whole
+        named = width
+        while named > 1 and self.table.header[named - 1].strip() == "":
+            named -= 1
         sep = self.table.separator
         truncated = "expected {} fields, found {} (truncated row?)"
         for line, row in rows:
@@ -381,8 +385,9 @@ class _SampleChecks:
                     vals = [math.nan] * (len(columns) - 1)
                     break
                 # a field missing, even one no estimator reads: which one is unknown, and
-                # every value after it may be its neighbour's
-                if len(row) < width:
+                # every value after it may be its neighbour's (a last line without its
+                # line end is read as written, with the warning that it may be cut)
+                if len(row) < named and line != self.table.cut.line:
                     bad(line, truncated.format(width, len(row)))
                     self.problems.whole += 1
                     vals = [math.nan] * (len(columns) - 1)

@@ -30,8 +30,10 @@ TENSION_ACCELERATION_NOISE = 0.2
 #: The longest local cubic the tensions are smoothed over, s.
 MAX_SMOOTHING_S = 1.5
 
-#: The longest gap, in median steps, that an even grid of unevenly timed tension rows
-#: fills by interpolation (:func:`_on_even_grid`); beyond it the grid skips the gap.
+#: An even grid of unevenly timed tension rows (:func:`_on_even_grid`) fills every gap
+#: where it holds at most this many points a row; a longer grid (a row far from the
+#: others) skips the gaps of more than :data:`MAX_GRID_GAP_STEPS` median steps.
+MAX_GRID_ROWS_PER_ROW = 20
 MAX_GRID_GAP_STEPS = 10
 #: The order of the differences whose spread gives the tensions' noise
 #: (:func:`tension_noise_std`): high enough that a smooth motion's part in them is far
@@ -151,14 +153,17 @@ def _cubic_gains(rows: int, step: float) -> tuple[float, float]:
 
 def _on_even_grid(t: FloatArray, values: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
     """``(t, values)`` where the rows' steps are within ``tol`` of their median, else the
-    rows interpolated onto an even grid at the median step from ``t[0]``. A gap of more
-    than :data:`MAX_GRID_GAP_STEPS` median steps is not filled: the rows on each side
-    get their own grid, so that one row far from the others (a logger's clock that
-    jumped) does not make a grid of the whole span."""
+    rows interpolated onto an even grid at the median step from ``t[0]``. Where that grid
+    would hold more than :data:`MAX_GRID_ROWS_PER_ROW` points a row (one row far from the
+    others: a logger's clock that jumped), a gap of more than :data:`MAX_GRID_GAP_STEPS`
+    median steps is not filled: the rows on each side get their own grid."""
     steps = np.diff(t)
     step = float(np.median(steps))
     if np.all(np.abs(steps - step) <= tol * step):
         return t, values
+    if (t[-1] - t[0]) / step <= MAX_GRID_ROWS_PER_ROW * len(t):
+        grid = np.arange(t[0], t[-1] + 0.5 * step, step)
+        return grid, _at_rows(grid, t, values)
     starts = np.concatenate(([0], np.flatnonzero(steps > MAX_GRID_GAP_STEPS * step) + 1))
     ends = np.concatenate((starts[1:], [len(t)]))
     grid = np.concatenate(

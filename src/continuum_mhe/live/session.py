@@ -97,13 +97,18 @@ CLOCK_CHECK_SAMPLES = 20
 CLOCK_SLOW_FACTOR = 0.01
 #: A device clock whose lines advance this many times as fast as the host's arrivals
 #: (the median step of the lines over at least :data:`FAST_CLOCK_WINDOW_S` s of arrival
-#: and :data:`FAST_CLOCK_LINES` lines), sends microseconds as ``t_ms`` (``micros()``):
-#: the session stops. A file replayed faster than real time through a serial port
-#: stays far below (the baud rate bounds its lines a second), and one written into a
-#: pseudo-terminal at once arrives within a few milliseconds, not over the window.
+#: and :data:`FAST_CLOCK_LINES` lines), in steps of :data:`FAST_CLOCK_MIN_STEP_MS` or
+#: more, sends microseconds as ``t_ms`` (``micros()`` of a device at up to 500 Hz): the
+#: session stops. A file replayed faster than real time can arrive that much faster
+#: too, but its steps are the recording's (milliseconds apart, not seconds); a replay of
+#: a recording slower than 0.5 Hz at hundreds of lines a second would read as one.
 FAST_CLOCK_FACTORS = (300.0, 3000.0)
 FAST_CLOCK_WINDOW_S = 0.2
 FAST_CLOCK_LINES = 10
+FAST_CLOCK_MIN_STEP_MS = 2000.0
+#: The most recent lines the fast clock's check keeps (its window is that many lines
+#: where they arrive faster than the window's time: at 500 Hz, 0.25 s).
+FAST_CLOCK_KEPT = 128
 #: A stream that starts this many seconds after its tensions file's first row is said:
 #: a file that starts with the stream on another clock gives every sample another
 #: time's tensions.
@@ -329,7 +334,7 @@ class LiveSession:
         self._clock_since: tuple[float, float] | None = None
         self._clock_samples = 0
         #: the last lines' device times (ms) and arrivals (s), for the fast clock's check
-        self._fast_lines: deque[tuple[float, float]] = deque()
+        self._fast_lines: deque[tuple[float, float]] = deque(maxlen=FAST_CLOCK_KEPT)
         #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
         #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no
         #: line is handled after
@@ -739,7 +744,7 @@ class LiveSession:
         step = statistics.median(b[0] - a[0] for a, b in zip(lines, list(lines)[1:]))
         factor = step * (len(lines) - 1) / (1e3 * host)
         low, high = FAST_CLOCK_FACTORS
-        if low <= factor <= high:
+        if step >= FAST_CLOCK_MIN_STEP_MS and low <= factor <= high:
             self.wrong_units = True
             self.fatal = (
                 f"{self.settings.port}: the device clock advanced {factor:.0f} times as fast "

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.extras import available, missing, require
+from continuum_mhe.extras import import_problem, missing, require
 from continuum_mhe.model.imu import STANDARD_GRAVITY, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import shape_from_bend, tip_position
 
@@ -501,8 +501,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
     p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
     args = p.parse_args(argv)
-    if not available("elastica"):  # one line, before anything is written
-        print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation')}",
+    if (why := import_problem("elastica")) is not None:  # one line, before anything is written
+        print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation', why)}",
               file=sys.stderr)  # fmt: skip
         return 2
     if not (math.isfinite(args.duration) and args.duration > 0):

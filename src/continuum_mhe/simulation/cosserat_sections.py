@@ -88,7 +88,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.extras import available, missing, require
+from continuum_mhe.extras import import_problem, missing, require
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import rotation_bend
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at, section_frames_from_bends
@@ -712,8 +712,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "these options give the recording)",
     )
     args = p.parse_args(argv)
-    if not available("elastica"):  # one line, before anything is written
-        print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation')}",
+    if (why := import_problem("elastica")) is not None:  # one line, before anything is written
+        print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation', why)}",
               file=sys.stderr)  # fmt: skip
         return 2
     imu = CALIBRATED_IMU if args.calibrated else DEFAULT_IMU
