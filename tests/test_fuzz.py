@@ -254,6 +254,7 @@ def test_reader_is_total(tmp_path_factory, file: tuple, skip_bad: bool) -> None:
     ),
     skip_bad=False,
 )
+@example(file=("t,ax,ay,az", ['\r"\x1f'], None, None), skip_bad=False)  # the CSV reader's error
 def test_raw_reader_is_total(tmp_path_factory, file: tuple, skip_bad: bool):
     """Any raw text: samples with increasing t, or one-line InputError; a valid file:
     its rows' t, specific forces and rates, every row."""
