@@ -207,6 +207,20 @@ def test_a_device_clock_in_seconds_stops_the_session(
         assert s.fatal is None, s.fatal
 
 
+def test_a_device_clock_that_does_not_run_stops_the_session_naming_it() -> None:
+    """A device whose ``t_ms`` stays at 1500 in every line (a clock not started): the
+    session stops after 2 s of arrivals, naming a clock that does not run (not seconds
+    sent as milliseconds)."""
+    s, said = _session()
+    now = time.monotonic()
+    for i in range(300):
+        s.handle_line(b"1500,0.1,0.1", now + 0.02 * i)
+        if s.fatal is not None:
+            break
+    assert s.fatal is not None and "a clock that does not run?" in s.fatal, (s.fatal, said)
+    assert "t_ms in seconds?" not in s.fatal
+
+
 @pytest.mark.parametrize(
     ("step_ms", "arrival_step", "lines", "fast"),
     [

@@ -718,11 +718,16 @@ class LiveSession:
         device = t - t0
         if device < CLOCK_SLOW_FACTOR * host:
             self.wrong_units = True
+            cause = (
+                "a clock that does not run? (the first field is the device's millis(), "
+                "which must advance with every sample)"
+                if device < 1e-3  # under one millisecond: its repeated stamps spread within it
+                else "t_ms in seconds? (the first field is milliseconds, as millis() gives; "
+                "every step reads a thousand times too short)"
+            )
             self.fatal = (
                 f"{self.settings.port}: the device clock advanced {1e3 * device:.3g} ms in "
-                f"{host:.3g} s of arrival time: t_ms in seconds? (the first field "
-                "is milliseconds, as millis() gives; every step reads a thousand times too "
-                "short)"
+                f"{host:.3g} s of arrival time: {cause}"
             )
 
     def _check_fast_clock(self, t_ms: float, arrival: float) -> None:
