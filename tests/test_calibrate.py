@@ -117,6 +117,38 @@ def test_calibrate_from_the_port(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_names_a_device_clock_in_microseconds(tmp_path: Path) -> None:
+    """A device at 50 Hz that sends micros() as t_ms, its lines 20 ms apart in arrival
+    and 20,000 apart in t_ms (each far ahead of the last): one line naming
+    microseconds, exit 2 (not every line skipped as out of order and the stream called
+    silent)."""
+    import os
+    import time
+
+    from live_helpers import LiveProcess, new_pty
+
+    lines = _device_lines(np.tile([0.0, 0.0, G], (60, 1)))
+    for i in range(2, len(lines)):  # 50 Hz, the device's microseconds as t_ms
+        t_ms, rest = lines[i].split(",", 1)
+        lines[i] = f"{int(t_ms) * 2000},{rest}"
+    port = tmp_path / "ttyIMU"
+    master = new_pty(port)
+    cal = LiveProcess(["--port", str(port), "--seconds", "2"], command="calibrate", stdout=True)
+    try:
+        cal.wait_ready()
+        for line in lines:  # at the device's pace: the check compares it with arrival
+            os.write(master, (line + "\n").encode())
+            time.sleep(0.02)
+        code = cal.finish()
+    finally:
+        if cal.proc.poll() is None:
+            cal.proc.kill()
+        os.close(master)
+    assert code == 2, cal.err
+    assert "t_ms in microseconds?" in cal.err and cal.err.count("error:") == 1, cal.err
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_calibrate_from_the_port_skips_a_corrupted_or_repeated_line(tmp_path: Path) -> None:
     """One line whose t_ms lost a digit (13 s back) and lines sent twice: each skipped
     and counted, the samples before them kept (no starting over), the median step the

@@ -33,7 +33,7 @@ from continuum_mhe.io.robot_logs import is_robot_log
 from continuum_mhe.model.imu import STANDARD_GRAVITY, Mounting
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import FREEZE_MIN_SAMPLES, FREEZE_S
-from continuum_mhe.stream.clock import DeviceClock
+from continuum_mhe.stream.clock import DeviceClock, MicrosecondsCheck
 from continuum_mhe.stream.protocol import (
     VALUES_PER_IMU,
     GarbledLine,
@@ -711,6 +711,7 @@ def collect(
     host_first = host_last = math.nan  # arrival of the first and last samples kept, s
     give_up = time.monotonic() + seconds + BOOT_S  # the board resets and calibrates first
     garbled_since = math.inf  # when the first garbled line came
+    microseconds = MicrosecondsCheck()
     reader.start()
     say(f"reading {port} for {seconds:g} s: keep the robot straight and still")
     try:
@@ -761,6 +762,8 @@ def collect(
                 if text.strip().startswith("#"):
                     say(f"device says: {text.strip()}")
                 continue
+            if (problem := microseconds.add(sample.t_ms, arrival)) is not None:
+                raise InputError(f"{port}: {problem}")  # each line would be out of order
             if jumped is not None:  # the held sample: the device's restart, or corrupted
                 (held, held_arrival), jumped = jumped, None
                 if clock.confirms_jump(held.t_ms, sample.t_ms):

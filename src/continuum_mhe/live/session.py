@@ -44,7 +44,7 @@ from continuum_mhe.io.tensions import Tensions, TensionsAt, TensionStream, tensi
 from continuum_mhe.live.counts import DeviceMessages, LatencyHistogram, LiveCounts
 from continuum_mhe.model.descriptions import TIP_COLUMNS
 from continuum_mhe.model.tendon import TendonFormulation
-from continuum_mhe.stream.clock import DeviceClock
+from continuum_mhe.stream.clock import DeviceClock, MicrosecondsCheck
 from continuum_mhe.stream.protocol import (
     DEGREES_FOR_RADIANS,
     LINE_FORMATS,
@@ -95,20 +95,6 @@ SHOWN_CHARS = 48
 CLOCK_CHECK_S = 2.0
 CLOCK_CHECK_SAMPLES = 20
 CLOCK_SLOW_FACTOR = 0.01
-#: A device clock whose lines advance this many times as fast as the host's arrivals
-#: (the median step of the lines over at least :data:`FAST_CLOCK_WINDOW_S` s of arrival
-#: and :data:`FAST_CLOCK_LINES` lines), in steps of :data:`FAST_CLOCK_MIN_STEP_MS` or
-#: more, sends microseconds as ``t_ms`` (``micros()`` of a device at up to 500 Hz): the
-#: session stops. A file replayed faster than real time can arrive that much faster
-#: too, but its steps are the recording's (milliseconds apart, not seconds); a replay of
-#: a recording slower than 0.5 Hz at hundreds of lines a second would read as one.
-FAST_CLOCK_FACTORS = (300.0, 3000.0)
-FAST_CLOCK_WINDOW_S = 0.2
-FAST_CLOCK_LINES = 10
-FAST_CLOCK_MIN_STEP_MS = 2000.0
-#: The most recent lines the fast clock's check keeps (its window is that many lines
-#: where they arrive faster than the window's time: at 500 Hz, 0.25 s).
-FAST_CLOCK_KEPT = 128
 #: A stream that starts this many seconds after its tensions file's first row is said:
 #: a file that starts with the stream on another clock gives every sample another
 #: time's tensions.
@@ -334,7 +320,7 @@ class LiveSession:
         self._clock_since: tuple[float, float] | None = None
         self._clock_samples = 0
         #: the last lines' device times (ms) and arrivals (s), for the fast clock's check
-        self._fast_lines: deque[tuple[float, float]] = deque(maxlen=FAST_CLOCK_KEPT)
+        self._microseconds = MicrosecondsCheck()
         #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
         #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no
         #: line is handled after
@@ -732,31 +718,14 @@ class LiveSession:
 
     def _check_fast_clock(self, t_ms: float, arrival: float) -> None:
         """Set :attr:`fatal` where the lines' device clock (``t_ms``, arriving at
-        ``arrival``, s) advances :data:`FAST_CLOCK_FACTORS` times as fast as the host's
-        arrivals: ``t_ms`` in microseconds. Each of its lines lands far ahead of the last
-        (dropped as a corrupted ``t_ms``) or seconds after it (a gap), so no other check
-        sees the unit. A step back (a restart, a wrap, a stray line) starts the count
-        again; the median step keeps one corrupted line from moving it."""
-        lines = self._fast_lines
-        if lines and t_ms <= lines[-1][0]:
-            lines.clear()
-        lines.append((t_ms, arrival))
-        while len(lines) > FAST_CLOCK_LINES and arrival - lines[1][1] >= FAST_CLOCK_WINDOW_S:
-            lines.popleft()
-        host = arrival - lines[0][1]
-        if len(lines) < FAST_CLOCK_LINES or host < FAST_CLOCK_WINDOW_S:
-            return
-        step = statistics.median(b[0] - a[0] for a, b in zip(lines, list(lines)[1:]))
-        factor = step * (len(lines) - 1) / (1e3 * host)
-        low, high = FAST_CLOCK_FACTORS
-        if step >= FAST_CLOCK_MIN_STEP_MS and low <= factor <= high:
+        ``arrival``, s) runs a thousand times as fast as they arrive: ``t_ms`` in
+        microseconds (:class:`~continuum_mhe.stream.clock.MicrosecondsCheck`). Each of
+        its lines lands far ahead of the last (dropped as a corrupted ``t_ms``) or
+        seconds after it (a gap), so no other check sees the unit."""
+        problem = self._microseconds.add(t_ms, arrival)
+        if problem is not None:
             self.wrong_units = True
-            self.fatal = (
-                f"{self.settings.port}: the device clock advanced {factor:.0f} times as fast "
-                f"as the lines arrived over the last {len(lines)} lines (steps of "
-                f"{step:g} ms in t_ms): t_ms in microseconds? (the first field is "
-                "milliseconds, as millis() gives; micros() / 1000.0 keeps the decimals)"
-            )
+            self.fatal = f"{self.settings.port}: {problem}"
 
     def _out_of_order(
         self, s: Sample, dev_prev: float | None, why: str, fills_slot: bool = True

@@ -34,6 +34,8 @@
 
 from __future__ import annotations
 
+import statistics
+from collections import deque
 from dataclasses import dataclass
 from typing import Literal
 
@@ -191,3 +193,54 @@ class DeviceClock:
         self._ahead_ms = None
         self._last_ms, self._t_last, self._arrival_last = t_ms, t, arrival
         return Placed(t, event)
+
+
+#: A device clock whose lines advance this many times as fast as they arrive (the
+#: median step of the lines over at least :data:`FAST_CLOCK_WINDOW_S` s of arrival and
+#: :data:`FAST_CLOCK_LINES` lines), in steps of :data:`FAST_CLOCK_MIN_STEP_MS` or more,
+#: sends microseconds as ``t_ms`` (``micros()`` of a device at up to 500 Hz). A file
+#: replayed faster than real time can arrive that much faster too, but its steps are the
+#: recording's (milliseconds apart, not seconds); a replay of a recording slower than
+#: 0.5 Hz at hundreds of lines a second would read as one.
+FAST_CLOCK_FACTORS = (300.0, 3000.0)
+FAST_CLOCK_WINDOW_S = 0.2
+FAST_CLOCK_LINES = 10
+FAST_CLOCK_MIN_STEP_MS = 2000.0
+#: The most recent lines :class:`MicrosecondsCheck` keeps (its window is that many
+#: lines where they arrive faster than the window's time: at 500 Hz, 0.25 s).
+FAST_CLOCK_KEPT = 128
+
+
+class MicrosecondsCheck:
+    """Whether a device sends microseconds as ``t_ms``: its lines' device times advance
+    :data:`FAST_CLOCK_FACTORS` times as fast as they arrive. A step back (a restart, a
+    wrap, a stray line) starts the count again; the median step keeps one corrupted line
+    from moving it."""
+
+    def __init__(self) -> None:
+        self._lines: deque[tuple[float, float]] = deque(maxlen=FAST_CLOCK_KEPT)
+
+    def add(self, t_ms: float, arrival: float) -> str | None:
+        """Take one line's device time ``t_ms`` (ms as sent), arrived at ``arrival``
+        (monotonic, s): the problem in words once the lines show microseconds, else
+        None."""
+        lines = self._lines
+        if lines and t_ms <= lines[-1][0]:
+            lines.clear()
+        lines.append((t_ms, arrival))
+        while len(lines) > FAST_CLOCK_LINES and arrival - lines[1][1] >= FAST_CLOCK_WINDOW_S:
+            lines.popleft()
+        host = arrival - lines[0][1]
+        if len(lines) < FAST_CLOCK_LINES or host < FAST_CLOCK_WINDOW_S:
+            return None
+        step = statistics.median(b[0] - a[0] for a, b in zip(lines, list(lines)[1:]))
+        factor = step * (len(lines) - 1) / (1e3 * host)
+        low, high = FAST_CLOCK_FACTORS
+        if not (step >= FAST_CLOCK_MIN_STEP_MS and low <= factor <= high):
+            return None
+        return (
+            f"the device clock advanced {factor:.0f} times as fast as the lines arrived over "
+            f"the last {len(lines)} lines (steps of {step:g} ms in t_ms): t_ms in "
+            "microseconds? (the first field is milliseconds, as millis() gives; "
+            "micros() / 1000.0 keeps the decimals)"
+        )
