@@ -362,6 +362,8 @@ def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, c
         ("estimate = 5\n", "line 1: estimate = ...: the estimate options are one table"),
         ('[[live]]\nport = "x"\n', "line 1: [[live]]: the live options are one table, [live]"),
         ("live = [1, 2]\n", "line 1: live = ...: the live options are one table, [live]"),
+        ("gap-reset = 0.5\ngap_reset = 2\n",
+         "line 2: gap_reset is given twice, as gap-reset too (line 1): give it once"),
         ("a = " + "[" * 600 + "]" * 600 + "\n", "opts.toml: nested too deep to be an options"),
     ],
 )  # fmt: skip

@@ -261,6 +261,17 @@ def apply_config(
                 f"table, [{name}]"
             )
     own = data.get(command, {})
+    for table in (flat, own):  # gap-reset and gap_reset in one table: which one is meant?
+        spelled: dict[str, str] = {}
+        for key in table:
+            dest = key.replace("-", "_")
+            if dest in spelled:
+                raise InputError(
+                    f"{path}: {_line(text, key, offset)}{key} is given twice, as "
+                    f"{spelled[dest]} too ({_line(text, spelled[dest], offset).rstrip(': ')}):"
+                    " give it once"
+                )
+            spelled[dest] = key
     recorded = Path(path).suffix.lower() in (".csv", ".mcap")  # an estimate file
     defaults: dict[str, Any] = {}
     sources: dict[str, str] = {}
