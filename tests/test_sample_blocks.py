@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from continuum_mhe.errors import InputError
@@ -198,6 +198,8 @@ _CHARS = '0123456789.,e+-  \n\n\n\r\t#n_"a;'
     max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(body=st.text(_CHARS, max_size=120), skip_bad=st.booleans(), dropouts=st.booleans())
+@example(body="1", skip_bad=False, dropouts=True)  # a last line of its t alone, without an end
+@example(body="1", skip_bad=False, dropouts=False)
 def test_random_text_reads_alike(tmp_path: Path, body: str, skip_bad: bool, dropouts: bool) -> None:
     _same(tmp_path, "t,roll,pitch\n0,0.1,0.1\n" + body, skip_bad=skip_bad,
           empty_is_dropout=dropouts)  # fmt: skip

@@ -386,8 +386,9 @@ class _SampleChecks:
                     break
                 # a field missing, even one no estimator reads: which one is unknown, and
                 # every value after it may be its neighbour's (a last line without its
-                # line end is read as written, with the warning that it may be cut)
-                if len(row) < named and line != self.table.cut.line:
+                # line end that holds every column read is read as written, with the
+                # warning that it may be cut)
+                if j >= len(row) or (len(row) < named and line != self.table.cut.line):
                     bad(line, truncated.format(width, len(row)))
                     self.problems.whole += 1
                     vals = [math.nan] * (len(columns) - 1)
