@@ -13,6 +13,13 @@ const char* const STATUS_NAMES[ST_COUNT] = {
     "uncertain",   "drifted",        "at-bound",      "inconsistent"};
 
 namespace {
+
+// Whether the time ``span`` (s) between two samples, the later at ``t`` (s), is longer
+// than ``limit`` (s) by more than the times' rounding: steps of exactly the limit (0.05 s
+// at 20 Hz, 0.050000000000000044 as the times subtract) are not longer
+bool longer(double span, double limit, double t) {
+  return span > limit + 1e-9 * std::max(1.0, std::fabs(t));
+}
 bool trusted(int status) {
   return status == ST_OK || status == ST_FALLBACK_IPOPT || status == ST_BRANCH_RESTART;
 }
@@ -306,9 +313,9 @@ bool SensorHealth::note_imus(double t) {
   for (size_t k = 0; k < s_.imu_blocks.size(); ++k) {
     const auto [start, size] = s_.imu_blocks[k];
     if (mask_[start] > 0.0) {
-      if (t - imu_last_valid_[k] > window && t - first_valid_t_ > window)
+      if (longer(t - imu_last_valid_[k], window, t) && longer(t - first_valid_t_, window, t))
         for (int i = start; i < start + size; ++i) back_rows_.push_back(i);
-      if (t - imu_last_valid_[k] > silent) late_pending_[k] = 1;  // first reading too
+      if (longer(t - imu_last_valid_[k], silent, t)) late_pending_[k] = 1;  // first reading too
       imu_last_valid_[k] = t;
     }
   }
@@ -348,7 +355,8 @@ bool SensorHealth::observed_now(double t) {
   const double window = std::min(unobserved_window(), s_.silent_after);
   std::vector<int> recent;
   for (size_t k = 0; k < n; ++k)  // a frozen IMU observes nothing, however recent
-    if (t - imu_last_valid_[k] <= window && !frozen_now_[k]) recent.push_back(static_cast<int>(k));
+    if (!longer(t - imu_last_valid_[k], window, t) && !frozen_now_[k])
+      recent.push_back(static_cast<int>(k));
   if (recent.size() == n || recent.empty()) return true;  // all reporting, or none
   auto it = observable_cache_.find(recent);
   if (it != observable_cache_.end()) return it->second;
@@ -625,7 +633,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   }
   bool gap_reset = false;
   if (!std::isnan(s_.gap_reset) && valid) {
-    gap_reset = -INFINITY < last_valid_t_ && last_valid_t_ < t - s_.gap_reset;
+    gap_reset = -INFINITY < last_valid_t_ && longer(t - last_valid_t_, s_.gap_reset, t);
     // without the tensions the prediction leaves the robot within a fraction of a
     // second: their return is a gap sooner
     if (whole_missing_ > 0 && !other_missing_ && !std::isnan(s_.whole_gap_reset))

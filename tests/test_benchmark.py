@@ -607,3 +607,14 @@ def test_a_memory_check_too_short_to_fit_is_refused_before_the_run(capsys) -> No
     assert "--memory-samples 2: the memory check fits its slope over at least 1000" in (
         capsys.readouterr().err
     )
+
+
+def test_benchmark_refuses_repeats_beyond_its_limit(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--repeats`` beyond 1000 (a run that would not end) is refused in one line before
+    anything is timed."""
+    from continuum_mhe.cli import main
+
+    argv = ["benchmark", "--horizons", "10", "--duration", "2", "--repeats", str(10**20)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--repeats must lie in [1, 1000]" in err, err

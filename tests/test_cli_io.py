@@ -419,6 +419,31 @@ def test_evaluate_of_a_one_row_estimate_says_so(tmp_path, capsys):
     assert capsys.readouterr().err.endswith(f"{est}: one row: evaluate needs at least two\n")
 
 
+def test_evaluate_with_a_wrong_truth_shift_names_the_shift_that_fits(tmp_path, capsys):
+    """Files on one clock compared with ``--truth-shift 1.9``: the refusal names the
+    shift that lines them up, none (not -1.9, which names 1.9 in turn)."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas), "--truth",
+                 str(truth)]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    capsys.readouterr()
+    for shift in ("1.9", "-1.9"):
+        assert main(["evaluate", str(est), str(truth), "--truth-shift", shift]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "--truth-shift 0 (leave --truth-shift out)" in err, err
+
+
+def test_a_gap_reset_of_exactly_the_sample_period_restarts_nothing(tmp_path, capsys):
+    """An even 20 Hz recording with ``--gap-reset 0.05``: its steps (0.05 s, give or take
+    the times' rounding) are no gap, so nothing restarts and every row after the start
+    is ``ok``, as with the default."""
+    meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas)]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--gap-reset", "0.05"]) == 0
+    assert "wrote 41 estimates to " in capsys.readouterr().err
+    assert list(read_state_table(est).status).count("ok") == 40
+
+
 def test_evaluate_of_a_one_row_truth_says_so(tmp_path, capsys):
     """A truth of one row is named, not the estimate whose rows it cannot cover."""
     est = _write(

@@ -72,11 +72,15 @@ def _write_json(path: str, report: dict[str, Any], args: argparse.Namespace) -> 
         fh.write(json.dumps(to_jsonable({**made, **report}), indent=2, allow_nan=False) + "\n")
 
 
+#: The most interleaved rounds ``--repeats`` takes (each times every contender anew).
+MAX_REPEATS = 1000
+
+
 def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be positive, got {args.duration}")
-    if args.repeats < 1:
-        raise UserError(f"--repeats must be at least 1, got {args.repeats}")
+    if not 1 <= args.repeats <= MAX_REPEATS:
+        raise UserError(f"--repeats must lie in [1, {MAX_REPEATS}], got {args.repeats}")
     timed = args.horizons + ([] if args.robot else list(args.loss_horizons or []))
     check_horizons(timed, args.duration, ROBOT_DT if args.robot else DT)
     if args.json:  # before the run, not after minutes of it

@@ -72,13 +72,15 @@ def _align(
     truth: StateTable,
     scored_from: float | None = None,
     first_t: float | None = None,
+    given_shift: float = 0.0,
 ) -> Aligned:
     """The estimate rows compared and the truth's values at them
     (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`; a note where the truth is
     interpolated; ``scored_from``: the time from which ``--skip-start`` scores, s, the
     start of the span the rows should cover); a one-line error where too few rows
     compare, the warnings where few do. ``first_t``: the estimate's first time before
-    ``--skip-start`` (s), from which a clock offset is told (``t_est[0]`` without it)."""
+    ``--skip-start`` (s), from which a clock offset is told (``t_est[0]`` without it);
+    ``given_shift``: the ``--truth-shift`` already applied to ``truth``, s."""
     t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
@@ -108,7 +110,7 @@ def _align(
             warning += cut
     if problem:
         first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
-        raise InputError(problem + _offset_hint(first, t_est, t_truth))
+        raise InputError(problem + _offset_hint(first, t_est, t_truth, given_shift))
     warnings = [warning] if warning else []
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
@@ -125,15 +127,19 @@ def _align(
     return Aligned(i_est, rows, interpolated, warnings)
 
 
-def _offset_hint(first_t: float, t_est: np.ndarray, t_truth: np.ndarray) -> str:
+def _offset_hint(
+    first_t: float, t_est: np.ndarray, t_truth: np.ndarray, given_shift: float = 0.0
+) -> str:
     """Where the estimate's times ``t_est`` are the truth's plus one offset, that of its
     first time ``first_t`` (before any ``--skip-start``) from the truth's (a device
     clock that did not start at 0, as ``live``'s), the ``--truth-shift`` that compares
-    them (a clause to end a refusal); else ``""``."""
+    them, the ``given_shift`` already applied to ``t_truth`` counted in (a clause to end
+    a refusal); else ``""``."""
     offset = float(first_t - t_truth[0])
     if not math.isfinite(offset) or offset == 0.0:
         return ""
-    shift = seconds_text(-offset)
+    total = given_shift - offset  # the truth read at t + total lines the times up
+    shift = "0 (leave --truth-shift out)" if abs(total) < 1e-9 else seconds_text(total)
     shifted = t_truth + offset
     i = np.searchsorted(shifted, t_est).clip(1, len(shifted) - 1)
     near = np.minimum(np.abs(shifted[i] - t_est), np.abs(shifted[i - 1] - t_est))
@@ -276,7 +282,9 @@ def _evaluate(args: argparse.Namespace) -> int:
     scored_from = _scored_from(est, args.skip_start)
     first_t = float(est.t[0]) if len(est.t) else math.nan  # the clock's, before any skip
     est = _after_start(args.estimates, est, args.skip_start)
-    aligned = _align(args.estimates, est.t, args.truth, truth, scored_from, first_t)
+    aligned = _align(
+        args.estimates, est.t, args.truth, truth, scored_from, first_t, args.truth_shift or 0.0
+    )
     i_e, truth_rows = aligned.i_est, aligned.rows
     length = robot.length
     out_names = [n for n in est.names if not n.startswith("std_")]
