@@ -50,13 +50,18 @@ def install_hint(extra: str) -> str:
     return f"pip install 'continuum-mhe[{extra}]'"
 
 
+def install_advice(extra: str, why: str) -> str:
+    """The ``pip install`` that mends ``why`` (as :func:`import_problem` says it): the
+    extra, with ``--upgrade`` where the package is installed but does not import."""
+    return install_hint(extra) + (" --upgrade" if why.startswith(INSTALLED_BROKEN) else "")
+
+
 def missing(
     package: str, extra: str, feature: str, why: str = "which is not installed"
 ) -> MissingExtraError:
     """The error for ``feature`` needing ``package`` from ``extra`` (``why``: as
     :func:`import_problem` says it)."""
-    upgrade = " --upgrade" if "does not import" in why else ""
-    return MissingExtraError(f"{feature} needs {package}, {why}: {install_hint(extra)}{upgrade}")
+    return MissingExtraError(f"{feature} needs {package}, {why}: {install_advice(extra, why)}")
 
 
 def require(module: str, extra: str, feature: str, package: str | None = None) -> ModuleType:
@@ -79,6 +84,10 @@ def available(module: str) -> bool:
     return import_problem(module) is None
 
 
+#: How :func:`import_problem` begins where the package is there but its import fails.
+INSTALLED_BROKEN = "which is installed but does not import here"
+
+
 def import_problem(module: str) -> str | None:
     """None if ``module`` imports, else why not, as the end of a sentence on what needs
     it: ``"which is not installed"``, or, where its package is installed but its import
@@ -91,7 +100,7 @@ def import_problem(module: str) -> str | None:
             return "which is not installed"
         text = " ".join(f"{type(exc).__name__}: {exc}".split())
         shown = text if len(text) <= 120 else text[:120] + "..."
-        return f"which is installed but does not import here ({shown}): a version too old?"
+        return f"{INSTALLED_BROKEN} ({shown}): a version too old?"
     return None
 
 

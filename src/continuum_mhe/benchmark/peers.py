@@ -56,7 +56,7 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.window_nlp import WindowParameters, WindowProblem, pack_parameters
-from continuum_mhe.extras import import_problem, install_hint
+from continuum_mhe.extras import import_problem, install_advice
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording
@@ -613,8 +613,7 @@ def missing_peers(acados_folder: str | None = None) -> dict[str, str]:
     install."""
     why: dict[str, str] = {}
     if (problem := import_problem("do_mpc")) is not None:
-        upgrade = " --upgrade" if "does not import" in problem else ""
-        why["do-mpc"] = f"needs do-mpc, {problem}: {install_hint('peers')}{upgrade}"
+        why["do-mpc"] = f"needs do-mpc, {problem}: {install_advice('peers', problem)}"
     if find_acados(acados_folder) is None:
         where = f" (not in {acados_folder})" if acados_folder else ""
         why["acados"] = f"needs {ACADOS_PACKAGE}{where}: {ACADOS_HINT}"

@@ -421,6 +421,19 @@ def knocks_at_rest(
     return out, said
 
 
+def pose_turn_deg(before: FloatArray, after: FloatArray, noise: float) -> float | None:
+    """The angle (deg) between the mean accelerometer vectors of the samples ``before``
+    and ``after`` (each (m, 3), m/s^2), where it exceeds :data:`SETTLE_DEG` and
+    :data:`SETTLE_SIGMAS` standard errors of that difference (``noise``: the
+    accelerometer's noise per axis, m/s^2); else None: the IMU rests in one pose."""
+    a, b = before.mean(axis=0), after.mean(axis=0)
+    g = max(float(np.linalg.norm(a)), 1e-12)
+    cos = float(a @ b) / max(g * float(np.linalg.norm(b)), 1e-12)
+    angle = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
+    error = math.degrees(noise / g * math.sqrt(1.0 / len(before) + 1.0 / len(after)))
+    return angle if angle > max(SETTLE_DEG, SETTLE_SIGMAS * error) else None
+
+
 def _settled(block: FloatArray, valid: FloatArray, knocked: FloatArray, noise: float) -> str:
     """``""``, or what to add to a knock's warning where one IMU's samples ``block``
     (n, 6) rest in another pose after its knocks than before them: the angle between the
@@ -432,12 +445,8 @@ def _settled(block: FloatArray, valid: FloatArray, knocked: FloatArray, noise: f
     after = block[int(last) + 1 :][valid[int(last) + 1 :], :3]
     if len(before) < MIN_REST_SAMPLES or len(after) < MIN_REST_SAMPLES:
         return ""
-    a, b = before.mean(axis=0), after.mean(axis=0)
-    cos = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-12)
-    angle = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
-    g = max(float(np.linalg.norm(a)), 1e-12)
-    error = math.degrees(noise / g * math.sqrt(1.0 / len(before) + 1.0 / len(after)))
-    if angle <= max(SETTLE_DEG, SETTLE_SIGMAS * error):
+    angle = pose_turn_deg(before, after, noise)
+    if angle is None:
         return ""
     return (
         f"; after it the IMU rests {angle:.2f} degrees from its pose before it: the robot "
@@ -464,13 +473,9 @@ def creep_at_rest(values: FloatArray, n_imus: int) -> list[str]:
         if third < MIN_REST_SAMPLES:
             continue
         first, last = acc[:third], acc[-third:]
-        a, b = first.mean(axis=0), last.mean(axis=0)
-        g = max(float(np.linalg.norm(a)), 1e-12)
-        cos = float(a @ b) / max(g * float(np.linalg.norm(b)), 1e-12)
-        angle = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
         noise = float(np.median(np.concatenate([first.std(axis=0), last.std(axis=0)])))
-        error = math.degrees(noise / g * math.sqrt(2.0 / third))
-        if angle > max(SETTLE_DEG, SETTLE_SIGMAS * error):
+        angle = pose_turn_deg(first, last, noise)
+        if angle is not None:
             said.append(
                 f"IMU {i + 1}'s gravity direction turned by {angle:.2f} degrees from the "
                 "first third of the rest to the last, slowly enough to pass as still: the "
@@ -583,10 +588,15 @@ def motion_at_rest(
     )
 
 
-def _written(value: float, decimals: int) -> str:
+def _rounded(value: float, decimals: int) -> float:
     """``value`` rounded to ``decimals`` (as ``--write-robot`` writes a mounting and a
     bias), a negative zero (a value that rounds to 0 from below) as 0."""
-    return f"{round(float(value), decimals) + 0.0:.{decimals}f}"
+    return round(float(value), decimals) + 0.0
+
+
+def _written(value: float, decimals: int) -> str:
+    """:func:`_rounded` with ``decimals`` digits after the point."""
+    return f"{_rounded(value, decimals):.{decimals}f}"
 
 
 def format_report(
@@ -622,7 +632,7 @@ def format_report(
             ]
             assert imu.mount_rpy is not None
             # as --write-robot writes them (3 decimals; a negative zero as 0)
-            r, p = (float(_written(v, 3)) for v in imu.mount_rpy[:2])
+            r, p = (_rounded(v, 3) for v in imu.mount_rpy[:2])
             tilt_noise = math.degrees(float(np.hypot(s[0], s[1])) / g) if g > 0 else math.nan
             yaw = 0.0 if yaws_deg is None else float(yaws_deg[i - 1])
             if bend:
@@ -639,7 +649,7 @@ def format_report(
             )
             if bend:
                 y = bend[2][i - 1]
-                yaw_w = float(_written(y.yaw_deg, 3))
+                yaw_w = _rounded(y.yaw_deg, 3)
                 lines += [
                     f"IMU {i}: yaw from the bend towards phi = {bend[1]:g} deg in {bend[0]}: "
                     f"{y.yaw_deg:.2f} deg (gyro rate axis, standard error "

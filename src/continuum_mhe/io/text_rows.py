@@ -360,12 +360,12 @@ def split_fields(text: str, separator: str) -> list[str]:
     """Fields of one line, stripped (quotes handled as in CSV; a line the CSV reader
     refuses, such as a quote beside a lone carriage return, is split as it is, and its
     fields are judged as any others)."""
-    if '"' not in text:
-        return [c.strip() for c in text.split(separator)]
-    try:
-        return [c.strip() for c in next(csv.reader([text], delimiter=separator))]
-    except csv.Error:
-        return [c.strip() for c in text.split(separator)]
+    if '"' in text:
+        try:
+            return [c.strip() for c in next(csv.reader([text], delimiter=separator))]
+        except csv.Error:
+            pass
+    return [c.strip() for c in text.split(separator)]
 
 
 def _separator(header: str) -> str:

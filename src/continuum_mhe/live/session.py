@@ -319,7 +319,7 @@ class LiveSession:
         self._clock_checked = False
         self._clock_since: tuple[float, float] | None = None
         self._clock_samples = 0
-        #: the last lines' device times (ms) and arrivals (s), for the fast clock's check
+        #: whether the lines' device clock runs a thousand times too fast (microseconds)
         self._microseconds = MicrosecondsCheck()
         #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
         #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no

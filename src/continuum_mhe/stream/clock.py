@@ -233,6 +233,8 @@ class MicrosecondsCheck:
         host = arrival - lines[0][1]
         if len(lines) < FAST_CLOCK_LINES or host < FAST_CLOCK_WINDOW_S:
             return None
+        if lines[-1][0] - lines[-2][0] < FAST_CLOCK_MIN_STEP_MS:  # a usual line: no median
+            return None
         step = statistics.median(b[0] - a[0] for a, b in zip(lines, list(lines)[1:]))
         factor = step * (len(lines) - 1) / (1e3 * host)
         low, high = FAST_CLOCK_FACTORS
