@@ -906,8 +906,9 @@ def test_pair_tolerance_on_one_imu_s_topic_is_refused(
 
 
 def test_an_unreadable_message_is_named_by_its_position(tmp_path: Path) -> None:
-    """A JSON message without a field, or with a null one, named no message: the one
-    line says which message and what is wrong with it."""
+    """A JSON message without a field, with a null one, or with a value that is not a
+    number (``true`` is not read as 1.0): the one line says which message and what is
+    wrong with it."""
     import json as json_module
 
     from mcap.writer import CompressionType, Writer
@@ -932,7 +933,13 @@ def test_an_unreadable_message_is_named_by_its_position(tmp_path: Path) -> None:
         return path
 
     for bad, why in (({"linear_acceleration": "drop"}, "without the field 'linear_acceleration'"),
-                     ({"linear_acceleration": None}, "a message with a null field")):  # fmt: skip
+                     ({"linear_acceleration": None}, "a message with a null field"),
+                     ({"angular_velocity": {"x": 0.0, "y": 0.0, "z": True}},
+                      "its angular_velocity.z is true, not a number"),
+                     ({"linear_acceleration": {"x": "0.5", "y": 0.0, "z": 9.81}},
+                      'its linear_acceleration.x is "0.5", not a number'),
+                     ({"orientation": {"w": 1.0, "x": None, "y": 0.0, "z": 0.0}},
+                      "its orientation.x is null, not a number")):  # fmt: skip
         path = log(tmp_path / "j.mcap", bad)
         start = re.escape(f"{path}: topic /imu: message 4: cannot read robot log (")
         with pytest.raises(InputError, match=start + ".*" + re.escape(why)):

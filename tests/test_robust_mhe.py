@@ -639,7 +639,8 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
 def test_recovery_options_the_cost_ignores_are_refused(tmp_path, capsys, extra, refused) -> None:
     """The bad-start check is off for a robust MHE (it rejects such readings instead),
     and the reject reset acts only where readings are rejected: each given where it
-    would do nothing is one line, exit 2, nothing written."""
+    would do nothing is one line, exit 2, nothing written; each given as 0 (never) is
+    accepted."""
     from continuum_mhe.cli import main
 
     meas, out = tmp_path / "m.csv", tmp_path / "e.csv"
@@ -652,6 +653,10 @@ def test_recovery_options_the_cost_ignores_are_refused(tmp_path, capsys, extra, 
     assert (
         main(["estimate", str(meas), "-o", str(out), "--loss", "huber", "--reject-reset", "1"]) == 0
     )
+    # each at 0 (never) is what that estimator does anyway: accepted
+    for off in (["--loss", "huber", "--bad-start", "0", "--glitch", "0"],
+                ["--method", "ekf", "--reject-reset", "0"]):  # fmt: skip
+        assert main(["estimate", str(meas), "-o", str(out), "--overwrite", *off]) == 0
     # an options file's robust loss is a profile for the MHE: the EKF keeps its check
     config = tmp_path / "o.toml"
     config.write_text('loss = "huber"\n')

@@ -350,6 +350,8 @@ def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, c
             "line 2: horizn is not an option of estimate; did you mean horizon?",
         ),
         ("zzz = 1\n", "line 1: zzz is not an option of estimate\n"),
+        ('method = "ekf"\n"horizn" = 12\n', "line 2: horizn is not an option of estimate"),
+        ("['estimate']\nhorizon = 1\n", "line 2: horizon = 1 is outside its valid range"),
         ('method = "kalman"\n', "line 1: method = 'kalman' is not one of mhe, ekf, ukf"),
         ("skip-bad = 1\n", "line 1: skip-bad must be true or false"),
         ('output = "x.csv"\n', "line 1: output is given on the command line"),

@@ -169,11 +169,12 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
 def _line(text: str, key: str, offset: int = 0) -> str:
     """``line N: `` of ``key``'s first assignment in ``text`` (whose first line is the
     file's line ``offset + 1``), else ``""``."""
+    name = rf"""(?:{re.escape(key)}|"{re.escape(key)}"|'{re.escape(key)}')"""  # bare or quoted
     for n, ln in enumerate(text.splitlines(), start=offset + 1):
         if (
-            re.match(rf"\s*{re.escape(key)}\s*=", ln)
-            or re.search(rf"[{{,]\s*{re.escape(key)}\s*=", ln)
-            or re.match(rf"\s*\[+\s*{re.escape(key)}\s*\]", ln)  # a table's header
+            re.match(rf"\s*{name}\s*=", ln)
+            or re.search(rf"[{{,]\s*{name}\s*=", ln)
+            or re.match(rf"\s*\[+\s*{name}\s*\]", ln)  # a table's header
         ):
             return f"line {n}: "
     return ""

@@ -179,9 +179,9 @@ def _refuse_outlier_options(args: argparse.Namespace, method: str) -> None:
     """One line for a recovery option typed on the command line that the estimator
     ``method`` with its cost makes do nothing: ``--bad-start`` and ``--glitch`` for a
     robust MHE (it rejects inconsistent readings instead), ``--reject-reset`` for any
-    other estimator (nothing is rejected). The loss may come from an options file
-    (named)."""
-    given = given_options(args)
+    other estimator (nothing is rejected). Each is accepted at 0 (never), which is what
+    that estimator does anyway. The loss may come from an options file (named)."""
+    given = {dest for dest in given_options(args) if getattr(args, dest, None) != 0}
     loss = getattr(args, "loss", "l2")
     named = getattr(args, "config_sources", {}).get("loss") or f"--loss {loss}"
     if "bad_start" in given and method == "mhe" and loss != "l2":

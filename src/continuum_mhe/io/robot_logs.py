@@ -175,9 +175,17 @@ class FrameWarning(UserWarning):
     sensor's messages on the topic?"""
 
 
-def _vec(v: Any) -> list[float]:
+def _json_number(v: Any, name: str) -> float:
+    """A JSON message's number ``v`` (the field ``name``) as a float; ``ValueError`` for
+    anything else (``true`` is not 1.0, nor ``"0.5"`` 0.5)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ValueError(f"its {name} is {json.dumps(v)}, not a number")
+    return float(v)
+
+
+def _vec(v: Any, name: str) -> list[float]:
     if isinstance(v, dict):
-        return [float(v["x"]), float(v["y"]), float(v["z"])]
+        return [_json_number(v[k], f"{name}.{k}") for k in ("x", "y", "z")]
     return [float(v.x), float(v.y), float(v.z)]
 
 
@@ -190,12 +198,14 @@ def _row(msg: Any) -> tuple[list[float], list[float], list[float]]:
         ocov = msg.get("orientation_covariance") or [0.0]
         gcov = msg.get("angular_velocity_covariance") or [0.0]
         acov = msg.get("linear_acceleration_covariance") or [0.0]
-        acc, gyr = _vec(msg["linear_acceleration"]), _vec(msg["angular_velocity"])
-        quat = [float(o.get(k, math.nan)) for k in ("w", "x", "y", "z")]
+        acc = _vec(msg["linear_acceleration"], "linear_acceleration")
+        gyr = _vec(msg["angular_velocity"], "angular_velocity")
+        quat = [_json_number(o.get(k, math.nan), f"orientation.{k}") for k in ("w", "x", "y", "z")]
     else:
         ocov, gcov = list(msg.orientation_covariance), list(msg.angular_velocity_covariance)
         acov = list(msg.linear_acceleration_covariance)
-        acc, gyr = _vec(msg.linear_acceleration), _vec(msg.angular_velocity)
+        acc = _vec(msg.linear_acceleration, "linear_acceleration")
+        gyr = _vec(msg.angular_velocity, "angular_velocity")
         o = msg.orientation
         quat = [float(o.w), float(o.x), float(o.y), float(o.z)]
     if float(acov[0]) == -1.0:
