@@ -643,3 +643,17 @@ def test_the_kinematics_helpers_refuse_a_negative_length_shapes_apart_and_degree
     with pytest.raises(UserError, match=r"a bend theta of 50 rad is beyond a turn: degrees\?"):
         backbone_points((0.15, 0.15), [50.0, 30.0], [0.0, 0.0], [0.1])
     assert backbone_points((0.15, 0.15), [3.2, 0.1], [0.0, 0.0], [0.1]).shape == (1, 3)
+
+
+def test_pose_at_names_the_sections_it_has() -> None:
+    """``section`` counts from 0; one beyond the robot (the 1-based count a user may
+    try) is a ValueError naming the range, not an IndexError from inside."""
+    from continuum_mhe.model.pcc import pose_at
+
+    bends = np.array([[0.3, 0.1], [-0.2, 0.4]])
+    _, tip = pose_at(bends, [0.16, 0.14], 1)
+    _, mid = pose_at(bends, [0.16, 0.14], 0)
+    assert tip[2] > mid[2] > 0
+    for bad in (2, -1):
+        with pytest.raises(ValueError, match=r"section .* 0-based, 0 to 1"):
+            pose_at(bends, [0.16, 0.14], bad)

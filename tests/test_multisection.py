@@ -25,6 +25,7 @@ from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ekf_update
 from continuum_mhe.evaluation.metrics import compute_metrics
+from continuum_mhe.io import write_robot
 from continuum_mhe.io.csv_files import DropoutWarning, read_measurements
 from continuum_mhe.io.robot_file import RobotFileWarning, read_robot, robot_toml
 from continuum_mhe.io.state_tables import read_state_table
@@ -343,7 +344,8 @@ def test_robot_file_round_trip(tmp_path: Path) -> None:
     )
     for k, original in enumerate((robot, hanging, Robot.single(0.2))):
         path = tmp_path / f"robot{k}.toml"
-        path.write_text(robot_toml(original), encoding="utf-8")
+        write_robot(path, original)
+        assert path.read_text(encoding="utf-8") == robot_toml(original)
         if original is hanging:  # the IMUs' order is kept, and said to be out of base order
             with pytest.warns(RobotFileWarning, match="imu 2 .* but listed after it"):
                 assert read_robot(path) == original, path.read_text()

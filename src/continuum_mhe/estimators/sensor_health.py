@@ -703,7 +703,9 @@ class Estimator(Generic[InferenceT]):
     ) -> EstimateSeries:
         """Estimate over a whole recording (``t`` (n,) s; ``z`` (n, nz), the readings in
         the order of the formulation's ``measurement_names``, in their units: rad for
-        tilt, m/s^2 and rad/s for raw IMUs, N for tensions; NaN or a masked entry of a
+        tilt; for raw IMUs (the direct model) the unit specific force ``f/|f|`` and
+        rad/s, in each IMU's disk frame, as :func:`~continuum_mhe.io.raw_measurements`
+        gives them (not the accelerometer's m/s^2); N for tensions; NaN or a masked entry of a
         numpy masked array is a reading missing, a dropout), from a reset,
         in the compiled policy, which steps each block without holding the GIL (other
         Python threads go on; another thread's call into this estimator meanwhile is a

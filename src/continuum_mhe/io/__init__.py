@@ -4,7 +4,8 @@ The common readers and writers, importable from here::
 
     from continuum_mhe.io import (read_measurements, read_raw_imus, read_states,
                                   read_robot, read_imu_log, write_estimates,
-                                  write_measurements, write_truth, InputError)
+                                  write_measurements, write_truth, write_robot,
+                                  InputError)
 
 Any input ``estimate`` reads (tilt or raw CSV, ROS bag, MCAP) as measurements for an
 estimator, with the command line's input options: :func:`open_input` (a stream) or
@@ -41,6 +42,7 @@ _EXPORTS: dict[str, str] = {
     "raw_measurements": "continuum_mhe.io.inputs",
     "read_raw_imus": "continuum_mhe.io.raw_imu",
     "read_robot": "continuum_mhe.io.robot_file",
+    "write_robot": "continuum_mhe.io.robot_file",
     "TensionStream": "continuum_mhe.io.tensions",
     "read_tensions": "continuum_mhe.io.tensions",
     "read_imu_log": "continuum_mhe.io.robot_logs",
@@ -82,7 +84,7 @@ if TYPE_CHECKING:
     from continuum_mhe.io.mcap_estimates import read_estimates_mcap, write_estimates_mcap
     from continuum_mhe.io.output_files import atomic_writer
     from continuum_mhe.io.raw_imu import RawImuSettings, read_raw_imu, read_raw_imus
-    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.robot_file import read_robot, write_robot
     from continuum_mhe.io.robot_logs import read_imu_log
     from continuum_mhe.io.state_tables import StateTable, read_state_table, read_states
     from continuum_mhe.io.tensions import TensionStream, read_tensions

@@ -640,6 +640,16 @@ def robot_toml(robot: Robot) -> str:
     return "\n".join(lines) + "\n"
 
 
+def write_robot(path: str | os.PathLike[str], robot: Robot) -> None:
+    """Write ``robot`` (read from a file or built in code) as the robot file ``path``
+    (:func:`robot_toml`), for the commands that take ``--robot FILE`` (``evaluate``,
+    ``view``, ``estimate``). The file is written whole or not at all."""
+    from continuum_mhe.io.output_files import atomic_writer
+
+    with atomic_writer(path) as fh:
+        fh.write(robot_toml(robot))
+
+
 def robot_source_text(name: str | None, robot: Robot) -> str:
     """The text of the robot file ``name`` (a path or a shipped robot's name), or, without
     one, the file of ``robot`` (:func:`robot_toml`)."""

@@ -108,8 +108,15 @@ def _pose_function(lengths: tuple[float, ...], section: int, frac: float) -> ca.
 def pose_at(
     bends: ArrayLike, lengths: Sequence[float], section: int, frac: float = 1.0
 ) -> tuple[FloatArray, FloatArray]:
-    """Numeric :func:`pose_at_sym`: ``bends`` (..., n_sections, 2) rad; returns
-    ``R`` (..., 3, 3) and ``p`` (..., 3) m."""
+    """Numeric :func:`pose_at_sym`: ``bends`` (..., n_sections, 2) rad, ``section``
+    0-based (``n_sections - 1`` is the tip's), ``frac`` the fraction of its length; returns
+    ``R`` (..., 3, 3) and ``p`` (..., 3) m. A ``section`` outside the robot is a
+    ``ValueError`` naming the range."""
+    if not 0 <= int(section) < len(lengths):
+        raise ValueError(
+            f"section {section} is outside the robot's {len(lengths)} section(s): 0-based, "
+            f"0 to {len(lengths) - 1}"
+        )
     u = np.asarray(bends, dtype=float)
     lead = u.shape[:-2]
     flat = u.reshape(-1, 2 * len(lengths)).T
