@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 from scipy.signal import savgol_coeffs
 
 from continuum_mhe.cli import main
@@ -529,3 +530,24 @@ def test_a_logger_hole_keeps_the_smoothed_rates_of_the_rows_beside_it() -> None:
     err_whole = np.max(np.abs(whole.rates[keep][near, 0] - rate(t[keep][near])))
     err_holed = np.max(np.abs(holed.rates[near, 0] - rate(t[keep][near])))
     assert err_holed < 2.0 * err_whole + 0.3, (err_holed, err_whole)
+
+
+@pytest.mark.parametrize("second", ["same", "noisy"])
+def test_a_row_written_twice_a_hair_apart_keeps_the_rates_around_it(second: str) -> None:
+    """A row written again 1 us later (the same tensions, or 1 mN off): its differences
+    would lean on that microsecond (a rate of 0, or 1000 N/s); it is left out of the
+    differences, so that every row's rate and second derivative are those of the file
+    without it, to the interpolation of the rates onto it. Every row keeps its value."""
+    d = np.loadtxt(DATA / "force-29_tensions.csv", delimiter=",", skiprows=1)[:200]
+    t, values = d[:, 0], d[:, 1:]
+    at = 100
+    twice = values[at] + (1e-3 if second == "noisy" else 0.0)
+    t2 = np.insert(t, at + 1, t[at] + 1e-6)
+    v2 = np.insert(values, at + 1, twice, axis=0)
+    alone = tension_derivatives(t, values)
+    both = tension_derivatives(t2, v2)
+    others = np.delete(np.arange(len(t2)), at + 1)
+    assert np.array_equal(both.values, v2)
+    assert_allclose(both.rates[others], alone.rates, rtol=0, atol=1e-12)
+    assert_allclose(both.accelerations[others], alone.accelerations, rtol=0, atol=1e-9)
+    assert_allclose(both.rates[at + 1], alone.rates[at], rtol=0, atol=1e-3)

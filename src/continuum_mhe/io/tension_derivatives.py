@@ -11,6 +11,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 
@@ -50,6 +51,9 @@ LINE_PATTERN_SHARE = 0.95
 #: (:func:`line_knots`): a controller's hold-ramp-hold has a few long straight stretches.
 MIN_PERIODS = 5
 MAX_RESAMPLED_PERIOD_S = 0.5
+#: A row closer than this share of the median step to the row before it (a row written
+#: twice, a logger's burst) is left out of the differences (:func:`apart_knots`).
+NEAR_ROW_SHARE = 0.05
 
 
 class TensionSmoothing(NamedTuple):
@@ -204,7 +208,7 @@ def _at_rows(t: FloatArray, tb: FloatArray, d: FloatArray) -> FloatArray:
     return np.column_stack([np.interp(t, tb, d[:, j]) for j in range(d.shape[1])])
 
 
-def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
+def line_knots(t: FloatArray, values: FloatArray) -> NDArray[np.bool_]:
     """``(n,)`` bool: the rows a slower log resampled linearly onto these rows gave,
     where the rows follow that pattern, else every row.
 
@@ -246,7 +250,30 @@ def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
     return knots
 
 
-def hold_knots(t: FloatArray, values: FloatArray) -> tuple[FloatArray, float] | None:
+def apart_knots(t: FloatArray, knots: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``knots`` (n,) bool, rows of ``t`` (n,) s, without each knot that follows the
+    knot kept before it by less than :data:`NEAR_ROW_SHARE` of the knots' median step.
+    A central difference on uneven steps leans on the shorter step in proportion to the
+    longer one's share: across a row written twice 1 us after the first, it is that
+    microsecond's difference, zero or a load cell's noise over a microsecond. The rows
+    left out keep their values; only their differences are taken from the rows
+    around."""
+    at = np.flatnonzero(knots)
+    if len(at) < 3:
+        return knots
+    near = NEAR_ROW_SHARE * float(np.median(np.diff(t[at])))
+    chosen = [int(at[0])]
+    for i in at[1:]:
+        if t[i] - t[chosen[-1]] >= near:
+            chosen.append(int(i))
+        elif i == at[-1] and len(chosen) > 1:  # the file's last row stays: not the one before
+            chosen[-1] = int(i)
+    kept = np.zeros_like(knots)
+    kept[chosen] = True
+    return kept
+
+
+def hold_knots(t: FloatArray, values: FloatArray) -> tuple[NDArray[np.bool_], float] | None:
     """``(knots (n,) bool, period s)`` where the rows ``values`` (n, k) at ``t`` (n,) s
     hold each value of a slower log for several rows (a zero-order hold: a logger that
     writes the last tension it received at every IMU sample), else None.
@@ -339,7 +366,7 @@ def tension_derivatives(
         rates = central_differences(t, values)
         return DifferencedTensions(values, rates, central_differences(t, rates))
     held = hold_knots(t, values) if hold else None
-    knots = line_knots(t, values) if held is None else held[0]
+    knots = apart_knots(t, line_knots(t, values) if held is None else held[0])
     hold_s = 0.0 if held is None else held[1]
     tb, vb = t[knots], values[knots]
     if held is not None:  # the held rows take the line between the slower log's samples
