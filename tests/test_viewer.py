@@ -1313,3 +1313,54 @@ def test_imu_twists_turn_a_mounted_imus_frame_about_the_backbone_before_its_moun
         want = disk[:, i] @ turn @ mount_rotation(m)
         np.testing.assert_allclose(drawn.imu_rotation[:, i], want, atol=1e-12)
     assert not np.allclose(mount_rotation(rpy[0]) @ turn[0], turn[0] @ mount_rotation(rpy[0]))
+
+
+def test_a_paper_formulation_estimate_is_drawn_at_its_own_tip(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The paper formulation's ``x, y, z`` are states of their own, off the arc of its
+    ``theta, phi``: the drawn tip and trail are the rows' own (as the time plot's), and
+    no warning calls the robot the wrong one."""
+    pytest.importorskip("rerun")
+    meas, est, rrd = tmp_path / "m.csv", tmp_path / "e.csv", tmp_path / "v.rrd"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "2"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--formulation", "paper",
+                 "--method", "ekf"]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["view", str(est), "--save", str(rrd)]) == 0
+    assert "warning" not in capsys.readouterr().err
+    table = read_state_table(est)
+    rows = read_rrd(rrd)
+    tips = np.array([r["Points3D:positions"][0] for _, r in rows["/world/estimate/tip"]])
+    xyz = np.column_stack([table.column(c) for c in "xyz"])
+    assert np.max(np.abs(xyz - tips)) < 1e-7  # the file's float32
+    arc = np.array([r["LineStrips3D:strips"][0][-1] for _, r in rows["/world/estimate/backbone"]])
+    assert np.max(np.linalg.norm(arc - xyz, axis=1)) > 1e-3  # the states do drift apart
+
+
+def test_view_with_mounting_alone_keeps_the_recorded_sections(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--mounting`` alone draws the robot the estimate records (here one 0.3 m
+    section), turned as given, as ``--length`` alone keeps the recorded mounting."""
+    pytest.importorskip("rerun")
+    meas, est, rrd = tmp_path / "m.csv", tmp_path / "e.csv", tmp_path / "v.rrd"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "1", "--length", "0.3"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--length", "0.3"]) == 0
+    capsys.readouterr()
+    assert main(["view", str(est), "--mounting", "z-up", "--save", str(rrd)]) == 0
+    err = capsys.readouterr().err
+    assert "1 section (0.3 m)" in err and "warning" not in err, err
+
+
+def test_the_truths_trail_breaks_where_its_rows_have_no_tip(tmp_path: Path) -> None:
+    """Truth rows without ``x, y, z`` (a motion-capture dropout) break the truth's trail,
+    as the estimate's breaks at rows without an estimate: no chord across the gap."""
+    pytest.importorskip("rerun")
+    est, truth, rrd = tmp_path / "e.csv", tmp_path / "t.csv", tmp_path / "v.rrd"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    truth.write_text("t,x,y,z\n0,0.01,0,0.2\n0.05,0.02,0,0.2\n0.1,,,\n0.15,0.04,0,0.2\n"
+                     "0.2,0.05,0,0.2\n")  # fmt: skip
+    assert main(["view", str(est), "--truth", str(truth), "--save", str(rrd)]) == 0
+    trail = [t for t, _ in read_rrd(rrd)["/world/truth/tip_trail"]]
+    assert trail == [50_000_000, 200_000_000]

@@ -103,7 +103,8 @@ def estimate_robot(
 ) -> Robot:
     """The robot an estimate CSV ``path`` was made on, for a command that reads it:
     ``--robot``, or one section of ``--length`` (and ``--mounting``, else the mounting
-    the estimate's options line records) where one is given; a ``--robot`` or
+    the estimate's options line records) where one is given, or with ``--mounting``
+    alone the recorded robot turned so; a ``--robot`` or
     ``--mounting`` that turns the recorded mounting over is warned of; else the robot
     the estimate's options line records, where it can be read
     (said in a note ending in ``use``, what the command does on it); else one section
@@ -112,6 +113,11 @@ def estimate_robot(
     if robot is not None:
         return robot
     robot = robot_from_args(args)
+    if not args.robot and getattr(args, "length", None) is None:
+        # --mounting alone: the recorded robot's sections, turned as given
+        recorded = recorded_robot(path, use)
+        if recorded is not None:
+            robot = replace(recorded, mounting=robot.mounting)
     line = ""
     recorded_way = recorded_mounting(path)
     if args.robot:

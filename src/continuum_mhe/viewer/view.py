@@ -334,9 +334,9 @@ class BackboneView:
             rr.LineStrips3D(list(geom.sections[0]), radii=0.01 * size, colors=colours,
                             labels=labels),
         )  # fmt: skip
-        # a tendon robot's tip is the estimate's (its drawing's finer steps end within a
-        # millimetre of it), as a replay draws it
-        tip = geom.tip[0] if self.tendon is None else out[self._tip_columns]
+        # the tip is the row's own x, y, z: a tendon robot's drawing's finer steps end
+        # within a millimetre of it, and the paper formulation's are states of their own
+        tip = out[self._tip_columns]
         rec.log("world/estimate/tip", rr.Points3D([tip], radii=0.015 * size))
         prev = self._prev_tip["estimate"]
         if prev is not None:
@@ -465,7 +465,7 @@ class BackboneView:
                 self.outputs[j].name in col for j in self._twist_columns
             ):  # an estimate's IMU twists (a truth has none)
                 geom = with_imu_twists(self.robot, geom, ordered[:, self._twist_columns])
-            return geom, geom.tip
+            return geom, values[:, [col[c] for c in "xyz"]]  # the rows' own tips
         tips = values[:, [col[c] for c in "xyz"]]
         if self.tendon.tensions is None or not all(c in col for c in TIP_FORCE_COLUMNS):
             return None, tips
@@ -504,6 +504,8 @@ class BackboneView:
             kept = [j for j in range(len(names)) if j not in shape]
             names, values = [names[j] for j in kept], values[:, kept]
         col = {c: i for i, c in enumerate(names)}
+        drawn = np.flatnonzero(whole)
+        joined = np.concatenate([[False], np.diff(drawn) == 1])  # no trail across a gap
         t, values = t[whole], values[whole]
         tips = values[:, [col[c] for c in "xyz"]]
         geom = None
@@ -516,7 +518,7 @@ class BackboneView:
             if all(c in col for c in TIP_FORCE_COLUMNS)
             else None
         )
-        self._send_shapes("truth", t, geom, tips, np.arange(len(t)) > 0, forces)
+        self._send_shapes("truth", t, geom, tips, joined, forces)
         ends = [k for k in range(1, self.robot.n_sections + 1) if f"x_{k}" in col]
         if ends:
             pts = np.stack([values[:, [col[f"{c}_{k}"] for c in "xyz"]] for k in ends], axis=1)
