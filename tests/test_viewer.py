@@ -244,6 +244,19 @@ def test_view_user_mistakes_are_one_line(
     assert main([*argv, str(mm)]) == 2
     assert "positions in mm?" in _one_error_line(capsys)
     mm.unlink()
+    # the robot the options line names is said in a note, and another robot file in a
+    # warning, only where the file is drawn: a refusal is its one line alone
+    empty = tmp_path / "empty.csv"
+    empty.write_text("".join(ln for ln in Path(est).read_text().splitlines(keepends=True)
+                             if ln.startswith(("#", "t,"))))  # fmt: skip
+    assert main(["view", str(empty), "--save", str(out)]) == 2
+    assert "has no data rows" in _one_error_line(capsys)
+    empty.unlink()
+    three = tmp_path / "three.toml"
+    three.write_text("[[section]]\nlength = 0.1\n" * 3 + "[[imu]]\nsection = 3\n")
+    assert main(["view", est, "--robot", str(three), "--save", str(out)]) == 2
+    assert "missing theta_3" in _one_error_line(capsys)
+    three.unlink()
     if sys.platform.startswith("linux"):
         monkeypatch.delenv("DISPLAY", raising=False)
         monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
@@ -1364,3 +1377,14 @@ def test_the_truths_trail_breaks_where_its_rows_have_no_tip(tmp_path: Path) -> N
     assert main(["view", str(est), "--truth", str(truth), "--save", str(rrd)]) == 0
     trail = [t for t, _ in read_rrd(rrd)["/world/truth/tip_trail"]]
     assert trail == [50_000_000, 200_000_000]
+
+
+def test_a_file_without_statuses_is_drawn_without_a_status(tmp_path: Path) -> None:
+    """A file with no ``status`` column (a truth, another tool's estimates) is drawn,
+    and its rows are not logged as ``ok``: no status at all."""
+    pytest.importorskip("rerun")
+    est, rrd = tmp_path / "other.csv", tmp_path / "v.rrd"
+    est.write_text("t,x,y,z,theta,phi\n0,0,0,0.2,0,0\n0.05,0.01,0,0.2,0.1,0\n")
+    assert main(["view", str(est), "--save", str(rrd)]) == 0
+    rows = read_rrd(rrd)
+    assert len(rows["/world/estimate/tip"]) == 2 and "/status" not in rows

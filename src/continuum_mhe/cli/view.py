@@ -4,6 +4,8 @@ Rerun (:func:`continuum_mhe.viewer.replay`)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import os
 import sys
 import warnings
@@ -26,18 +28,36 @@ def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
     # the estimate is read twice, the tensions again where compared with the recorded ones
     with held_for_rereading(args.estimates, args.truth, args.inputs):
-        checked = _refuse_tendon_estimate_on_another_robot(args)  # before the robot's notes
-        robot = estimate_robot(args, args.estimates, "drawn on that robot")
-        if not checked:  # a robot from a pipe: checked as it was taken
-            _refuse_tendon_estimate_on_another_robot(args, robot)
-        if args.truth:
-            _check_truth(args, robot)
+        # the notes and warnings about the robot and the truth are said once the files
+        # are found fit to draw: a refusal is its one line alone
+        said = io.StringIO()
+        with contextlib.redirect_stderr(said):
+            checked = _refuse_tendon_estimate_on_another_robot(args)  # before the notes
+            robot = estimate_robot(args, args.estimates, "drawn on that robot")
+            if not checked:  # a robot from a pipe: checked as it was taken
+                _refuse_tendon_estimate_on_another_robot(args, robot)
+            _check_estimate(args, robot)
+            if args.truth:
+                _check_truth(args, robot)
+        sys.stderr.write(said.getvalue())
         replay(
             args.estimates, robot, sink, args.truth, args.trail, args.points,
             args.inputs or _recorded_tensions(args.estimates, robot),
         )  # fmt: skip
         _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0
+
+
+def _check_estimate(args: argparse.Namespace, robot: Robot) -> None:
+    """The estimate file's own refusals, as :func:`~continuum_mhe.viewer.replay` makes
+    them: one it cannot read, one without an estimate, one whose columns do not fit
+    ``robot``."""
+    from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
+    from continuum_mhe.io.state_tables import check_estimate_fits
+
+    est = read_estimates(args.estimates, "view EST.csv")
+    require_an_estimate(args.estimates, est)
+    check_estimate_fits(args.estimates, est.names, robot)
 
 
 def _recorded_tensions(estimates: str, robot: Robot) -> str | None:

@@ -107,7 +107,9 @@ def replay(
                 "" if drawn_truth else f" (tip and section ends only: no {missing})"
             )
         try:
-            view.log_rows(est.t, est.values[:, cols], list(est.status))
+            # a file without a status column (a truth's, another tool's) logs no status
+            statuses = list(est.status) if est.status_column else [""] * len(est.t)
+            view.log_rows(est.t, est.values[:, cols], statuses)
         except InputError:  # names its file (the tensions')
             raise
         except UserError as exc:  # a row's loads without an equilibrium

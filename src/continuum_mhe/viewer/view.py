@@ -423,7 +423,8 @@ class BackboneView:
     def log_rows(self, t: FloatArray, values: FloatArray, status: Sequence[str]) -> None:
         """Send a recording's estimates as columns: ``t`` (n,) s, ``values`` (n,
         n_outputs) in ``outputs`` order (m, rad; NaN where there is no estimate),
-        ``status`` (n,). Draws what ``log_estimate`` draws row by row."""
+        ``status`` (n,; ``""`` for rows of a file without statuses: none is logged).
+        Draws what ``log_estimate`` draws row by row."""
         t = np.asarray(t, dtype=float)
         values = np.asarray(values, dtype=float).reshape(len(t), len(self.outputs))
         has = np.all(np.isfinite(values), axis=1) & (np.asarray(status) != "no-estimate")
