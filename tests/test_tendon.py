@@ -3587,3 +3587,17 @@ def test_a_still_straight_robot_is_not_ok_under_a_push_the_imus_cannot_see(
     assert np.max(np.abs(fz)) > 1.0  # the loaded hypothesis pushes
     assert not np.any((np.abs(fz) > 0.1) & (est.status == "ok"))
     assert "the tip force pushed along the backbone harder than 2 times its buckling" in err
+
+
+def test_a_tensions_file_ending_a_rounding_short_of_the_recording_covers_it() -> None:
+    """A last row at 1.4999999999999998 s (a time computed in floating point) covers a
+    sample at 1.5 s and gives that row's tensions; 2 us short does not cover it."""
+    from continuum_mhe.io.tensions import Tensions
+
+    t = np.array([0.0, 0.5, 1.0, 1.4999999999999998])
+    table = Tensions.from_rows("tensions.csv", t, np.array([[1.0], [2.0], [3.0], [4.0]]))
+    assert table.covers(1.5) and table.covers(-1e-7)
+    assert table.at(1.5)[0][0] == pytest.approx(4.0, abs=1e-12)
+    assert not table.covers(1.5 + 2e-6)
+    with pytest.raises(InputError, match="the tensions must cover the recording"):
+        table.at(1.5 + 2e-6)

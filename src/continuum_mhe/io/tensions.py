@@ -176,6 +176,11 @@ def tension_scale_problem(
     return None
 
 
+#: How far beyond a tensions file's first or last row (s) a sample still counts as
+#: covered by it (the estimate files' times are written to the microsecond).
+COVER_TOLERANCE_S = 1e-6
+
+
 @dataclass(frozen=True)
 class Tensions:
     """A tensions file read whole.
@@ -497,8 +502,10 @@ class Tensions:
             )
 
     def covers(self, t: float) -> bool:
-        """Whether ``t`` s lies within the file's times."""
-        return bool(self.t[0] <= t <= self.t[-1])
+        """Whether ``t`` s lies within the file's times, to :data:`COVER_TOLERANCE_S`
+        (a time computed in floating point, ``1.4999999999999998`` for ``1.5``, or written
+        to the microsecond; :meth:`at` takes the end row's tensions there)."""
+        return bool(self.t[0] - COVER_TOLERANCE_S <= t <= self.t[-1] + COVER_TOLERANCE_S)
 
     def at(self, t: float, source: str = "") -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(tensions, rates, accelerations)`` at ``t`` s, linear between rows; an
