@@ -287,6 +287,16 @@ def test_horizon_claims_follow_their_rules() -> None:
     # per estimate it rises, the total (M - N + 1) t(N) peaks inside: the M - N effect only
     assert rp.claim_horizon_time(_sweep([1, 2, 4, 4.4], same, m=100)).verdict == "partly holds"
     assert rp.claim_horizon_time(_sweep([1, 2, 3, 4], same, m=10_000)).verdict == "does not hold"
+    # the paper's solver judged by the same rule, said beside the default backend's verdict
+    sweep = _sweep([1, 2, 3, 4], same)
+    for n, t in zip(["5", "20", "40", "80"], [10.0, 30.0, 60.0, 40.0], strict=True):
+        sweep["summary"][n]["ipopt"] = {"solve_ms_median": {"mean": t}}
+    claim = rp.claim_horizon_time(sweep)
+    assert claim.verdict == "does not hold"
+    assert (
+        "IPOPT (the paper's solver) 10.00 to 40.00 ms, highest at N = 40: by the same rule it holds"
+        in (claim.measured)
+    ), claim.measured
 
 
 def test_few_seeds_line_only_for_few_seeds() -> None:
@@ -418,7 +428,8 @@ def test_an_interrupted_overwrite_leaves_no_manifest_of_a_run_not_made(
 ) -> None:
     """Ctrl-C while ``reproduce --overwrite`` writes into an earlier run's folder: the
     files it replaced keep their new content, so the folder mixes two runs; its
-    manifest, which would record the interrupted run as made, is removed. Here
+    manifest, which would record the interrupted run as made, and the earlier run's
+    report, which describes data partly replaced, are removed. Here
     ``--only beyond`` into the folder of an earlier one (the quick run's beyond data,
     manifest and report), with the quick run's results of its trials."""
     from continuum_mhe.evaluation import plotting
@@ -439,7 +450,7 @@ def test_an_interrupted_overwrite_leaves_no_manifest_of_a_run_not_made(
     argv = ["reproduce", "--out", str(folder), "--quick", "--jobs", "1", "--overwrite"]
     assert main([*argv, "--only", "beyond"]) == 130
     assert saved and not (folder / "manifest.json").exists()
-    assert (folder / "report.md").exists()  # the earlier run's, not replaced
+    assert not (folder / "report.md").exists()
 
 
 def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
@@ -584,6 +595,22 @@ def test_reproduce_rejects_bad_jobs(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert main(["reproduce", "--out", str(tmp_path / "r"), "--jobs", "0"]) == 2
     assert "--jobs" in capsys.readouterr().err
     assert not (tmp_path / "r").exists()
+
+
+def test_a_folder_of_the_users_own_report_is_not_written_over(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder that holds a ``report.md`` (or ``manifest.json``) of no ``reproduce`` run
+    is refused before the trials, as a part's data would be, unless ``--overwrite``:
+    the user's own notes are not replaced."""
+    folder = tmp_path / "notes"
+    folder.mkdir()
+    (folder / "report.md").write_text("MY OWN NOTES\n")
+    argv = ["reproduce", "--out", str(folder), "--quick", "--only", "beyond"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "report.md: exists; give --overwrite" in err[0], err
+    assert (folder / "report.md").read_text() == "MY OWN NOTES\n"
 
 
 def _tiny_specs() -> list[ex.TrialSpec]:

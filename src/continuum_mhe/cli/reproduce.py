@@ -15,6 +15,17 @@ from continuum_mhe.extras import require
 from continuum_mhe.io.output_files import check_new_folder
 
 
+def _holds_reproduce_run(out: Path) -> bool:
+    """Whether ``out`` holds the manifest of an earlier ``reproduce`` run."""
+    import json
+
+    try:
+        m = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(m, dict) and str(m.get("command", "")).startswith("continuum-mhe reproduce")
+
+
 def run(args: argparse.Namespace) -> int:
     from continuum_mhe.reproduce.experiments import FULL, QUICK
     from continuum_mhe.reproduce.pipeline import PARTS, part_data_files, reproduce
@@ -47,7 +58,10 @@ def run(args: argparse.Namespace) -> int:
     parts = PARTS if args.only is None else (args.only,)
     # before the trials (the folder is made after them): another part's data may be
     # there, to be reported together; this part's is replaced only with --overwrite
-    check_new_folder(out, args.overwrite, part_data_files(parts))
+    names = part_data_files(parts)
+    if not _holds_reproduce_run(out):  # a folder of other files: its report.md,
+        names += ["manifest.json", "report.md"]  # manifest.json are not ours to replace
+    check_new_folder(out, args.overwrite, names)
     command = "continuum-mhe " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     start = time.perf_counter()
     files = reproduce(

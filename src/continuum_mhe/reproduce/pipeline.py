@@ -336,5 +336,8 @@ def reproduce(
     except BaseException:
         if replacing:
             (folder / "manifest.json").unlink(missing_ok=True)
+            # the earlier run's report describes data that may now be partly replaced
+            if folder / "report.md" not in written:
+                (folder / "report.md").unlink(missing_ok=True)
         raise
     return written
