@@ -2,9 +2,10 @@
 (the command line's, compiled), the UKF and the MHE on IPOPT, tilt and raw IMUs, with the
 recording's tensions; prints one JSON line per run (tip and mid-robot mean error,
 mm; tip-force rms error, N; ms per sample; the rows after ``--skip`` whose tip is over 5 mm
-off and whose status is ``ok``), with the recording's model floor: the
-mean tip and mid-robot error of the estimator's model itself, solved with the true
-tensions and the true tip force (``--floor-only``: that alone).
+off and whose status is ``ok``; the true tip force at the first row, N), with the
+recording's model floor: the mean tip and mid-robot error of the estimator's model
+itself, solved with the true tensions and the true tip force (``--floor-only``: that
+alone).
 
 The formulation is the command line's (``continuum-mhe estimate --robot ROBOT --inputs
 TENSIONS.csv``, with ``--imu-model direct`` for raw IMUs): its defaults, unless
@@ -171,6 +172,7 @@ def main() -> None:
         return np.asarray(np.linalg.norm(e - tr, axis=1), dtype=float)
 
     force = [cols.index(n) for n in ("fx", "fy", "fz")]
+    force_true = [names.index(n) for n in ("fx", "fy", "fz")]
     if a.errors is not None:
         rows = np.column_stack(
             [t[keep], err(("x", "y", "z")), err(("x_1", "y_1", "z_1")), err(("fx", "fy", "fz"))]
@@ -192,6 +194,7 @@ def main() -> None:
         "floor_tip_mm": round(floor[0], 3), "floor_mid_mm": round(floor[1], 3),
         "ms_per_sample": round(ms, 1), "statuses": statuses, "ok_over_5mm": ok_over_5mm,
         "free_of_load_rows": getattr(est.inference, "free_of_load_samples", None),
+        "first_row_force_n": round(float(np.linalg.norm(truth[0, force_true])), 4),
     }))  # fmt: skip
 
 

@@ -20,7 +20,9 @@ deviations off, and says nothing about the readings:
 
 Either beyond the ``SAMPLE_QUANTILE`` (99.99 %) chi-square quantile, or beyond the
 ``RUN_QUANTILE`` (99 %) at this reading and the one before, marks this sample
-``inconsistent`` (on data that agree with the model about 2 rows in 10,000).
+``inconsistent``. On data that agree with the model these tests flag about 1 row in
+100,000; the average's test below flags stretches of tens of rows in a few of 100
+one-minute recordings, about 24 rows in 10,000 in all (docs/options.md).
 
 An update that is not a linear one is tested too: a linear model's exact update leaves
 the residual ``r = R S^-1 nu`` (``S = H P+ H^T + R``, ``nu`` the innovation), so the fit
