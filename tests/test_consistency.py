@@ -515,12 +515,11 @@ def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> No
     the states the readings depend on. A reading 30 standard deviations off is
     ``inconsistent``."""
     from continuum_mhe.estimators.chi2 import chi2_quantile
-    from continuum_mhe.estimators.consistency import (
-        MEMORY,
-        SAMPLE_QUANTILE,
-        SHIFT_QUANTILE,
-        ConsistencyCheck,
-    )
+    from continuum_mhe.estimators.consistency import MEMORY, ConsistencyCheck
+
+    # the quantiles as docs/options.md states them, not the module's constants: a
+    # changed constant is a changed check
+    SAMPLE_QUANTILE, SHIFT_QUANTILE = 0.9999, 0.95  # noqa: N806
 
     f = _formulation(name)
     check = ConsistencyCheck(f)

@@ -328,3 +328,47 @@ def test_a_skip_is_taken_back_when_the_step_fails_and_the_estimator_restarts(
     assert np.isnan(seen[0][0]) and seen[1][0] == z[i, 0]  # skipped, then taken
     assert est.diagnostics.restarts == 1 and est.diagnostics.glitches == 0
     assert s.status[i] == "reset"
+
+
+@pytest.mark.parametrize(("share", "skipped"), [(0.9, 0), (1.1, 1)])
+def test_the_glitch_limit_is_its_factor_times_the_quantile(share: float, skipped: int) -> None:
+    """A pitch reading offset so that its normalised innovation against the prediction
+    from the ``ok`` estimate before it is 0.9 or 1.1 times ``GLITCH_FACTOR`` times the
+    chi-square 99.99 % quantile of its two degrees of freedom (the readings scattered at
+    their noise model's level or less): kept, or skipped as a glitch. The innovation is
+    computed here from the formulation's own functions: ``x, F, Q = predict(x, u,
+    dt)``, ``S = H (F P F^T + Q) H^T + R``."""
+    from scipy.stats import chi2
+
+    from continuum_mhe.estimators.consistency import SAMPLE_QUANTILE
+    from continuum_mhe.estimators.sensor_health import Measurement
+    from continuum_mhe.settings import GLITCH_FACTOR
+
+    assert SAMPLE_QUANTILE == 0.9999  # as docs/options.md states it
+    rec = simulate("paper3d", duration=4.0, seed=0)
+    f = make_formulation("bend")
+    i = int(np.searchsorted(rec.t, 3.0))
+    est = make_estimator("ekf", f)
+    est.reset()
+    for t, z in zip(rec.t[:i], rec.z[:i], strict=True):
+        before = est.step(Measurement(float(t), z))
+    assert before.status == "ok" and est._consistency.noise_scale <= 1.0
+    R = np.asarray(f.meas_cov(), dtype=float)
+    dt = float(rec.t[i] - rec.t[i - 1])
+    xn, F, Q = (np.asarray(v, dtype=float) for v in f.functions.predict(before.state, [], dt))
+    S_pred = F @ before.covariance @ F.T + Q
+
+    def nis(offset: float) -> float:
+        z = rec.z[i] + np.array([0.0, offset])
+        r, J = (np.asarray(v, dtype=float) for v in f.functions.innovate(z, xn.ravel()))
+        S = J @ S_pred @ J.T + R
+        return float(r.ravel() @ np.linalg.solve(S, r.ravel()))
+
+    limit = GLITCH_FACTOR * chi2.ppf(0.9999, 2)
+    lo, hi = 0.0, 1.0  # rad: bisection for the offset whose NIS is share x the limit
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if nis(mid) < share * limit else (lo, mid)
+    z = rec.z[i] + np.array([0.0, hi])
+    est.step(Measurement(float(rec.t[i]), z))
+    assert est.diagnostics.glitches == skipped

@@ -136,8 +136,12 @@ def test_bend_from_tangent_frames_inverts_the_kinematics() -> None:
 
 
 @pytest.mark.parametrize("name", ["bend", "direct"])
-def test_initial_state_inverts_the_measurement(name: str) -> None:
-    f = make_formulation(name, TWO)
+@pytest.mark.parametrize("at", [(1.0, 1.0), (0.5, 0.5), (1 / 3, 1.0)])
+def test_initial_state_inverts_the_measurement(name: str, at: tuple[float, float]) -> None:
+    """The start's bends from the readings of IMUs at the sections' ends or part-way
+    along them (``at``): the readings' own shape."""
+    robot = Robot(TWO.sections, (ImuPlacement(0, at[0]), ImuPlacement(1, at[1])), TWO.mounting)
+    f = make_formulation(name, robot)
     if name == "direct":  # the bends and rates alone
         f = replace(f, estimate_gyro_bias=False)
     x = np.array([0.3, -0.2, 0.5, 0.4, 0.1, 0.2, -0.1, 0.3])

@@ -2754,6 +2754,7 @@ def test_tensions_from_arrays_refuse_what_a_tensions_file_would() -> None:
         ((t[:-1], v), r"^log: t has 9 times and the tensions 10 rows: they must match$"),
         ((t, v[:, 0]), r"^log: t must be \(n,\) s and the tensions \(n, k\) N"),
         ((t[::-1], v), r"^log: t must be finite and strictly increasing \(s\)$"),
+        ((np.r_[t[:4], t[3:9]], v), r"^log: t must be finite and strictly increasing \(s\)$"),
         ((t[:0], v[:0]), r"^log: no tension rows$"),
         (("abc", v), r"^log: t and the tensions must be arrays of numbers"),
         ((t, gap), r"^log: row 3 \(t = 0.06 s\): tension_2 is nan: leave the row out"),
