@@ -242,6 +242,25 @@ def test_the_firmware_capture_is_read_by_estimate(
     assert len(rows) == 3  # the column line and the two samples
 
 
+def test_a_firmware_capture_across_a_millis_wrap_reads_on(tmp_path: Path) -> None:
+    """A capture whose ``t_ms`` wraps (``millis()`` after 2^32 ms, 49.7 days) is read as
+    ``live`` takes it, the time going on past 2^32 ms: the same times, in the block
+    reader and row by row (a comment among the rows), as a capture whose clock goes on;
+    a step back that is no wrap is refused as before."""
+    wrap = 2**32
+    ms = wrap - 60 + 20 * np.arange(8)  # the wrap between the third and fourth sample
+    rows = [f"{m % wrap},0.1,-0.04,9.81,0.001,0.002,0.003" for m in ms]
+    head = "# fields: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s; sensor frames)\n"
+    for comment in ("", "# a note\n"):
+        path = tmp_path / "capture.txt"
+        path.write_text(head + "\n".join(rows[:2]) + "\n" + comment + "\n".join(rows[2:]) + "\n")
+        np.testing.assert_allclose(read_raw_imu(path).t, ms * 1e-3, rtol=0, atol=1e-9)
+    back = [f"{m},0.1,-0.04,9.81,0.001,0.002,0.003" for m in (5000, 5020, 4000, 4020)]
+    path.write_text(head + "\n".join(back) + "\n")
+    with pytest.raises(InputError, match="line 4: decreasing timestamp"):
+        read_raw_imu(path)
+
+
 @pytest.mark.parametrize(
     ("comment", "fields"),
     [

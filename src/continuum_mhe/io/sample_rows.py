@@ -29,6 +29,22 @@ from continuum_mhe.io.text_rows import (
     warn_cut_line,
 )
 
+#: ``millis()`` (a board's ``t_ms``) wraps at this many ms.
+MILLIS_WRAP = 2**32
+#: A step back from the last ``WRAP_WINDOW_MS`` before the wrap into the first ones
+#: after it is a wrap, not a restart.
+WRAP_WINDOW_MS = 60_000.0
+
+
+def millis_wrapped(last_ms: float, t_ms: float) -> bool:
+    """Whether a board's ``t_ms`` after ``last_ms`` (both ms as ``millis()`` counts
+    them, the last not unwrapped) is the counter's wrap: from its last
+    :data:`WRAP_WINDOW_MS` before :data:`MILLIS_WRAP` into its first ones after."""
+    return (
+        last_ms >= MILLIS_WRAP - WRAP_WINDOW_MS
+        and 0 < t_ms + MILLIS_WRAP - last_ms <= WRAP_WINDOW_MS
+    )
+
 
 @dataclass
 class RowProblems:
@@ -306,6 +322,9 @@ class _SampleChecks:
         #: ``skip_bad`` a time that jumped ahead alone is dropped, not every row after it
         self.retract: Callable[[int], bool] | None = None
         self.last_t = -math.inf
+        #: a ``t_ms`` column's ``millis()`` wraps seen (2^32 ms each), unwrapped as
+        #: ``live`` unwraps them: a plain capture of the serial line across a wrap
+        self.wraps = 0
         self.last_line = 0  # the line of the last sample given
         self.before_last_t = -math.inf  # the time of the sample given before it
         self.last_bad = -1
@@ -350,13 +369,19 @@ class _SampleChecks:
                 bad(line, f"fields separated by {other!r}, the header's by {sep!r}", dropped=True)
                 continue
             try:
-                t = parse_float(name, line, shown[0], row[idx[0]]) * scale
+                raw_t = parse_float(name, line, shown[0], row[idx[0]])
             except InputError as exc:
                 bad(line, str(exc).split(": ", 2)[-1], dropped=True)
                 continue
+            t = (raw_t + self.wraps * MILLIS_WRAP) * scale
             if not math.isfinite(t):
                 bad(line, f"{shown[0]} is {row[idx[0]]}", dropped=True)
                 continue
+            last_ms = self.last_t / scale - self.wraps * MILLIS_WRAP  # as the board counts
+            if t <= self.last_t and scale == 1e-3 and millis_wrapped(last_ms, raw_t):
+                # millis() wrapped (every 49.7 days): the time goes on, as live takes it
+                self.wraps += 1
+                t = (raw_t + self.wraps * MILLIS_WRAP) * scale
             if t <= self.last_t and self._retracted_jump(t):
                 pass  # the row before jumped ahead alone, and is dropped instead
             elif t <= self.last_t:
@@ -503,7 +528,7 @@ class _SampleChecks:
             )  # fmt: skip
         except ValueError:
             return None
-        t = values[:, 0] * table.time_scale
+        t = (values[:, 0] + self.wraps * MILLIS_WRAP) * table.time_scale
         if np.isinf(values).any() or not np.isfinite(t).all():
             return None
         if not (t[0] > self.last_t and (t[1:] > t[:-1]).all()):

@@ -39,11 +39,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Literal
 
-#: ``millis()`` wraps at this many ms.
-MILLIS_WRAP = 2**32
-#: A step back from the last ``WRAP_WINDOW_MS`` before the wrap into the first ones
-#: after it is a wrap, not a restart.
-WRAP_WINDOW_MS = 60_000.0
+from continuum_mhe.io.sample_rows import MILLIS_WRAP, millis_wrapped
 
 #: A device time further ahead of the last one than the host's time since then plus
 #: this, s, is not (yet) a sample's: the device's clock and the host's advance alike
@@ -118,8 +114,7 @@ class DeviceClock:
         last = self._last_ms
         if last is None or t_ms >= last or self._restart_armed:
             return False
-        wrapped = t_ms + MILLIS_WRAP - last
-        if last >= MILLIS_WRAP - WRAP_WINDOW_MS and 0 < wrapped <= WRAP_WINDOW_MS:
+        if millis_wrapped(last, t_ms):
             return False
         back = last - t_ms
         return back > self.restart_jump_s * 1e3 or (back > HELD_BACK_S * 1e3 and t_ms < last / 2)
@@ -160,8 +155,7 @@ class DeviceClock:
         last = self._last_ms
         event: ClockEvent = "first" if last is None else "next"
         if last is not None and t_ms < last:
-            wrapped = t_ms + MILLIS_WRAP - last
-            if last >= MILLIS_WRAP - WRAP_WINDOW_MS and 0 < wrapped <= WRAP_WINDOW_MS:
+            if millis_wrapped(last, t_ms):
                 self._epoch_ms += MILLIS_WRAP
                 event = "wrap"
             elif self._restart_armed or confirmed or last - t_ms > self.restart_jump_s * 1e3:
