@@ -918,3 +918,89 @@ def test_the_options_line_records_the_options_the_run_used(
         assert recorded_option(str(out), key) is None, key
     for key in kept:
         assert recorded_option(str(out), key) is not None, key
+
+
+def _captured_figure(monkeypatch: pytest.MonkeyPatch, argv: list[str]) -> object:
+    """The figure ``plot`` (``argv``) saves, captured before it is written."""
+    from matplotlib.figure import Figure
+
+    figures: list[Figure] = []
+
+    def keep(self: Figure, *args: object, **kwargs: object) -> None:
+        figures.append(self)
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    assert main(argv) == 0
+    return figures[0]
+
+
+def test_plot_breaks_its_lines_and_bands_at_a_gap_and_says_a_file_has_no_statuses(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An estimate with 3 s of rows missing (a recording cut), and a truth with 2 s
+    missing: every line (positions, truth, error) has a break (NaN) in each gap, not a
+    straight segment across it. A file without a status column says so in the status
+    strip, not a strip of ok rows."""
+    meas, truth, est = (tmp_path / n for n in ("m.csv", "t.csv", "e.csv"))
+    assert main(["simulate", "paper3d", "--duration", "12", "-o", str(meas),
+                 "--truth", str(truth)]) == 0  # fmt: skip
+    lines = meas.read_text().splitlines()
+    cut = tmp_path / "cut.csv"
+    cut.write_text(
+        "\n".join(ln for ln in lines if ln[0] == "t" or not 5 <= float(ln.split(",")[0]) < 8) + "\n"
+    )
+    assert main(["estimate", str(cut), "--method", "ekf", "-o", str(est)]) == 0
+    tl = truth.read_text().splitlines()
+    holed = tmp_path / "holed.csv"
+    holed.write_text(
+        "\n".join(ln for ln in tl if ln[0] == "t" or not 9 <= float(ln.split(",")[0]) < 11) + "\n"
+    )
+    fig = _captured_figure(monkeypatch, ["plot", str(est), "--truth", str(holed), "-o",
+                                         str(tmp_path / "f.png")])  # fmt: skip
+    axes = fig.axes  # type: ignore[attr-defined]
+    for gap in ((4.95, 8.0), (8.95, 11.0)):
+        for ax in axes[:4]:  # x, y, z and the error
+            for line in ax.get_lines():
+                t, v = (np.asarray(a, dtype=float) for a in line.get_data())
+                if len(t) < 10:
+                    continue
+                inside = (t > gap[0]) & (t < gap[1])
+                across = np.flatnonzero((t[:-1] <= gap[0]) & (t[1:] >= gap[1]))
+                assert not len(across) or np.isnan(v[inside]).all() or inside.sum() == 0
+                if inside.any() and not np.isnan(v[inside]).all():
+                    continue  # a line of the other file, which has rows there
+                assert np.isnan(v).any(), (ax.get_ylabel(), line.get_label(), gap)
+    # a file without statuses: said
+    est.write_text("\n".join(ln.rsplit(",", 0)[0] for ln in
+                             truth.read_text().splitlines()) + "\n")  # fmt: skip
+    fig = _captured_figure(monkeypatch, ["plot", str(est), "-o", str(tmp_path / "g.png")])
+    strip = next(ax for ax in fig.axes if ax.get_ylabel() == "status")  # type: ignore[attr-defined]
+    assert [t.get_text() for t in strip.texts] == ["the file has no status column"]
+
+
+def test_plot_writes_the_file_it_names_whatever_the_suffix_case(tmp_path: Path, capsys) -> None:
+    """``-o FIG.PNG`` where ``FIG.png`` exists: refused without ``--overwrite`` (the
+    figure is written with the suffix in lower case), not written over."""
+    meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    assert main(["estimate", str(meas), "--method", "ekf", "-o", str(est)]) == 0
+    (tmp_path / "fig.png").write_text("precious")
+    capsys.readouterr()
+    assert main(["plot", str(est), "-o", str(tmp_path / "fig.PNG")]) == 2
+    assert "fig.png: exists" in capsys.readouterr().err
+    assert (tmp_path / "fig.png").read_text() == "precious"
+
+
+def test_evaluate_matches_rows_of_a_large_clock_to_the_microsecond(tmp_path: Path) -> None:
+    """On an epoch-seconds clock (t about 1.7e9 s) a truth row matches an estimate row
+    within 1 us and the times' rounding, not within a share of t (1700 s there): the
+    same truth 20 ms later is interpolated, and one 300 s later, beside no row, is
+    refused."""
+    from continuum_mhe.evaluation.metrics import match_rows
+
+    t = 1.7e9 + np.arange(100) * 0.05
+    i_est, i_truth = match_rows(t, t.copy())
+    assert len(i_est) == 100 and np.array_equal(i_est, i_truth)
+    assert len(match_rows(t, t + 0.02)[0]) == 0
+    assert len(match_rows(t, t + 300.0)[0]) == 0
+    assert len(match_rows(np.arange(10) * 0.05, np.arange(10) * 0.05 + 5e-7)[0]) == 10

@@ -81,6 +81,8 @@ def _estimate(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output else Path(args.source).with_suffix(".png")
     if output.suffix.lower() not in FIGURE_SUFFIXES:
         raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
+    # the file save writes (its suffix is the format's name): checked and said as written
+    output = output.with_suffix(output.suffix.lower())
     check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
     with held_for_rereading(args.source, args.truth):  # the estimate is read twice
         return _figure(args, output)
@@ -178,13 +180,15 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         for line in warned:
             print(f"{PROG}: warning: {line}", file=sys.stderr)
     try:
-        fig = estimate_figure(est, truth, lengths, title, backbone, mounting == "z-down")
+        fig = estimate_figure(
+            est, truth, lengths, title, backbone, mounting == "z-down", est.status_column
+        )
     except InputError:  # names its file
         raise
     except UserError as exc:  # a row's loads (the estimate's or the truth's)
         files = f"{args.source} or {args.truth}" if args.truth else args.source
         raise InputError(f"{files}: {exc}") from None
-    save(fig, output, (output.suffix.lower()[1:],))
+    save(fig, output, (output.suffix[1:],))
     print(f"wrote {output}", file=sys.stderr)
     return 0
 

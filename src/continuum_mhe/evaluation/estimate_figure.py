@@ -213,6 +213,25 @@ def _limit_to_lines(ax: plt.Axes, lines: Sequence[np.ndarray]) -> None:
     ax.set_ylim(lo - room, hi + room)
 
 
+def broken(t: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``t`` and each of ``ys`` with a NaN inserted in each step of ``t`` wider than
+    :data:`~continuum_mhe.evaluation.metrics.INTERPOLATE_GAP` of its median step (rows
+    missing: a gap of the recording, or of the truth), so that a line breaks there
+    instead of joining its two sides."""
+    t = np.asarray(t, dtype=float)
+    if len(t) < 3:
+        return (t, *ys)
+    steps = np.diff(t)
+    gaps = np.flatnonzero(steps > INTERPOLATE_GAP * float(np.median(steps)))
+    if not len(gaps):
+        return (t, *ys)
+    at = gaps + 1
+    return (
+        np.insert(t, at, t[gaps] + 0.5 * steps[gaps]),
+        *(np.insert(np.asarray(y, dtype=float), at, np.nan, axis=0) for y in ys),
+    )
+
+
 def truth_points(est: StateTable, truth: StateTable) -> list[TrackedPoint | None]:
     """For each of ``est``'s tracked points, the ``truth``'s columns of it: its own
     (``x_k, y_k, z_k``), or for the tip the truth's ``x, y, z`` (a motion-capture log of
@@ -297,6 +316,7 @@ def estimate_figure(
     title: str = "",
     backbone: BackboneOf | None = None,
     z_down: bool = False,
+    statuses: bool = True,
 ) -> Figure:
     """The figure of an estimate table ``est``: per axis, the position of each section
     end and of the tip over time (mm) with its 95 % band where the file has standard
@@ -306,6 +326,7 @@ def estimate_figure(
     ``backbone`` when given; else, for a constant-curvature estimate, the arcs from
     ``lengths`` (m; else from the file's own rows) and the bend columns; else (a tendon
     robot's estimate without ``backbone``) straight lines through the section ends;
+    ``statuses`` False: the table's statuses were not in its file (the strip says so);
     ``z_down``: the robot hangs (mounting ``z-down``), and the backbone's panel draws
     the base's z axis pointing down, so that the robot hangs there too.
 
@@ -337,11 +358,12 @@ def estimate_figure(
             color = f"C{i}"
             v = _positions(est, p)[:, j] * 1e3
             drawn.append(v)
-            ax.plot(est.t, v, color=color, lw=1.3, label=p.label)
+            ax.plot(*broken(est.t, v), color=color, lw=1.3, label=p.label)
             sd = _stds(est, p)
             if sd is not None:
                 half = Z95 * sd[:, j] * 1e3
-                ax.fill_between(est.t, v - half, v + half, color=color, alpha=0.2, lw=0)
+                t_b, lo, hi = broken(est.t, v - half, v + half)
+                ax.fill_between(t_b, lo, hi, color=color, alpha=0.2, lw=0)
                 if j == 0 and not band_named:  # one grey entry: each band is in its colour
                     ax.fill_between(
                         [], [], [], color="0.5", alpha=0.3, lw=0,
@@ -352,7 +374,7 @@ def estimate_figure(
             if truth is not None and tp is not None:
                 first_truth = tp is next(p for p in in_truth if p is not None)
                 drawn.append(_positions(truth, tp)[:, j] * 1e3)
-                ax.plot(truth.t, drawn[-1], color=color, ls="--",
+                ax.plot(*broken(truth.t, drawn[-1]), color=color, ls="--",
                         lw=1.0, label="truth" if first_truth else None)  # fmt: skip
         _limit_to_lines(ax, drawn)
         ax.set_ylabel(f"{axis} (mm)")
@@ -365,13 +387,13 @@ def estimate_figure(
             if tp is None:
                 continue
             err = np.linalg.norm(_positions(est, p)[i_e] - _positions(truth, tp)[i_t], axis=1)
-            ax.plot(est.t[i_e], err * 1e3, color=f"C{i}", lw=1.2, label=p.label)
+            ax.plot(*broken(est.t[i_e], err * 1e3), color=f"C{i}", lw=1.2, label=p.label)
         ax.set_ylabel("error (mm)")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
     if force:
         _force_panel(axes[-2], est, truth)
-    _status_strip(axes[-1], est)
+    _status_strip(axes[-1], est, statuses)
     axes[-1].set_xlabel("t (s)")
     for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
@@ -388,12 +410,13 @@ def _force_panel(ax: plt.Axes, est: StateTable, truth: StateTable | None) -> Non
     """The tip force's components (N) with their 95 % bands, the truth's dashed."""
     for j, c in enumerate(TIP_FORCE_COLUMNS):
         v = est.column(c)
-        ax.plot(est.t, v, color=f"C{j + 4}", lw=1.3, label=c)
+        ax.plot(*broken(est.t, v), color=f"C{j + 4}", lw=1.3, label=c)
         if est.has_std and est.std is not None:
             half = Z95 * est.std[:, est.names.index(c)]
-            ax.fill_between(est.t, v - half, v + half, color=f"C{j + 4}", alpha=0.2, lw=0)
+            t_b, lo, hi = broken(est.t, v - half, v + half)
+            ax.fill_between(t_b, lo, hi, color=f"C{j + 4}", alpha=0.2, lw=0)
         if truth is not None and c in truth.names:
-            ax.plot(truth.t, truth.column(c), color=f"C{j + 4}", ls="--", lw=1.0)
+            ax.plot(*broken(truth.t, truth.column(c)), color=f"C{j + 4}", ls="--", lw=1.0)
     ax.set_ylabel("tip force (N)")
     ax.legend(loc="upper right", fontsize="small", ncol=3)
     ax.grid(alpha=0.3)
@@ -412,8 +435,14 @@ def status_color(status: Status) -> str:
     return _STATUS_COLORS[others.index(status) % len(_STATUS_COLORS)]
 
 
-def _status_strip(ax: plt.Axes, est: StateTable) -> None:
+def _status_strip(ax: plt.Axes, est: StateTable, statuses: bool = True) -> None:
     """One row of marks per status the file has, at the times it has it."""
+    if not statuses:  # a file without them (read as ok): said, not a strip of ok rows
+        ax.set_yticks([])
+        ax.set_ylabel("status")
+        ax.text(0.5, 0.5, "the file has no status column", ha="center", va="center",
+                transform=ax.transAxes)  # fmt: skip
+        return
     present = [s for s in Status if np.any(est.status == s.value)]
     for k, s in enumerate(present):
         at = est.t[est.status == s.value]

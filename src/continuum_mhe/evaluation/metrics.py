@@ -505,8 +505,8 @@ def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[fl
     )
 
 
-#: a truth row is an estimate row's when their times agree to this relative tolerance
-#: (at least 1 us; ``evaluate`` and ``plot`` match rows so)
+#: a truth row is an estimate row's when their times agree to this many seconds (and a
+#: few roundings of a large clock's times; ``evaluate`` and ``plot`` match rows so)
 TIME_MATCH = 1e-6
 
 IndexArray = NDArray[np.intp]
@@ -514,8 +514,8 @@ IndexArray = NDArray[np.intp]
 
 def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, IndexArray]:
     """Indices ``(i_est, i_truth)`` of the estimate rows that have a truth row at the same
-    time (within :data:`TIME_MATCH`, relative, at least 1 us), and of those truth rows
-    (none of either where the truth has no rows)."""
+    time (within :data:`TIME_MATCH`, 1 us, and a few roundings of a large clock's times),
+    and of those truth rows (none of either where the truth has no rows)."""
     t_est, t_truth = np.asarray(t_est, dtype=float), np.asarray(t_truth, dtype=float)
     if len(t_truth) == 0:
         none = np.zeros(0, dtype=np.intp)
@@ -523,7 +523,10 @@ def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, Inde
     idx = np.clip(np.searchsorted(t_truth, t_est), 0, len(t_truth) - 1)
     lo = np.clip(idx - 1, 0, len(t_truth) - 1)
     nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
-    match = np.abs(t_truth[nearest] - t_est) <= TIME_MATCH * np.maximum(1.0, np.abs(t_est))
+    # 1 us, and the rounding of a large clock's times (epoch seconds: 0.24 us apart),
+    # not a share of t (at t = 1.7e9 s a share of 1e-6 would be 1700 s)
+    spacing = np.spacing(np.maximum(np.abs(t_est), np.abs(t_truth[nearest])))
+    match = np.abs(t_truth[nearest] - t_est) <= TIME_MATCH + 8 * spacing
     return np.flatnonzero(match), nearest[match]
 
 
