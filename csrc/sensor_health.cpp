@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace cmhe {
 
@@ -16,9 +17,12 @@ namespace {
 
 // Whether the time ``span`` (s) between two samples, the later at ``t`` (s), is longer
 // than ``limit`` (s) by more than the times' rounding: steps of exactly the limit (0.05 s
-// at 20 Hz, 0.050000000000000044 as the times subtract) are not longer
+// at 20 Hz, 0.050000000000000044 as the times subtract; a file's times kept to the
+// microsecond) are not longer. The rounding of a difference of two times is a few units
+// in the last place of ``t`` (2e-7 s at a Unix time of 1.7e9 s), not a share of ``t``
+// (1e-9 of it would be 1.7 s there, hiding every gap shorter than that)
 bool longer(double span, double limit, double t) {
-  return span > limit + 1e-9 * std::max(1.0, std::fabs(t));
+  return span > limit + 1e-6 + 8.0 * std::numeric_limits<double>::epsilon() * std::fabs(t);
 }
 bool trusted(int status) {
   return status == ST_OK || status == ST_FALLBACK_IPOPT || status == ST_BRANCH_RESTART;

@@ -519,3 +519,30 @@ def test_an_untrusted_start_gives_no_ok_row_until_the_next_start_in_every_estima
         assert est.diagnostics.untrusted_start_samples == first.sum()
         # after the gap's start (uncertain until a reading confirms it) the rows are ok
         assert set(status[~first][2:]) == {"ok"}, (est.inference.name, status[~first])
+
+
+@pytest.mark.parametrize("method", ["ekf", "mhe"])
+def test_the_time_windows_do_not_depend_on_where_the_clock_starts(method: str) -> None:
+    """A 1.5 s stall (the gap reset's 1 s), a reading repeated for 1.5 s (a freeze) and
+    a tip IMU silent for 1.2 s give the same statuses and diagnostics on times from 0
+    and on Unix-epoch seconds (t about 1.7e9 s, where a double's step is 2.4e-7 s): the
+    windows' rounding allowance is the times' own, not a share of t."""
+    from continuum_mhe import ImuPlacement, Robot, Section, make_formulation, simulate_robot
+    from continuum_mhe.simulation.scenarios import simulate
+
+    rec = simulate("paper3d", duration=10.0, seed=1)
+    t = rec.t.copy()
+    t[100:] += 1.5
+    z = rec.z.copy()
+    z[40:70] = z[40]
+    two = Robot((Section(0.16), Section(0.14)), (ImuPlacement(0), ImuPlacement(1)))
+    spatial = simulate_robot("spatial", two, duration=6.0, seed=2)
+    silent = spatial.z.copy()
+    silent[(spatial.t >= 3.0) & (spatial.t < 4.2), 2:] = np.nan
+    for f, times, readings in ((make_formulation("bend"), t, z),
+                               (make_formulation("bend", two), spatial.t, silent)):  # fmt: skip
+        runs = [make_estimator(method, f).run(times + base, readings) for base in (0.0, 1.7e9)]
+        assert list(runs[0].status) == list(runs[1].status)
+        d0, d1 = runs[0].diagnostics, runs[1].diagnostics
+        assert (d0.gap_resets, d0.frozen_samples) == (d1.gap_resets, d1.frozen_samples)
+    assert d0.gap_resets == 0 and "uncertain" in list(runs[0].status)

@@ -3568,3 +3568,28 @@ def test_evaluate_of_a_truth_that_ends_early_says_so_after_skip_start(
     assert main(["evaluate", e, str(early), "--skip-start", "4.5"]) == 2
     err = capsys.readouterr().err
     assert "or the truth ends at t = 3.6 s and --skip-start scores from t = 4.5 s" in err
+
+
+def test_formulation_options_of_no_number_are_one_user_error_naming_them() -> None:
+    """The raw-IMU model's and the tendon model's number options given None, a string, or
+    a value whose square (a variance) a float cannot hold: one UserError naming the
+    option, not a TypeError or OverflowError from inside the model; a numpy integer seed
+    is a seed (the same recording as the int)."""
+    from dataclasses import replace
+
+    from continuum_mhe import make_formulation, simulate
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.robot_file import read_robot
+
+    direct = make_formulation("direct", read_robot("two-section"))
+    for value in (None, "0.01", 1e300, 1e-300):
+        with pytest.raises(UserError, match=r"^gyro_std must be a positive finite number"):
+            replace(direct, gyro_std=value)
+    tendon = make_formulation("tendon", read_robot("tendon-two-section"))
+    for value in (None, "1.0"):
+        with pytest.raises(UserError, match=r"^tension_std must be a number, got"):
+            replace(tendon, tension_std=value)
+    with pytest.raises(UserError, match=r"^force_accel_psd must be a number or None, got"):
+        replace(tendon, force_accel_psd="1.0")
+    assert np.array_equal(simulate("paper3d", duration=1.0, seed=np.int64(3)).z,
+                          simulate("paper3d", duration=1.0, seed=3).z)  # fmt: skip

@@ -175,8 +175,17 @@ class DirectFormulation(BendFormulation):
             ("twist_accel_psd", self.twist_accel_psd),
             ("initial_twist_std", self.initial_twist_std),
         ):
-            if v is not None and not (is_real(v) and math.isfinite(v) and v > 0):
-                raise UserError(f"{label} must be a positive finite number, got {v!r}")
+            if v is None and label == "accel_direction_std":  # (None: from gyro_std)
+                continue
+            # a number whose square (a variance) is a positive finite float: not None, a
+            # string, 1e300 (an OverflowError in meas_cov) or 1e-300 (a zero variance)
+            if not (
+                is_real(v) and math.isfinite(v) and v > 0 and 0 < float(v) * float(v) < math.inf
+            ):
+                raise UserError(
+                    f"{label} must be a positive finite number whose square a float holds, "
+                    f"got {v!r}"
+                )
 
     @cached_property
     def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:

@@ -70,7 +70,7 @@ from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.descriptions import (
     TIP_FORCE_COLUMNS,
     TIP_OUTPUTS,
@@ -376,6 +376,16 @@ class TendonFormulation(Formulation):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        import dataclasses
+
+        for f in dataclasses.fields(self):  # a number option given None or a string
+            kind, v = str(f.type), getattr(self, f.name)
+            if kind in ("float", "float | None") and not (
+                is_real(v) or (v is None and kind == "float | None")
+            ):
+                raise UserError(
+                    f"{f.name} must be a number{' or None' if kind != 'float' else ''}, got {v!r}"
+                )
         if not self.robot.has_mechanics:
             raise UserError("the tendon formulation needs a robot file with a [backbone]")
         if self.imu_model not in ("tilt", "direct"):

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import UserError, expect_type
+from continuum_mhe.errors import UserError, expect_type, is_integer
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.imu import STANDARD_GRAVITY
@@ -84,7 +84,7 @@ def raw_readings(
             "robot straight and still, simulate_robot('rest', ...), reads as its robot "
             "without tendons: dataclasses.replace(robot, tendons=(), backbone=None))"
         )
-    if not (isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0):
+    if not (is_integer(seed) and seed >= 0):
         raise UserError(f"seed must be a non-negative integer, got {seed!r}")
     names = tuple(o.name for o in rec.outputs)
     want = tuple(o.name for o in pcc_outputs(robot.n_sections))

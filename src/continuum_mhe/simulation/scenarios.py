@@ -26,7 +26,7 @@ from typing import Literal
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import UserError, expect_type, real_number
+from continuum_mhe.errors import UserError, expect_type, is_integer, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 from continuum_mhe.model.imu import (
     Mounting,
@@ -281,7 +281,7 @@ def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> Float
             raise UserError(f"{name} must be positive, got {v}")
     if not (math.isfinite(noise_deg) and noise_deg >= 0):
         raise UserError(f"noise_deg (--noise-deg) must be >= 0, got {noise_deg}")
-    if not (isinstance(seed, int) and seed >= 0):
+    if not (is_integer(seed) and seed >= 0):
         raise UserError(f"seed must be a non-negative integer, got {seed!r}")
     if dt > duration:
         raise UserError(
