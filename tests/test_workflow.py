@@ -1004,3 +1004,26 @@ def test_evaluate_matches_rows_of_a_large_clock_to_the_microsecond(tmp_path: Pat
     assert len(match_rows(t, t + 0.02)[0]) == 0
     assert len(match_rows(t, t + 300.0)[0]) == 0
     assert len(match_rows(np.arange(10) * 0.05, np.arange(10) * 0.05 + 5e-7)[0]) == 10
+
+
+def test_plot_and_view_name_the_shift_that_lines_up_a_truth_on_another_clock(
+    tmp_path: Path, capsys
+) -> None:
+    """A truth whose clock runs 100 s ahead of the estimate's (no time in common): plot
+    and view refuse it in one line naming the ``--truth-shift`` that compares them, as
+    evaluate does."""
+    meas, truth, est = (tmp_path / n for n in ("m.csv", "t.csv", "e.csv"))
+    assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas),
+                 "--truth", str(truth)]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "--method", "ekf", "-o", str(est)]) == 0
+    lines = truth.read_text().splitlines()
+    shifted = [f"{float(ln.split(',')[0]) + 100:g}," + ln.split(",", 1)[1] for ln in lines[1:]]
+    later = tmp_path / "later.csv"
+    later.write_text("\n".join([lines[0], *shifted]) + "\n")
+    capsys.readouterr()
+    figure = ["plot", str(est), "--truth", str(later), "-o", str(tmp_path / "f.png")]
+    option = "--truth-shift 100 compares them"
+    for argv in (figure, ["evaluate", str(est), str(later)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].endswith(option), err

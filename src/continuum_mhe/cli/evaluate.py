@@ -26,6 +26,7 @@ from continuum_mhe.cli.truth_checks import (
     frame_fit,
     frame_fit_warning,
     moves_the_base,
+    offset_hint,
     refuse_an_estimate_as_truth,
     rows_matched,
     seconds_text,
@@ -110,7 +111,7 @@ def _align(
             warning += cut
     if problem:
         first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
-        raise InputError(problem + _offset_hint(first, t_est, t_truth, given_shift))
+        raise InputError(problem + offset_hint(first, t_est, t_truth, given_shift))
     warnings = [warning] if warning else []
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
@@ -125,39 +126,6 @@ def _align(
             "the scores are of that part only (an interrupted or cut estimate?)"
         )
     return Aligned(i_est, rows, interpolated, warnings)
-
-
-def _offset_hint(
-    first_t: float, t_est: np.ndarray, t_truth: np.ndarray, given_shift: float = 0.0
-) -> str:
-    """Where the estimate's times ``t_est`` are the truth's plus one offset, that of its
-    first time ``first_t`` (before any ``--skip-start``) from the truth's (a device
-    clock that did not start at 0, as ``live``'s), the ``--truth-shift`` that compares
-    them, the ``given_shift`` already applied to ``t_truth`` counted in (a clause to end
-    a refusal); else ``""``."""
-    offset = float(first_t - t_truth[0])
-    if not math.isfinite(offset) or offset == 0.0:
-        return ""
-    total = given_shift - offset  # the truth read at t + total lines the times up
-    shift = "0 (leave --truth-shift out)" if abs(total) < 1e-9 else seconds_text(total)
-    shifted = t_truth + offset
-    i = np.searchsorted(shifted, t_est).clip(1, len(shifted) - 1)
-    near = np.minimum(np.abs(shifted[i] - t_est), np.abs(shifted[i - 1] - t_est))
-    # 1 us of the estimate's times, and the rounding of the truth's (epoch seconds)
-    close = 1e-6 * np.maximum(1.0, np.abs(t_est)) + 8 * np.finfo(float).eps * abs(t_truth[0])
-    if np.mean(near <= close) >= WARN_MATCHED:
-        return (
-            f"; the estimate's times are the truth's {seconds_text(offset, '+')} s (a clock that "
-            f"did not start at 0?): --truth-shift {shift} compares them"
-        )
-    if t_truth[-1] < t_est[0] or t_truth[0] > t_est[-1]:  # no time in common at all
-        return (
-            f"; the truth's t runs from {time_text(float(t_truth[0]))} to "
-            f"{time_text(float(t_truth[-1]))} s, the estimate's from "
-            f"{time_text(float(t_est[0]))} to {time_text(float(t_est[-1]))} s: if the two "
-            f"recordings started together, --truth-shift {shift} compares them"
-        )
-    return ""
 
 
 class Aligned(NamedTuple):

@@ -12,9 +12,10 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from continuum_mhe.errors import InputError
+from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
     SHIFT_MAX_S,
+    TIME_MATCH,
     FrameRotation,
     aligned_truth,
     best_rotation,
@@ -325,7 +326,10 @@ def truth_beside(
     at_est = truth_at_rows(est, truth, i_est, rows, interpolated)
     problem = truth_problem(est, at_est or truth)
     if problem is not None:
-        raise InputError(f"{path_truth}: {problem}")
+        hint = ""
+        if len(est.t):
+            hint = offset_hint(float(est.t[0]), est.t, truth.t, given_shift, shift_option)
+        raise InputError(f"{path_truth}: {problem}{hint}")
     warned = []
     if len(est.t) >= 2:
         spanned = spans_the_truth(est.t, i_est, truth.t)
@@ -339,7 +343,9 @@ def truth_beside(
             comparable_rows(est.t, truth.t),
         )
         if refused:
-            raise InputError(refused)
+            raise InputError(
+                refused + offset_hint(float(est.t[0]), est.t, truth.t, given_shift, shift_option)
+            )
         warned.append(few)
     tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]
     truth_tip = rows[:, [truth.names.index(c) for c in TIP_COLUMNS]]
@@ -373,3 +379,40 @@ def refuse_an_estimate_as_truth(path_truth: str, truth: StateTable, usage: str) 
             f"{path_truth}: has an estimate's status or std_ columns: an estimate, not a "
             f"truth ({usage})"
         )
+
+
+def offset_hint(
+    first_t: float,
+    t_est: np.ndarray,
+    t_truth: np.ndarray,
+    given_shift: float = 0.0,
+    shift_option: str = "--truth-shift",
+) -> str:
+    """Where the estimate's times ``t_est`` are the truth's plus one offset, that of its
+    first time ``first_t`` (before any ``--skip-start``) from the truth's (a device
+    clock that did not start at 0, as ``live``'s), the ``--truth-shift`` that compares
+    them, the ``given_shift`` already applied to ``t_truth`` counted in (a clause to end
+    a refusal, the option named ``shift_option``); else ``""``."""
+    offset = float(first_t - t_truth[0])
+    if not math.isfinite(offset) or offset == 0.0:
+        return ""
+    total = given_shift - offset  # the truth read at t + total lines the times up
+    shift = "0 (leave --truth-shift out)" if abs(total) < 1e-9 else seconds_text(total)
+    shifted = t_truth + offset
+    i = np.searchsorted(shifted, t_est).clip(1, len(shifted) - 1)
+    near = np.minimum(np.abs(shifted[i] - t_est), np.abs(shifted[i - 1] - t_est))
+    # 1 us, and the rounding of the times (epoch seconds), as the rows are matched
+    close = TIME_MATCH + 8 * np.spacing(np.maximum(np.abs(t_est), abs(float(t_truth[0]))))
+    if np.mean(near <= close) >= WARN_MATCHED:
+        return (
+            f"; the estimate's times are the truth's {seconds_text(offset, '+')} s (a clock that "
+            f"did not start at 0?): {shift_option} {shift} compares them"
+        )
+    if t_truth[-1] < t_est[0] or t_truth[0] > t_est[-1]:  # no time in common at all
+        return (
+            f"; the truth's t runs from {time_text(float(t_truth[0]))} to "
+            f"{time_text(float(t_truth[-1]))} s, the estimate's from "
+            f"{time_text(float(t_est[0]))} to {time_text(float(t_est[-1]))} s: if the two "
+            f"recordings started together, {shift_option} {shift} compares them"
+        )
+    return ""
