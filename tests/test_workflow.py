@@ -825,7 +825,8 @@ def test_figures_of_a_long_robot_description_keep_their_titles_whole() -> None:
 
 def test_a_status_has_one_colour_in_every_estimate_figure() -> None:
     """The status strip colours each status alike in every file, whichever other
-    statuses the file has (``uncertain`` beside ``ok`` alone, or beside ``reset``)."""
+    statuses the file has (``uncertain`` beside ``ok`` alone, or beside ``reset``), and
+    no two statuses alike."""
     from continuum_mhe.evaluation import plotting
     from continuum_mhe.evaluation.estimate_figure import estimate_figure
     from continuum_mhe.io.state_tables import StateTable
@@ -842,6 +843,12 @@ def test_a_status_has_one_colour_in_every_estimate_figure() -> None:
         colours.append(next(ln for ln in strip.get_lines() if ln.get_ydata()[0] == row).get_color())
         plotting.close(fig)
     assert colours[0] == colours[1]
+    from matplotlib.colors import to_hex
+
+    from continuum_mhe.evaluation.estimate_figure import status_color
+    from continuum_mhe.results import Status
+
+    assert len({to_hex(status_color(s)) for s in Status}) == len(Status)  # none alike
 
 
 def test_a_hanging_robot_is_drawn_turned_over_not_mirrored(tmp_path: Path) -> None:

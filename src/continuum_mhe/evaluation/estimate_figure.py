@@ -424,7 +424,11 @@ def _force_panel(ax: plt.Axes, est: StateTable, truth: StateTable | None) -> Non
 
 #: the colours of the statuses other than ok (green), in :class:`Status`'s order: each
 #: status has the same colour in every figure, whichever others its file has
-_STATUS_COLORS = ("C3", "C1", "C4", "C5", "C6", "C7", "C8", "C9", "C0")
+#: one colour a status other than ``ok`` (green), none of them alike
+_STATUS_COLORS = (
+    "tab:red", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:gray",
+    "tab:olive", "tab:cyan", "tab:blue", "black", "gold", "navy",
+)  # fmt: skip
 
 
 def status_color(status: Status) -> str:
