@@ -3593,3 +3593,22 @@ def test_formulation_options_of_no_number_are_one_user_error_naming_them() -> No
         replace(tendon, force_accel_psd="1.0")
     assert np.array_equal(simulate("paper3d", duration=1.0, seed=np.int64(3)).z,
                           simulate("paper3d", duration=1.0, seed=3).z)  # fmt: skip
+
+
+def test_a_start_prior_wider_than_the_robots_reach_is_taken_as_its_reach() -> None:
+    """``initial_bend_std`` 100 rad, wider than any bend the robot can make: every
+    estimator starts (the unscented filter's sigma points no longer wrap the angles and
+    give no estimate at all), from a prior of the bend bound's width; one whose square no
+    float holds is refused naming it."""
+    from continuum_mhe import NoiseSettings, make_formulation, simulate
+    from continuum_mhe.errors import UserError
+
+    rec = simulate("paper3d", duration=3.0, seed=1)
+    f = make_formulation("bend", None, NoiseSettings(initial_bend_std=100.0))
+    _, P = f.start_prior(rec.z[0])
+    np.testing.assert_allclose(np.sqrt(np.diag(P))[:2], f.robot.sections[0].theta_max)
+    for method in ("ekf", "ukf", "mhe"):
+        series = make_estimator(method, f).run(rec.t, rec.z)
+        assert np.mean(series.status == "ok") > 0.9, (method, series.diagnostics)
+    with pytest.raises(UserError, match=r"^initial_bend_std 1e\+300 is too large"):
+        NoiseSettings(initial_bend_std=1e300)

@@ -470,8 +470,13 @@ class Formulation:
         reading ``z0``, before its update with that reading: :meth:`initial_state` and
         :meth:`initial_cov`, with the sensor states' values and covariance ``kept`` by
         a restart (:meth:`kept_sensors`) in place of theirs (a formulation whose prior
-        depends on what the reading shows overrides this)."""
+        depends on what the reading shows overrides this). A prior wider than a state's
+        range (:meth:`range_std`: a bend's ``theta_max``) is taken as that range: it says
+        no more, and an unscented filter's sigma points would wrap the angles."""
         x, P = self.initial_state(z0), self.initial_cov()
+        std, reach = np.sqrt(np.diag(P)), self.range_std()
+        scale = np.where(std > reach, reach / np.where(std > 0, std, 1.0), 1.0)
+        P = P * np.outer(scale, scale)
         if kept is not None:
             x[kept.states] = kept.values
         return x, self.with_kept_covariance(P, kept)

@@ -115,6 +115,8 @@ class NoiseSettings:
             check_positive(name, getattr(self, name))
         for name in ("initial_bend_std", "initial_rate_std"):
             value = getattr(self, name)
+            if not value * value < math.inf:  # a variance no float holds
+                raise UserError(f"{name} {value!r} is too large: its square is no float")
             if value < MIN_PRIOR_STD:
                 raise UserError(
                     f"{name} {value!r} is below {MIN_PRIOR_STD:g}: a start held that "
