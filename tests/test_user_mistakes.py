@@ -3597,9 +3597,9 @@ def test_formulation_options_of_no_number_are_one_user_error_naming_them() -> No
 
 def test_a_start_prior_wider_than_the_robots_reach_is_taken_as_its_reach() -> None:
     """``initial_bend_std`` 100 rad, wider than any bend the robot can make: every
-    estimator starts (the unscented filter's sigma points no longer wrap the angles and
-    give no estimate at all), from a prior of the bend bound's width; one whose square no
-    float holds is refused naming it."""
+    estimator starts from a prior of the bend bound's width (so the unscented filter's
+    sigma points do not wrap the angles); one whose square no float holds is refused
+    naming it."""
     from continuum_mhe import NoiseSettings, make_formulation, simulate
     from continuum_mhe.errors import UserError
 
