@@ -3095,17 +3095,20 @@ def test_more_library_mistakes_are_one_line_user_errors(tmp_path) -> None:
 
 
 def test_a_tension_stream_refuses_what_is_no_tension_in_one_line() -> None:
-    """TensionStream refuses 0, -1 or 2.5 tendons, and a string for a time or for the
-    tensions (not a failure inside numpy): each a UserError; a sample of numbers is
-    taken."""
+    """TensionStream refuses 0, -1 or 2.5 tendons, a string for a time or for the
+    tensions, bools and infinite tensions (not a failure inside numpy, nor NaN rates):
+    each a UserError; a sample of numbers is taken."""
     from continuum_mhe.io.tensions import TensionStream
 
     for n in (0, -1, 2.5):
         with pytest.raises(UserError, match="n_tendons must be a positive integer"):
             TensionStream(n_tendons=n)  # type: ignore[arg-type]
     stream = TensionStream(n_tendons=2)
-    with pytest.raises(UserError, match="tensions that are not numbers"):
-        stream.push(0.05, "abc")  # type: ignore[arg-type]
+    for text in ("abc", ["1", "2"], [True, False]):  # text, even of numbers; bools
+        with pytest.raises(UserError, match="tensions that are not numbers"):
+            stream.push(0.05, text)  # type: ignore[arg-type]
+    with pytest.raises(UserError, match=r"tension_2 = inf: give NaN for a tension that is missing"):
+        stream.push(0.05, [1.0, np.inf])
     with pytest.raises(UserError, match="a sample's time must be a number of seconds"):
         stream.push("0.07", [1.0, 2.0])  # type: ignore[arg-type]
     assert stream.push(0.1, [1.0, 2.0]) == []  # (its derivatives need two more)

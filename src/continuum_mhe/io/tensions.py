@@ -778,11 +778,19 @@ class TensionStream:
             )
         try:
             v = np.asarray(values, dtype=float)
+            if np.asarray(values).dtype.kind not in "iuf":  # text, bools: not newtons
+                raise TypeError
         except (TypeError, ValueError):
             raise UserError(
                 f"{self.name}: a sample at t = {time_text(t)} s has tensions that are not numbers: "
                 f"{values!r:.60}"
             ) from None
+        if np.isinf(v).any():
+            j = int(np.flatnonzero(np.isinf(v))[0])
+            raise UserError(
+                f"{self.name}: a sample at t = {time_text(t)} s has tension_{j + 1} = {v[j]:g}: "
+                "give NaN for a tension that is missing"
+            )
         if self.n_tendons is None and v.ndim == 1:
             self.n_tendons = v.size
         if v.shape != (self.n_tendons,):
