@@ -3615,3 +3615,19 @@ def test_a_start_prior_wider_than_the_robots_reach_is_taken_as_its_reach() -> No
         assert np.mean(series.status == "ok") > 0.9, (method, series.diagnostics)
     with pytest.raises(UserError, match=r"^initial_bend_std 1e\+300 is too large"):
         NoiseSettings(initial_bend_std=1e300)
+
+
+def test_step_refuses_what_run_refuses_and_run_names_a_ragged_list() -> None:
+    """``step`` with readings given as bools or text is refused as ``run`` refuses them
+    (not estimated from 1.0 and 0.0 rad), and ``run`` given rows of different lengths
+    says so in a UserError (not numpy's inhomogeneous-shape ValueError)."""
+    from continuum_mhe import Measurement, make_formulation, simulate
+    from continuum_mhe.errors import UserError
+
+    est = make_estimator("ekf", make_formulation("bend"))
+    for z in ([True, False], ["0.1", "0.2"]):
+        with pytest.raises(UserError, match="measurement z must be numbers"):
+            est.step(Measurement(0.0, z))
+    rec = simulate("paper3d", duration=1.0)
+    with pytest.raises(UserError, match=r"^z must be an array .*its rows differ in length"):
+        est.run(rec.t[:3], [[0.1, 0.1], [0.1], [0.1, 0.1]])

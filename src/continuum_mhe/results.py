@@ -152,6 +152,12 @@ class Measurement:
         object.__setattr__(self, "t", real_number("measurement t", self.t))
         if np.iscomplexobj(self.z):  # numpy would drop the imaginary part
             raise UserError(f"measurement z must be real numbers, got complex {self.z!r:.60}")
+        try:  # numpy would read True as 1 and "0.1" as 0.1, as run() does not
+            text = np.asarray(masked_as_missing(self.z)).dtype.kind in "bSU"
+        except ValueError:
+            text = False  # (a ragged list: said below)
+        if text:
+            raise UserError(f"measurement z must be numbers, got {self.z!r:.60}")
         try:
             z = np.asarray(masked_as_missing(self.z), dtype=float)
         except (TypeError, ValueError):

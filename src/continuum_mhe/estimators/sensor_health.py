@@ -833,7 +833,12 @@ class Estimator(Generic[InferenceT]):
         if t is None:
             raise UserError("t is None: give the sample times, an array (n,) of seconds")
         for name, values in (("t", t), ("z", z)):  # numpy would read True as 1, "0.1" as 0.1
-            kind = np.asarray(values).dtype.kind
+            try:
+                kind = np.asarray(values).dtype.kind
+            except ValueError:  # rows of different lengths (a ragged list)
+                raise UserError(
+                    f"{name} must be an array (t (n,) s, z (n, {nz})): its rows differ in length"
+                ) from None
             if kind in "bSU":
                 raise UserError(
                     "t and z must be arrays of numbers (t (n,) s, z (n, m)); "
