@@ -3631,3 +3631,23 @@ def test_step_refuses_what_run_refuses_and_run_names_a_ragged_list() -> None:
     rec = simulate("paper3d", duration=1.0)
     with pytest.raises(UserError, match=r"^z must be an array .*its rows differ in length"):
         est.run(rec.t[:3], [[0.1, 0.1], [0.1], [0.1, 0.1]])
+
+
+def test_a_method_array_is_refused_and_robot_settings_write_as_a_robot_file(tmp_path) -> None:
+    """``make_estimator`` given an array of method names (a loop's mistake) is one
+    UserError naming the methods, not numpy's ambiguous truth value; ``write_robot``
+    takes a one-section ``RobotSettings`` as ``make_formulation`` does, and the file
+    reads back as that robot."""
+    from continuum_mhe import RobotSettings, make_formulation
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io import read_robot, write_robot
+    from continuum_mhe.model.formulations import as_robot
+
+    with pytest.raises(UserError, match=r"^method must be one of"):
+        make_estimator(np.array(["ekf", "ukf"]), make_formulation("bend"))  # type: ignore[arg-type]
+    assert type(make_estimator(np.array(["ekf", "ukf"])[0], make_formulation("bend"))).__name__ == (
+        "ExtendedKalmanFilter"
+    )
+    settings = RobotSettings(length=0.3, mounting="z-down")
+    write_robot(tmp_path / "one.toml", settings)
+    assert read_robot(tmp_path / "one.toml") == as_robot(settings)

@@ -72,7 +72,7 @@ def make_estimator(
             "make_estimator takes the method first: make_estimator('mhe', formulation) "
             f"(one of {', '.join(METHODS)}), got a formulation as the method"
         )
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:  # (an array: no truth value)
         raise UserError(f"method must be one of {METHODS}, got {method!r:.60}")
     expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
     expect_type("mhe", mhe, (MHESettings, type(None)), "MHESettings or None")

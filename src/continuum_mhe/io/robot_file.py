@@ -83,6 +83,7 @@ from continuum_mhe.model.robot import (
     mount_rpy_hint,
     slips_said,
 )
+from continuum_mhe.model.settings import RobotSettings
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -640,14 +641,17 @@ def robot_toml(robot: Robot) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_robot(path: str | os.PathLike[str], robot: Robot) -> None:
-    """Write ``robot`` (read from a file or built in code) as the robot file ``path``
-    (:func:`robot_toml`), for the commands that take ``--robot FILE`` (``evaluate``,
-    ``view``, ``estimate``). The file is written whole or not at all."""
+def write_robot(path: str | os.PathLike[str], robot: Robot | RobotSettings) -> None:
+    """Write ``robot`` (read from a file or built in code; a one-section
+    :class:`RobotSettings` too) as the robot file ``path`` (:func:`robot_toml`), for the
+    commands that take ``--robot FILE`` (``evaluate``, ``view``, ``estimate``). The file
+    is written whole or not at all."""
     from continuum_mhe.io.output_files import atomic_writer
+    from continuum_mhe.model.formulations import as_robot
 
+    text = robot_toml(as_robot(robot))
     with atomic_writer(path) as fh:
-        fh.write(robot_toml(robot))
+        fh.write(text)
 
 
 def robot_source_text(name: str | None, robot: Robot) -> str:
