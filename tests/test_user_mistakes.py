@@ -3651,3 +3651,20 @@ def test_a_method_array_is_refused_and_robot_settings_write_as_a_robot_file(tmp_
     settings = RobotSettings(length=0.3, mounting="z-down")
     write_robot(tmp_path / "one.toml", settings)
     assert read_robot(tmp_path / "one.toml") == as_robot(settings)
+
+
+def test_an_estimate_series_built_by_hand_is_checked_in_user_errors() -> None:
+    """An ``EstimateSeries`` made in code with outputs of the wrong shape or a status
+    that is none of the statuses: one UserError naming it (not a ValueError, or a
+    KeyError when its statuses are counted); outputs given as a list are taken."""
+    from continuum_mhe import EstimateSeries
+    from continuum_mhe.errors import UserError
+
+    t, ok = np.arange(3.0), np.tile([0.01, 0.02, 0.19, 0.1, 0.5], (3, 1))
+    status = np.array(["ok"] * 3)
+    with pytest.raises(UserError, match=r"^output has shape \(3, 3\), expected \(3, 5\)"):
+        EstimateSeries("ekf", t, ok[:, :3], status, np.zeros(3))
+    with pytest.raises(UserError, match=r"^status 'bogus' is not one of ok, "):
+        EstimateSeries("ekf", t, ok, np.array(["bogus"] * 3), np.zeros(3))
+    series = EstimateSeries("ekf", t, ok.tolist(), status, np.zeros(3))  # type: ignore[arg-type]
+    assert [str(s.value) for s in series.statuses()] == ["ok"] * 3

@@ -356,20 +356,27 @@ class EstimateSeries:
         if status.dtype.kind == "U":
             status = status.astype(np.result_type(status.dtype, f"<U{STATUS_WIDTH}"))
         object.__setattr__(self, "status", status)
+        known = {s.value for s in Status}
+        unknown = sorted({str(v) for v in np.unique(status)} - known)
+        if unknown:
+            raise UserError(
+                f"status {unknown[0]!r} is not one of {', '.join(s.value for s in Status)}"
+            )
         if self.outlier is not None and np.shape(self.outlier) != (len(self.t),):
-            raise ValueError(
+            raise UserError(
                 f"outlier has shape {np.shape(self.outlier)}, expected ({len(self.t)},)"
             )
         shape = (len(self.t), len(self.outputs))
-        if self.output.ndim != 2 or self.output.shape != shape:
-            raise ValueError(
-                f"output has shape {self.output.shape}, expected ({len(self.t)}, "
+        if np.shape(self.output) != shape:
+            raise UserError(
+                f"output has shape {np.shape(self.output)}, expected ({len(self.t)}, "
                 f"{len(self.outputs)}) for columns {', '.join(o.name for o in self.outputs)}"
             )
+        object.__setattr__(self, "output", np.asarray(self.output, dtype=float))
         if self.output_std is None:
             object.__setattr__(self, "output_std", np.full(shape, np.nan))
         elif np.shape(self.output_std) != shape:
-            raise ValueError(f"output_std has shape {np.shape(self.output_std)}, expected {shape}")
+            raise UserError(f"output_std has shape {np.shape(self.output_std)}, expected {shape}")
 
     @property
     def std(self) -> FloatArray:
