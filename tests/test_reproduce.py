@@ -977,6 +977,34 @@ def test_a_run_of_one_part_into_the_folder_of_another_keeps_its_record(
     assert again["earlier_runs"] == [paper_run]
 
 
+def test_a_failed_run_of_another_part_leaves_the_earlier_runs_record(
+    quick_trials: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--only beyond`` into the folder of a paper run that fails while drawing (no
+    data of the paper run replaced): its new files are removed and the paper run's
+    manifest and report are there as they were."""
+    from continuum_mhe.evaluation import plotting
+    from continuum_mhe.reproduce import pipeline
+
+    def fail(*args: Any, **kw: Any) -> list[Path]:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(plotting, "save", fail)
+    monkeypatch.setattr(ex, "QUICK", SMALL)
+    one = [s for s in ex.plan_beyond_trials(SMALL) if s.seed == 110_000]
+    monkeypatch.setattr(pipeline, "plan_beyond_trials", lambda cfg: one)
+    out = tmp_path / "r"
+    out.mkdir()
+    record = {"manifest.json": '{"command": "continuum-mhe reproduce --only paper", '
+                               '"parts": ["paper"]}', "report.md": "the paper run\n",
+              "exp1_synthetic3d.json": "{}"}  # fmt: skip
+    for name, text in record.items():
+        (out / name).write_text(text)
+    args = ["reproduce", "--quick", "--only", "beyond", "--out", str(out), "--jobs", "1"]
+    assert main(args) == 2
+    assert {p.name: p.read_text() for p in out.iterdir()} == record
+
+
 def test_earlier_runs_keep_only_those_whose_data_stay(tmp_path: Path) -> None:
     """A run of every part, then ``--only beyond``, then ``--only paper``: the first
     run's data are all replaced, so only the beyond run is kept beside the paper run;

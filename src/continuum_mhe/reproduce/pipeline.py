@@ -322,6 +322,9 @@ def reproduce(
     # earlier run it replaced (--overwrite) keep their new content: the manifest, which
     # would record this run as made, is removed then, so that the folder claims no run
     replacing = (folder / "manifest.json").is_file()
+    before = set(folder.iterdir()) if folder.is_dir() else set()
+    record = ("manifest.json", "report.md")  # the earlier run's, kept where its data stay
+    kept = {n: (folder / n).read_bytes() for n in record if (folder / n).is_file()}
     try:
         with new_files(folder) as written:
             for name, d in data.items():
@@ -334,10 +337,15 @@ def reproduce(
             render_all(loaded, folder, written)
             written.append(write_report(loaded, folder))
     except BaseException:
-        if replacing:
+        # the new files are removed (new_files); where a data file of the earlier run was
+        # replaced, its manifest and report describe data partly not there: removed;
+        # else the earlier run's record is put back as it was
+        if replacing and any(p in before for p in written if p.name not in record):
             (folder / "manifest.json").unlink(missing_ok=True)
-            # the earlier run's report describes data that may now be partly replaced
-            if folder / "report.md" not in written:
+            if folder / "report.md" not in written:  # (one written here is of this data)
                 (folder / "report.md").unlink(missing_ok=True)
+        else:
+            for name, content in kept.items():
+                (folder / name).write_bytes(content)
         raise
     return written
