@@ -246,7 +246,8 @@ def test_a_firmware_capture_across_a_millis_wrap_reads_on(tmp_path: Path) -> Non
     """A capture whose ``t_ms`` wraps (``millis()`` after 2^32 ms, 49.7 days) is read as
     ``live`` takes it, the time going on past 2^32 ms: the same times, in the block
     reader and row by row (a comment among the rows), as a capture whose clock goes on;
-    a step back that is no wrap is refused as before."""
+    a step back that is no wrap, and one stamp that jumps alone into the wrap's last
+    minute, are refused."""
     wrap = 2**32
     ms = wrap - 60 + 20 * np.arange(8)  # the wrap between the third and fourth sample
     rows = [f"{m % wrap},0.1,-0.04,9.81,0.001,0.002,0.003" for m in ms]
@@ -258,6 +259,12 @@ def test_a_firmware_capture_across_a_millis_wrap_reads_on(tmp_path: Path) -> Non
     back = [f"{m},0.1,-0.04,9.81,0.001,0.002,0.003" for m in (5000, 5020, 4000, 4020)]
     path.write_text(head + "\n".join(back) + "\n")
     with pytest.raises(InputError, match="line 4: decreasing timestamp"):
+        read_raw_imu(path)
+    # one t_ms that jumps alone to the wrap's last minute (-1 as a uint32, a corrupted
+    # stamp) is no wrap: the row after it is refused, naming the jump
+    ahead = [f"{m},0.1,-0.04,9.81,0.001,0.002,0.003" for m in (1000, 1020, wrap - 1, 1060)]
+    path.write_text(head + "\n".join(ahead) + "\n")
+    with pytest.raises(InputError, match="line 5: decreasing timestamp.*jumps ahead"):
         read_raw_imu(path)
 
 

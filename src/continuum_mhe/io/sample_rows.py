@@ -378,8 +378,15 @@ class _SampleChecks:
                 bad(line, f"{shown[0]} is {row[idx[0]]}", dropped=True)
                 continue
             last_ms = self.last_t / scale - self.wraps * MILLIS_WRAP  # as the board counts
-            if t <= self.last_t and scale == 1e-3 and millis_wrapped(last_ms, raw_t):
-                # millis() wrapped (every 49.7 days): the time goes on, as live takes it
+            before_ms = self.before_last_t / scale - self.wraps * MILLIS_WRAP
+            if (
+                t <= self.last_t
+                and scale == 1e-3
+                and millis_wrapped(last_ms, raw_t)
+                and before_ms >= MILLIS_WRAP - WRAP_WINDOW_MS  # the counter got there itself
+            ):
+                # millis() wrapped (every 49.7 days): the time goes on, as live takes it;
+                # not after one t that jumped there alone (a corrupted stamp, -1 as uint32)
                 self.wraps += 1
                 t = (raw_t + self.wraps * MILLIS_WRAP) * scale
             if t <= self.last_t and self._retracted_jump(t):
