@@ -551,3 +551,21 @@ def test_a_row_written_twice_a_hair_apart_keeps_the_rates_around_it(second: str)
     assert_allclose(both.rates[others], alone.rates, rtol=0, atol=1e-12)
     assert_allclose(both.accelerations[others], alone.accelerations, rtol=0, atol=1e-9)
     assert_allclose(both.rates[at + 1], alone.rates[at], rtol=0, atol=1e-3)
+
+
+def test_a_file_of_every_row_written_twice_keeps_its_rates() -> None:
+    """Every row of the shipped tensions written again 1 us later, 1 mN off (more than
+    half the steps a microsecond: their median one): the rates and second derivatives
+    are those of the file written once, not zero."""
+    from continuum_mhe.arrays import typical_step
+
+    d = np.loadtxt(DATA / "force-29_tensions.csv", delimiter=",", skiprows=1)[:200]
+    t, values = d[:, 0], d[:, 1:]
+    t2 = np.sort(np.concatenate([t, t + 1e-6]))
+    v2 = np.repeat(values, 2, axis=0)
+    v2[1::2] += 1e-3  # each copy 1 mN off (a load cell read twice): no held log
+    assert typical_step(t2) == pytest.approx(0.02 - 1e-6, rel=1e-9)
+    alone, both = tension_derivatives(t, values), tension_derivatives(t2, v2)
+    # (the last rows: the file's last row is the copy, 1 us later, and is kept)
+    assert_allclose(both.rates[:-4:2], alone.rates[:-2], rtol=0, atol=1e-9)
+    assert_allclose(both.accelerations[:-6:2], alone.accelerations[:-3], rtol=0, atol=1e-6)

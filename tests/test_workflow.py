@@ -1034,3 +1034,15 @@ def test_plot_and_view_name_the_shift_that_lines_up_a_truth_on_another_clock(
         assert main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].endswith(option), err
+
+
+def test_a_figures_lines_break_at_gaps_not_within_bursts() -> None:
+    """Rows stamped in bursts of three 1 us apart every 50 ms (a logger's bursts): no
+    break inside the recording; a 1 s hole in it: one break there."""
+    from continuum_mhe.evaluation.estimate_figure import broken
+
+    t = (np.arange(40)[:, None] * 0.05 + np.array([0.0, 1e-6, 2e-6])).ravel()
+    assert not np.isnan(broken(t, np.ones_like(t))[1]).any()
+    holed = np.concatenate([t[:60], t[60:] + 1.0])
+    _, y = broken(holed, np.ones_like(holed))
+    assert np.isnan(y).sum() == 1

@@ -14,3 +14,17 @@ def contiguous_f64(a: object) -> FloatArray:
     """``a`` as a C-contiguous float64 array (no copy when it is one already): the
     compiled core's argument type."""
     return np.ascontiguousarray(a, dtype=np.float64)
+
+
+#: Steps of a time axis shorter than this (s) are rows written twice or a logger's
+#: burst, not its period (:func:`typical_step`).
+BURST_STEP_S = 1e-4
+
+
+def typical_step(t: FloatArray) -> float:
+    """The median step (s) of the increasing times ``t`` (n >= 2), of the steps of at
+    least :data:`BURST_STEP_S` where there are such: rows written twice, or stamped in
+    bursts a microsecond apart, do not make the period look like a microsecond."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    longer = steps[steps >= BURST_STEP_S]
+    return float(np.median(longer if len(longer) else steps))

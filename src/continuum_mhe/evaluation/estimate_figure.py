@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import FloatArray, typical_step
 from continuum_mhe.errors import UserError
 from continuum_mhe.evaluation.metrics import INTERPOLATE_GAP, Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, hang, plt
@@ -215,14 +215,15 @@ def _limit_to_lines(ax: plt.Axes, lines: Sequence[np.ndarray]) -> None:
 
 def broken(t: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:
     """``t`` and each of ``ys`` with a NaN inserted in each step of ``t`` wider than
-    :data:`~continuum_mhe.evaluation.metrics.INTERPOLATE_GAP` of its median step (rows
+    :data:`~continuum_mhe.evaluation.metrics.INTERPOLATE_GAP` of its typical step
+    (:func:`~continuum_mhe.arrays.typical_step`; rows
     missing: a gap of the recording, or of the truth), so that a line breaks there
     instead of joining its two sides."""
     t = np.asarray(t, dtype=float)
     if len(t) < 3:
         return (t, *ys)
     steps = np.diff(t)
-    gaps = np.flatnonzero(steps > INTERPOLATE_GAP * float(np.median(steps)))
+    gaps = np.flatnonzero(steps > INTERPOLATE_GAP * typical_step(t))
     if not len(gaps):
         return (t, *ys)
     at = gaps + 1
@@ -292,20 +293,14 @@ def truth_at_rows(
     est: StateTable, truth: StateTable, i_est: IndexArray, rows: FloatArray, interpolated: bool
 ) -> StateTable | None:
     """``truth`` interpolated at ``est``'s times (the table of its values there, with a
-    NaN row in each gap of those rows wider than
-    :data:`~continuum_mhe.evaluation.metrics.INTERPOLATE_GAP` of their median
-    step: a gap of the truth is drawn as one), where
+    NaN row in each gap of those rows, as :func:`broken` finds them: a gap of the truth
+    is drawn as one), where
     ``evaluate`` would compare it so, from their alignment ``(i_est, rows,
     interpolated)`` (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`'s result);
     else None (the truth as it is)."""
     if not interpolated or len(i_est) < 2:
         return None
-    t = est.t[i_est]
-    steps = np.diff(t)
-    gaps = np.flatnonzero(steps > INTERPOLATE_GAP * float(np.median(steps)))
-    # a NaN row in each gap of the rows compared: the line breaks there
-    t = np.insert(t, gaps + 1, t[gaps] + 0.5 * steps[gaps])
-    values = np.insert(rows, gaps + 1, np.nan, axis=0)
+    t, values = broken(est.t[i_est], rows)  # a NaN row in each gap: the line breaks there
     return StateTable(t, truth.names, values, np.full(len(values), "ok"))
 
 

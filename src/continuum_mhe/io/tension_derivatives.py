@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import FloatArray, typical_step
 
 #: The tensions' derivatives are taken on rows at least about this far apart (s; the
 #: IMUs' 50 Hz): a faster file is averaged into bins of this length first
@@ -252,7 +252,8 @@ def line_knots(t: FloatArray, values: FloatArray) -> NDArray[np.bool_]:
 
 def apart_knots(t: FloatArray, knots: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """``knots`` (n,) bool, rows of ``t`` (n,) s, without each knot that follows the
-    knot kept before it by less than :data:`NEAR_ROW_SHARE` of the knots' median step.
+    knot kept before it by less than :data:`NEAR_ROW_SHARE` of the knots' typical step
+    (:func:`~continuum_mhe.arrays.typical_step`: every row written twice included).
     A central difference on uneven steps leans on the shorter step in proportion to the
     longer one's share: across a row written twice 1 us after the first, it is that
     microsecond's difference, zero or a load cell's noise over a microsecond. The rows
@@ -261,7 +262,7 @@ def apart_knots(t: FloatArray, knots: NDArray[np.bool_]) -> NDArray[np.bool_]:
     at = np.flatnonzero(knots)
     if len(at) < 3:
         return knots
-    near = NEAR_ROW_SHARE * float(np.median(np.diff(t[at])))
+    near = NEAR_ROW_SHARE * typical_step(t[at])
     chosen = [int(at[0])]
     for i in at[1:]:
         if t[i] - t[chosen[-1]] >= near:
