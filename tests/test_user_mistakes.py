@@ -1645,9 +1645,8 @@ def test_an_estimate_series_that_does_not_fit_is_refused(tmp_path) -> None:
     glued = dataclasses.replace(s, t=np.concatenate([s.t[:50], s.t[:51]]))
     with pytest.raises(UserError, match="strictly increasing"):
         write_estimates(out, glued)
-    odd = dataclasses.replace(s, status=np.array(["fine"] * len(s.t)))
-    with pytest.raises(UserError, match="status 'fine' is not one of"):
-        write_estimates(out, odd)
+    with pytest.raises(UserError, match="status 'fine' is not one of"):  # refused when made
+        dataclasses.replace(s, status=np.array(["fine"] * len(s.t)))
     assert not out.exists()
     write_estimates(out, s)
     assert len(read_state_table(out).t) == len(s.t)
