@@ -257,7 +257,7 @@ const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
     const auto [start, size] = s_.imu_blocks[k];
     const double* zb = z + start;
     double* last = freeze_value_.data() + start;
-    const bool gap = t - freeze_last_t_[k] > gap_step;
+    const bool gap = longer(t - freeze_last_t_[k], gap_step, t);
     freeze_last_t_[k] = t;
     bool same = has_freeze_value_[k] != 0;
     const double* tol = s_.freeze_tolerance.data() + start;
@@ -273,7 +273,7 @@ const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
     }
     ++freeze_count_[k];
     // both: two equal readings with a long gap between them are not a freeze
-    if (freeze_count_[k] >= s_.freeze_samples && t - freeze_since_[k] > freeze) {
+    if (freeze_count_[k] >= s_.freeze_samples && longer(t - freeze_since_[k], freeze, t)) {
       if (!copied) {
         std::copy(z, z + s_.nz, z_.begin());
         copied = true;
@@ -642,7 +642,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // second: their return is a gap sooner
     if (whole_missing_ > 0 && !other_missing_ && !std::isnan(s_.whole_gap_reset))
       gap_reset = gap_reset || (-INFINITY < last_valid_t_ &&
-                                last_valid_t_ < t - s_.whole_gap_reset);
+                                longer(t - last_valid_t_, s_.whole_gap_reset, t));
     whole_missing_ = 0;
     other_missing_ = false;
     last_valid_t_ = t;

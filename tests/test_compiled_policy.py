@@ -546,3 +546,25 @@ def test_the_time_windows_do_not_depend_on_where_the_clock_starts(method: str) -
         d0, d1 = runs[0].diagnostics, runs[1].diagnostics
         assert (d0.gap_resets, d0.frozen_samples) == (d1.gap_resets, d1.frozen_samples)
     assert d0.gap_resets == 0 and "uncertain" in list(runs[0].status)
+
+
+def test_a_freeze_of_exactly_its_limit_is_judged_alike_on_any_clock() -> None:
+    """Readings repeated for 0.3 to 0.4 s against a freeze limit of 0.3 or 0.35 s (steps
+    of exactly the limit): the same frozen samples on times from 0, from 1000 s and on
+    Unix-epoch seconds, the limit compared with the times' own rounding allowed."""
+    from continuum_mhe.simulation.scenarios import simulate
+
+    rec = simulate("paper3d", duration=10.0, seed=1)
+    z = rec.z.copy()
+    for k in range(8):
+        z[20 + 25 * k : 27 + 25 * k + k % 3] = z[20 + 25 * k]
+    for freeze in (0.3, 0.35):
+        frozen = [
+            make_estimator(
+                "ekf", make_formulation("bend"), recovery=RecoverySettings(freeze=freeze)
+            )
+            .run(rec.t + base, z)
+            .diagnostics.frozen_samples
+            for base in (0.0, 1000.0, 1.7e9)
+        ]
+        assert frozen[0] == frozen[1] == frozen[2] > 0, (freeze, frozen)
