@@ -5,6 +5,7 @@ recording evaluated as shipped."""
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import re
 import sys
@@ -1029,8 +1030,12 @@ def test_plot_and_view_name_the_shift_that_lines_up_a_truth_on_another_clock(
     later.write_text("\n".join([lines[0], *shifted]) + "\n")
     capsys.readouterr()
     figure = ["plot", str(est), "--truth", str(later), "-o", str(tmp_path / "f.png")]
-    option = "--truth-shift 100 compares them"
-    for argv in (figure, ["evaluate", str(est), str(later)]):
+    view = ["view", str(est), "--truth", str(later), "--save", str(tmp_path / "v.rrd")]
+    option = "--truth-shift 100 compares them"  # (view's names evaluate's option)
+    runs = [figure, ["evaluate", str(est), str(later)]]
+    if importlib.util.find_spec("rerun") is not None:
+        runs.append(view)
+    for argv in runs:
         assert main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].endswith(option), err
