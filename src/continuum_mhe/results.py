@@ -152,14 +152,11 @@ class Measurement:
         object.__setattr__(self, "t", real_number("measurement t", self.t))
         if np.iscomplexobj(self.z):  # numpy would drop the imaginary part
             raise UserError(f"measurement z must be real numbers, got complex {self.z!r:.60}")
-        try:  # numpy would read True as 1 and "0.1" as 0.1, as run() does not
-            text = np.asarray(masked_as_missing(self.z)).dtype.kind in "bSU"
-        except ValueError:
-            text = False  # (a ragged list: said below)
-        if text:
-            raise UserError(f"measurement z must be numbers, got {self.z!r:.60}")
-        try:
-            z = np.asarray(masked_as_missing(self.z), dtype=float)
+        try:  # numpy would read True as 1 and "0.1" as 0.1, which run() refuses
+            given = np.asarray(masked_as_missing(self.z))
+            if given.dtype.kind in "bSU":
+                raise TypeError
+            z = given.astype(float)
         except (TypeError, ValueError):
             raise UserError(f"measurement z must be numbers, got {self.z!r:.60}") from None
         object.__setattr__(self, "z", z)

@@ -15,12 +15,12 @@ from scipy.spatial.transform import Rotation
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
     SHIFT_MAX_S,
-    TIME_MATCH,
     FrameRotation,
     aligned_truth,
     best_rotation,
     best_time_shift,
     length_misfit,
+    match_rows,
     truth_sparser,
 )
 from continuum_mhe.io.position_units import tip_direction_problem
@@ -398,12 +398,8 @@ def offset_hint(
         return ""
     total = given_shift - offset  # the truth read at t + total lines the times up
     shift = "0 (leave --truth-shift out)" if abs(total) < 1e-9 else seconds_text(total)
-    shifted = t_truth + offset
-    i = np.searchsorted(shifted, t_est).clip(1, len(shifted) - 1)
-    near = np.minimum(np.abs(shifted[i] - t_est), np.abs(shifted[i - 1] - t_est))
-    # 1 us, and the rounding of the times (epoch seconds), as the rows are matched
-    close = TIME_MATCH + 8 * np.spacing(np.maximum(np.abs(t_est), abs(float(t_truth[0]))))
-    if np.mean(near <= close) >= WARN_MATCHED:
+    matched = len(match_rows(t_est, t_truth + offset)[0])  # as evaluate matches rows
+    if matched >= WARN_MATCHED * len(t_est):
         return (
             f"; the estimate's times are the truth's {seconds_text(offset, '+')} s (a clock that "
             f"did not start at 0?): {shift_option} {shift} compares them"

@@ -777,9 +777,10 @@ class TensionStream:
                 "increase)"
             )
         try:
-            v = np.asarray(values, dtype=float)
-            if np.asarray(values).dtype.kind not in "iuf":  # text, bools: not newtons
+            raw = np.asarray(values)
+            if raw.dtype.kind not in "iuf":  # text, bools: not newtons
                 raise TypeError
+            v = raw.astype(float)
         except (TypeError, ValueError):
             raise UserError(
                 f"{self.name}: a sample at t = {time_text(t)} s has tensions that are not numbers: "
