@@ -293,3 +293,38 @@ def test_where_the_readings_cannot_tell_the_branch_the_window_answer_is_its_mini
     assert from_truth.converged
     assert_allclose(from_truth.X[-1, :4], answer[-1, :4], atol=1e-6)
     assert window_cost(inf._fast, problem, x[-n:]) > window_cost(inf._fast, problem, answer) + 10
+
+
+def test_the_ekf_and_prior_candidates_equal_the_casadi_filters_steps() -> None:
+    """The EKF and propagated-prior starts, made on the compiled node, against the same
+    filter written on the formulation's CasADi functions (``ekf_update`` then
+    ``ekf_predict`` from the projected state) on a sliding window of a moving robot with
+    a dropout: the same trajectories to rounding."""
+    from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
+
+    f = make_formulation("bend", TWO)
+    rec = simulate_robot("spatial", TWO, duration=1.5, seed=3)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=N, branch_check=True))
+    for i in range(len(rec.t)):
+        est.step(Measurement(float(rec.t[i]), rec.z[i]))
+    est.inference._set_prior(WRONG.copy(), np.eye(f.nx) * 0.1**2)
+    p = est.inference.window_problem()
+    p = type(p)(**{**vars(p), "zmask": p.zmask.copy()})
+    p.zmask[4, :2] = 0.0  # IMU 1 dropped out on one node
+    check = est.inference.branch
+    assert check is not None
+    x, P, R = p.xbar.copy(), np.linalg.inv(p.arrival[0]), f.meas_cov()
+    expected = np.empty((N, f.nx))
+    for i in range(N):
+        x, P = ekf_update(f, x, P, p.z[i], R, p.zmask[i])
+        expected[i] = f.project(x)
+        if i < N - 1:
+            x, P = ekf_predict(f.functions, expected[i], P, p.u[i], float(p.dt[i]))
+    ekf = check._ekf_window(p)
+    assert_allclose(ekf, expected, rtol=0, atol=1e-12)
+    assert np.abs(ekf - p.xbar).max() > 0.1  # the readings moved it far from the prior
+    prior = [p.xbar]
+    for i in range(N - 1):
+        xn = np.asarray(f.functions.transition(prior[-1], p.u[i], p.dt[i]), float).ravel()
+        prior.append(f.project(xn))
+    assert_allclose(check._propagate_prior(p), np.array(prior), rtol=0, atol=1e-12)

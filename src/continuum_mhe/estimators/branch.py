@@ -45,7 +45,9 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.base import Status
 from continuum_mhe.estimators.chi2 import chi2_quantile
-from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
+from continuum_mhe.estimators.fast.model import NodeEvaluator, node_functions
+from continuum_mhe.estimators.kalman import joseph_update
+from continuum_mhe.estimators.process_noise import process_noise
 from continuum_mhe.model.formulations import Formulation
 
 if TYPE_CHECKING:
@@ -123,6 +125,8 @@ class BranchCheck:
         self._rinv = np.linalg.inv(formulation.meas_cov())
         self.stats = BranchStats()
         self._inverse: dict[bytes, FloatArray] = {}  # tilt inverse per sample, by its z
+        self._node: NodeEvaluator | None = None  # the model's node in the compiled core
+        self._process_noise: dict[float, FloatArray] = {}  # Q(dt) by dt
         self._zero_weights: tuple[FloatArray, FloatArray] | None = None
         #: the first test of :meth:`check` (a quadratic loss; None otherwise): a certified
         #: window whose twice window cost is at most entry ``dof`` (its valid measurement
@@ -207,30 +211,52 @@ class BranchCheck:
             x = self._inverse[key] = self.formulation.initial_state(z)
         return x
 
+    def _node_model(self) -> NodeEvaluator:
+        """The formulation's node (transition, residual and their Jacobians) evaluated in
+        the compiled core, built when a check first fires."""
+        if self._node is None:
+            self._node = NodeEvaluator(node_functions(self.formulation))
+        return self._node
+
+    def _q(self, dt: float) -> FloatArray:
+        """The process noise ``Q(dt)`` (nx, nx), remembered for the last few time steps."""
+        Q = self._process_noise.get(dt)
+        if Q is None:
+            if len(self._process_noise) >= 8:
+                del self._process_noise[next(iter(self._process_noise))]
+            Q = self._process_noise[dt] = process_noise(self.formulation, dt)[0]
+        return Q
+
     def _propagate_prior(self, p: WindowProblem) -> FloatArray:
-        f, n = self.formulation, self.horizon
-        fn = f.functions.transition
+        f, n, node = self.formulation, self.horizon, self._node_model()
         X = np.empty((n, f.nx))
         X[0] = p.xbar
         for i in range(n - 1):
-            xn = np.asarray(fn(X[i], p.u[i], p.dt[i]), float).ravel()
-            X[i + 1] = f.project(xn)
+            X[i + 1] = f.project(node.evaluate(X[i], p.u[i], float(p.dt[i]))[0])
         return X
 
     def _ekf_window(self, p: WindowProblem) -> FloatArray:
-        f, n = self.formulation, self.horizon
+        """The EKF (update, then prediction from the projected state) over the window from
+        the arrival prior's node, each node's model evaluated in the compiled core."""
+        f, n, node = self.formulation, self.horizon, self._node_model()
         arrival, zmask = p.arrival, p.zmask
         off = int(np.flatnonzero(np.abs(arrival).sum(axis=(1, 2)) > 0)[-1])  # prior node
         x = np.array(p.xbar, dtype=float)
         P = np.linalg.inv(arrival[off])
         R = f.meas_cov()
+        ones, still = np.ones(f.nz), np.zeros(f.nu)
         X = np.tile(x, (n, 1))
         for i in range(off, n):
             if zmask[i].any():
-                x, P = ekf_update(f, x, P, p.z[i], R, zmask[i])
+                # (the transition's terms of this evaluation are not used: any step)
+                z = np.where(np.isfinite(p.z[i]), p.z[i], 0.0)
+                _, _, H, r = node.evaluate(x, still, 1.0, z, ones)
+                x, P = joseph_update(x, P, r, H, R, zmask[i])
             X[i] = f.project(x)
             if i < n - 1:
-                x, P = ekf_predict(f.functions, X[i], P, p.u[i], float(p.dt[i]))
+                dt = float(p.dt[i])
+                x, F, _, _ = node.evaluate(X[i], p.u[i], dt)
+                P = F @ P @ F.T + self._q(dt)
         return X
 
     # --- keep the best ----------------------------------------------------------------
