@@ -3632,6 +3632,34 @@ def test_step_refuses_what_run_refuses_and_run_names_a_ragged_list() -> None:
         est.run(rec.t[:3], [[0.1, 0.1], [0.1], [0.1, 0.1]])
 
 
+def test_readings_that_mix_bools_with_numbers_are_refused_as_bools_are() -> None:
+    """A bool among numbers (``[True, 0.1]``, which numpy reads as ``[1.0, 0.1]``) is
+    refused by ``step``, ``run``, ``continue_run`` and ``TensionStream.push`` with the
+    UserError that readings of bools alone get, not estimated from 1.0."""
+    from continuum_mhe import Measurement, make_formulation, simulate
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.tensions import TensionStream
+
+    est = make_estimator("ekf", make_formulation("bend"))
+    for z in ([True, False], [True, 0.1], np.array([0.1, np.True_], dtype=object)):
+        with pytest.raises(UserError, match=r"^measurement z must be numbers, got"):
+            est.step(Measurement(0.0, z))
+    rec = simulate("paper3d", duration=0.5)
+    said = "t and z must be arrays of numbers (t (n,) s, z (n, m)); z holds bool values"
+    for z in (rec.z > 0, [[True, *row[1:]] for row in rec.z.tolist()]):
+        for call in (est.run, est.continue_run):
+            with pytest.raises(UserError, match=re.escape(said)):
+                call(rec.t, z)
+    t_said = said.replace("z holds", "t holds")
+    with pytest.raises(UserError, match=re.escape(t_said)):
+        est.run([True, *rec.t[1:].tolist()], rec.z)
+    stream = TensionStream(n_tendons=2)
+    for tensions in ([True, False], [True, 1.0]):
+        with pytest.raises(UserError, match="tensions that are not numbers"):
+            stream.push(0.05, tensions)  # type: ignore[arg-type]
+    assert stream.push(0.05, [1.0, 2.0]) == []  # numbers alone are taken
+
+
 def test_a_method_array_is_refused_and_robot_settings_write_as_a_robot_file(tmp_path) -> None:
     """``make_estimator`` given an array of method names (a loop's mistake) is one
     UserError naming the methods, not numpy's ambiguous truth value; ``write_robot``

@@ -16,6 +16,26 @@ def contiguous_f64(a: object) -> FloatArray:
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
+def holds_bools(values: object) -> bool:
+    """Whether ``values`` (a number, a nested sequence, an array) holds a bool, Python's
+    or numpy's: numpy reads True beside numbers as 1.0 (``[True, 0.1]`` becomes a float
+    array), so a reading given as a bool would pass for the number 1."""
+    if isinstance(values, np.ndarray):
+        kinds = {values.dtype.kind}
+    else:
+        dtypes = getattr(values, "dtypes", None)  # a pandas Series's, a DataFrame's columns'
+        if dtypes is None:  # a list, a tuple, a number: its items are looked at
+            kinds = {"O"}
+        else:
+            each = dtypes if hasattr(dtypes, "__iter__") else [dtypes]
+            kinds = {getattr(d, "kind", "O") for d in each}
+    if "b" in kinds:
+        return True
+    if "O" not in kinds:
+        return False
+    return any(isinstance(v, (bool, np.bool_)) for v in np.asarray(values, dtype=object).flat)
+
+
 #: Steps of a time axis shorter than this (s) are rows written twice or a logger's
 #: burst, not its period (:func:`typical_step`).
 BURST_STEP_S = 1e-4

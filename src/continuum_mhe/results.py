@@ -16,7 +16,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import FloatArray, holds_bools
 from continuum_mhe.errors import UserError, masked_as_missing, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 
@@ -154,7 +154,7 @@ class Measurement:
             raise UserError(f"measurement z must be real numbers, got complex {self.z!r:.60}")
         try:  # numpy would read True as 1 and "0.1" as 0.1, which run() refuses
             given = np.asarray(masked_as_missing(self.z))
-            if given.dtype.kind in "bSU":
+            if given.dtype.kind in "SU" or holds_bools(self.z):
                 raise TypeError
             z = given.astype(float)
         except (TypeError, ValueError):

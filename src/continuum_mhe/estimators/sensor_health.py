@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from continuum_mhe import _core
-from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import FloatArray, holds_bools
 from continuum_mhe.errors import (
     SampleTimeError,
     UnobservableShapeWarning,
@@ -839,11 +839,13 @@ class Estimator(Generic[InferenceT]):
                 raise UserError(
                     f"{name} must be an array (t (n,) s, z (n, {nz})): its rows differ in length"
                 ) from None
-            if kind in "bSU":
+            bools = holds_bools(values)  # all bools, or bools among numbers
+            if bools or kind in "SU":
+                held = (
+                    "bool values (True, False)" if bools else f"{np.asarray(values).dtype} values"
+                )
                 raise UserError(
-                    "t and z must be arrays of numbers (t (n,) s, z (n, m)); "
-                    f"{name} holds {np.asarray(values).dtype} values"
-                    f"{' (True, False)' if kind == 'b' else ''}"
+                    f"t and z must be arrays of numbers (t (n,) s, z (n, m)); {name} holds {held}"
                 )
         if np.iscomplexobj(t) or np.iscomplexobj(z):  # numpy would drop the imaginary part
             raise UserError(

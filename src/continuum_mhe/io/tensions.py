@@ -38,7 +38,7 @@ from typing import Literal
 
 import numpy as np
 
-from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import FloatArray, holds_bools
 from continuum_mhe.errors import (
     InputError,
     SampleTimeError,
@@ -778,7 +778,7 @@ class TensionStream:
             )
         try:
             raw = np.asarray(values)
-            if raw.dtype.kind not in "iuf":  # text, bools: not newtons
+            if raw.dtype.kind not in "iuf" or holds_bools(values):  # text, bools: not newtons
                 raise TypeError
             v = raw.astype(float)
         except (TypeError, ValueError):
