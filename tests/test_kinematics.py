@@ -645,6 +645,27 @@ def test_the_kinematics_helpers_refuse_a_negative_length_shapes_apart_and_degree
     assert backbone_points((0.15, 0.15), [3.2, 0.1], [0.0, 0.0], [0.1]).shape == (1, 3)
 
 
+def test_backbone_points_refuses_section_lengths_that_are_no_lengths() -> None:
+    """``backbone_points`` given a negative, zero or non-finite section length, or one
+    as text or a bool, refuses it in a UserError naming it (not a mirrored backbone, a
+    backbone of the length ``float("0.2")`` reads, or an IndexError from inside), and
+    theta, phi or s given as text the same; a straight 0.2 m section's tip is at
+    (0, 0, 0.2) m."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.pcc import backbone_points
+
+    for lengths, k in (([-0.2], 0), (["0.2"], 0), ([0.1, -0.1], 1), ([True], 0), ([0.0], 0)):
+        said = rf"^backbone_points: robot\[{k}\], a section length, must be a positive finite"
+        with pytest.raises(UserError, match=said):
+            backbone_points(lengths, [0.3] * len(lengths), [0.1] * len(lengths), [0.0])
+    with pytest.raises(UserError, match=r"^backbone_points: robot must be a Robot or a sequence"):
+        backbone_points("0.2", 0.3, 0.1, [0.0])  # type: ignore[arg-type]
+    for args, name in ((("0.3", 0.1, [0.1]), "theta"), ((0.3, 0.1, ["0.1"]), "s")):
+        with pytest.raises(UserError, match=rf"^backbone_points: {name} must be numbers"):
+            backbone_points([0.2], *args)
+    assert_allclose(backbone_points([0.2], 0.0, 0.0, [0.2]), [[0.0, 0.0, 0.2]], atol=1e-15)
+
+
 def test_pose_at_names_the_sections_it_has() -> None:
     """``section`` counts from 0; one beyond the robot (the 1-based count a user may
     try) is a ValueError naming the range, not an IndexError from inside."""

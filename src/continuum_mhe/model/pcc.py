@@ -19,15 +19,15 @@ compiled from the same expressions.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from functools import cache, lru_cache
 
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import UserError
+from continuum_mhe.arrays import FloatArray, holds_bools
+from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.imu import Mounting, _up_sign, gravity_direction_bend_sym
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym, tip_position_bend_sym
 from continuum_mhe.model.robot import Robot
@@ -167,6 +167,33 @@ def arc_places(lengths: Sequence[float], s: ArrayLike) -> tuple[tuple[int, float
     return tuple(places)
 
 
+def _section_lengths(robot: object) -> tuple[float, ...]:
+    """The section lengths (m) of ``robot`` (a :class:`Robot`, or a sequence of lengths)
+    for :func:`backbone_points`, or a :class:`UserError` naming the argument: each
+    length must be a positive finite number."""
+    if isinstance(robot, Robot):
+        return tuple(float(v) for v in robot.lengths)
+    if (
+        not isinstance(robot, Iterable)
+        or isinstance(robot, (str, bytes))
+        or getattr(robot, "ndim", 1) == 0  # a numpy scalar array is not a sequence
+    ):
+        raise UserError(
+            "backbone_points: robot must be a Robot or a sequence of section lengths (m), "
+            f"got {robot!r:.60}"
+        )
+    lengths = list(robot)
+    if not lengths:
+        raise UserError("backbone_points: robot has no section lengths: give one a section (m)")
+    for k, v in enumerate(lengths):
+        if not (is_real(v) and math.isfinite(v) and v > 0):
+            raise UserError(
+                f"backbone_points: robot[{k}], a section length, must be a positive finite "
+                f"number (m), got {v!r}"
+            )
+    return tuple(float(v) for v in lengths)
+
+
 def backbone_points(
     robot: Robot | Sequence[float], theta: ArrayLike, phi: ArrayLike, s: ArrayLike
 ) -> FloatArray:
@@ -178,8 +205,14 @@ def backbone_points(
 
     Returns (..., len(s), 3) in metres, in the robot's base frame (z along the straight
     robot). ``s = robot.length`` is the tip; a section boundary is that section's end.
+    A section length that is not a positive finite number, and ``theta``, ``phi`` or
+    ``s`` given as text or bools, are a :class:`~continuum_mhe.errors.UserError` naming
+    the argument.
     """
-    lengths = tuple(float(v) for v in (robot.lengths if isinstance(robot, Robot) else robot))
+    lengths = _section_lengths(robot)
+    for name, values in (("theta", theta), ("phi", phi), ("s", s)):
+        if np.asarray(values).dtype.kind in "SUO" or holds_bools(values):
+            raise UserError(f"backbone_points: {name} must be numbers, got {values!r:.60}")
     th = np.asarray(theta, dtype=float)
     ph = np.asarray(phi, dtype=float)
     n = len(lengths)
