@@ -1736,6 +1736,39 @@ def test_times_that_are_not_seconds_are_user_errors() -> None:
                 est.run(rec.t * scale, rec.z)
 
 
+def test_step_and_continue_run_refuse_the_times_run_refuses() -> None:
+    """Times 50 ns apart (``t`` in a unit far below seconds), which ``run`` refuses, are
+    refused by ``continue_run`` and by ``step`` from the
+    fourth sample (three steps judged), each with run's message naming the method, and
+    again at every later sample until ``reset()``; times in seconds step on."""
+    from continuum_mhe import Measurement, make_formulation, simulate
+    from continuum_mhe.estimators.reading_units import ReadingUnitsError
+
+    rec = simulate("paper3d", duration=0.5)
+    t = rec.t * 1e-6  # 5e-8 s a sample
+    said = (
+        "t advances by a median of 5e-08 s per sample (2e+07 samples per second): "
+        "t must be in seconds"
+    )
+    est = make_estimator("ekf", make_formulation("bend"))
+    with pytest.raises(ReadingUnitsError, match=re.escape(f"run: {said}")):
+        est.run(t, rec.z)
+    est.reset()
+    with pytest.raises(ReadingUnitsError, match=re.escape(f"continue_run: {said}")):
+        est.continue_run(t, rec.z)
+    with pytest.raises(ReadingUnitsError, match=re.escape(f"continue_run: {said}")):
+        est.step(Measurement(t[0], rec.z[0]))  # again, until a reset
+    est.reset()
+    for i in range(3):
+        assert est.step(Measurement(t[i], rec.z[i])).t == t[i]
+    for i in (3, 4):
+        with pytest.raises(ReadingUnitsError, match=re.escape(f"step: {said}")):
+            est.step(Measurement(t[i], rec.z[i]))
+    est.reset()
+    assert est.step(Measurement(rec.t[0], rec.z[0])).t == rec.t[0]
+    assert len(est.continue_run(rec.t[1:], rec.z[1:]).status) == len(rec.t) - 1
+
+
 def test_write_measurements_refuses_what_read_measurements_would(tmp_path) -> None:
     """An infinite reading (written empty: read back as a dropout), names given as one
     string (its letters became the columns) and no samples (a header alone): each a

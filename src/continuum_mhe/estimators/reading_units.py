@@ -87,7 +87,8 @@ def direct_units_problem(
 
 
 class ReadingUnitsError(UserError):
-    """Raw readings in the wrong units (an accelerometer in m/s^2, a gyro in deg/s),
+    """Raw readings in the wrong units (an accelerometer in m/s^2, a gyro in deg/s), or
+    sample times in a unit other than seconds (stepping faster than any IMU stream),
     found by an estimator's step: every later reading of the stream is wrong alike."""
 
 

@@ -311,6 +311,9 @@ class Estimator(Generic[InferenceT]):
         self._units = ReadingUnitsWatch(self._direct_rows)
         #: the unit of the times that step and continue_run hand over
         self._time_steps = TimeStepWatch()
+        #: run's refusal of times that step faster than any IMU stream, once step or
+        #: continue_run found it (raised for every later sample until a reset)
+        self._too_fast: str | None = None
         #: the robot's mounting against the first readings that step and continue_run
         #: hand over (run checks its whole recording); a command line sets its own,
         #: whose messages name its input and its options
@@ -464,6 +467,7 @@ class Estimator(Generic[InferenceT]):
             self._slack_said = False
             self._units.reset()
             self._time_steps.reset()
+            self._too_fast = None
             self.mounting_watch.reset()
         keep = keep_counts if keep_sensors is None else keep_sensors
         self._policy.reset(keep_counts, keep_counts and keep)
@@ -551,7 +555,12 @@ class Estimator(Generic[InferenceT]):
                 :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SAMPLES` over at least a
                 second: the samples before are estimated; ``run`` checks the whole
                 recording; both a :class:`~.reading_units.ReadingUnitsError`, raised
-                again for every later sample until a reset), or
+                again for every later sample until a reset), times whose first three
+                steps after a reset have a median under
+                :data:`~continuum_mhe.model.formulations.MIN_NOISE_STEP_S` (not
+                seconds: ``run`` refuses a recording whose median step is; a
+                ``ReadingUnitsError`` too, at the fourth sample and every later one
+                until a reset), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
             ~continuum_mhe.io.input_options.MountingError: at the
@@ -573,6 +582,7 @@ class Estimator(Generic[InferenceT]):
                 f"formulation, got {np.shape(measurement.z)}"
             )
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
+        self._refuse_too_fast(np.array([t], dtype=float), "step")
         if self._tension_rows:
             z = self._check_tensions(z[None, :], np.array([t], dtype=float), stacklevel=3)[0]
         if not self._units.done:
@@ -730,11 +740,9 @@ class Estimator(Generic[InferenceT]):
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
         )
-        if len(t) >= 3 and 0 < (step := float(np.median(np.diff(t)))) < MIN_NOISE_STEP_S:
-            raise UserError(  # no IMU stream is this fast: a unit, not a rate
-                f"run: t advances by a median of {step:g} s per sample ({1 / step:.3g} "
-                "samples per second): t must be in seconds"
-            )
+        too_fast = too_fast_problem("run", t)
+        if too_fast is not None:
+            raise ReadingUnitsError(too_fast)
         self._check_units(t, z)
         # the first readings against the robot's mounting, as a recording's reader checks
         # them (where it has not: load_input's): a robot described the wrong way up fits
@@ -887,8 +895,10 @@ class Estimator(Generic[InferenceT]):
         before any sample of the call is stepped (and for readings in the wrong units,
         checked as :meth:`step` checks them unless ``check_units`` is False (a caller
         that checked them itself), before any sample of the call; unless it is False,
-        sample times that step like milliseconds are warned of as :meth:`step` warns),
-        and one for arrays whose shapes do not fit (as :meth:`run`), a ``block`` that
+        sample times that step like milliseconds are warned of as :meth:`step` warns,
+        and times that step faster than any IMU stream are refused as :meth:`step`
+        refuses them), and one for arrays whose shapes do not fit (as :meth:`run`), a
+        ``block`` that
         is not a positive integer, or ``starts`` that skip, repeat or leave out
         samples. The first readings since a reset are checked against the robot's
         mounting as :meth:`step` checks them, unless ``check_mounting_start`` is False
@@ -898,6 +908,8 @@ class Estimator(Generic[InferenceT]):
         the call returns the samples stepped so far (a shorter batch; the next call goes
         on from there)."""
         t, z = self._samples(t, z)
+        if check_units:
+            self._refuse_too_fast(t, "continue_run")
         if block is not None and not (is_integer(block) and block >= 1):
             raise UserError(f"continue_run: block must be a positive integer, got {block!r}")
         if starts is not None and block is None:
@@ -923,6 +935,20 @@ class Estimator(Generic[InferenceT]):
             _check_starts(starts, len(t), size)  # (an iterator, a progress display's, as stepped)
         starts = range(0, len(t), size) if starts is None else starts
         return self._step_blocks(t, z, starts, size, should_stop)
+
+    def _refuse_too_fast(self, t: FloatArray, what: str) -> None:
+        """The :class:`~.reading_units.ReadingUnitsError` of :meth:`run` for times that
+        step faster than any IMU stream (:func:`too_fast_problem`), judged on the first
+        :data:`~continuum_mhe.io.csv_files.TimeStepWatch.WATCHED_STEPS` steps handed
+        over since a reset (``what``: the method called), before the samples ``t`` are
+        stepped; raised again for every later sample until a reset (a new
+        recording)."""
+        if self._too_fast is None and not self._time_steps.done:
+            times = self._time_steps.ahead(t)
+            if len(times) > TimeStepWatch.WATCHED_STEPS:
+                self._too_fast = too_fast_problem(what, np.asarray(times))
+        if self._too_fast is not None:
+            raise ReadingUnitsError(self._too_fast)
 
     def _warn_time_unit(self, t: FloatArray, what: str) -> None:
         """A :class:`~continuum_mhe.io.csv_files.UnitWarning` (``what: ...``, the method
@@ -991,6 +1017,19 @@ class Estimator(Generic[InferenceT]):
                 return batch.head(i + stop)
         _check_covered(done, n)
         return batch
+
+
+def too_fast_problem(what: str, t: FloatArray) -> str | None:
+    """The one-line refusal (``what: t advances by a median of ...``) of sample times
+    ``t`` (s, increasing, at least 3) whose median step is below
+    :data:`~continuum_mhe.model.formulations.MIN_NOISE_STEP_S`: no IMU stream is that
+    fast, so the times are in a unit other than seconds; None where they are not."""
+    if len(t) >= 3 and 0 < (step := float(np.median(np.diff(t)))) < MIN_NOISE_STEP_S:
+        return (
+            f"{what}: t advances by a median of {step:g} s per sample ({1 / step:.3g} "
+            "samples per second): t must be in seconds"
+        )
+    return None
 
 
 def _next_block(i: object, done: int, n: int, size: int) -> int:
