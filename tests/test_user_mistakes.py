@@ -1791,6 +1791,50 @@ def test_write_measurements_refuses_what_read_measurements_would(tmp_path) -> No
         assert not out.exists()
 
 
+def test_the_writers_refuse_times_their_readers_would_not_read_back(tmp_path) -> None:
+    """Times written as one (1e15 + 0.25 k in ten significant digits: each ``1e+15``;
+    1000.25 and 1000.2500001 s, to the microsecond: both ``1000.25``), which
+    ``read_state_table`` refused as a time that does not increase, are refused by
+    ``write_estimates``, ``write_truth``, ``write_measurements`` and the block writer
+    that ``estimate`` uses (across two blocks too), naming the file and the row, and
+    nothing is written; times of 0 and 1e300 s, and 1e14 + 0.25 k s, read back exactly."""
+    from dataclasses import replace
+
+    from continuum_mhe import make_formulation, simulate
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io import read_state_table, write_measurements, write_truth
+    from continuum_mhe.io.estimate_csv import estimate_lines, write_estimates
+
+    rec = simulate("paper3d", duration=0.25)
+    series = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    n = len(rec.t)
+    out = tmp_path / "e.csv"
+    big = 1e15 + 0.25 * np.arange(n)
+    hair = 1000.0 + rec.t
+    hair[3] = hair[2] + 1e-7  # 1000.1000001 s, written 1000.1
+    for t, said in (
+        (big, "row 2: t = 1000000000000000.2 s is written 1e+15, not after the row before's 1e+15"),
+        (hair, "row 4: t = 1000.1000001 s is written 1000.1, not after the row before's 1000.1"),
+    ):
+        for write, args in (
+            (write_estimates, (replace(series, t=t),)),
+            (write_truth, (t, rec.truth, rec.outputs)),
+            (write_measurements, (t, rec.z, rec.measurement_names)),
+            (estimate_lines, (t, series.output, series.std, None, series.status, series.solve_ms)),
+        ):
+            with pytest.raises(UserError, match=re.escape(f"{out}: {said}")):
+                write(out, *args)  # type: ignore[operator]
+            assert not out.exists()
+    with pytest.raises(UserError, match=re.escape(f"{out}: row 1: t = 1000.1000001 s is written")):
+        estimate_lines(  # the block after one that ended at 1000.1 s
+            out, hair[3:], series.output[3:], series.std[3:], None, list(series.status[3:]),
+            series.solve_ms[3:], after=hair[2],
+        )  # fmt: skip
+    for t in (np.array([0.0, 1e300]), 1e14 + 0.25 * np.arange(n)):
+        write_estimates(out, replace(series.rows(slice(0, len(t))), t=t))
+        assert read_state_table(out).t.tolist() == t.tolist()
+
+
 def test_benchmark_and_check_robot_sizes_that_cannot_work_are_refused(capsys) -> None:
     """A horizon given twice mixed the two runs' ratios; check-robot --samples 1,000,000
     needed about 13 GB (an internal error under a memory limit): one line each."""

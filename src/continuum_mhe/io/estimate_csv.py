@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, time_text
 from continuum_mhe.io.output_files import atomic_writer
 from continuum_mhe.model.descriptions import (
     OutputSpec,
@@ -61,9 +61,41 @@ def format_time(t: float) -> str:
         raise UserError("refusing to write a non-finite time")
     t += 0.0  # a negative zero as 0
     short = f"{t:.10g}"
-    if abs(float(short) - t) <= 5e-7 or abs(t) >= 1e15:
+    if abs(float(short) - t) <= 5e-7 or abs(t) >= TEN_DIGITS_S:
         return short
     return f"{t:.6f}".rstrip("0").rstrip(".")
+
+
+#: Times further apart than this (s), each below :data:`TEN_DIGITS_S`, are written apart
+#: (:func:`format_time` writes each within half a microsecond).
+_APART_S = 1e-6
+#: From this time on (s), :func:`format_time` writes ten significant digits.
+TEN_DIGITS_S = 1e15
+
+
+def check_written_times(
+    path: str | os.PathLike[str], t: FloatArray, after: float | None = None
+) -> None:
+    """A :class:`UserError` naming ``path`` and the row (from 1) of the first time of
+    ``t`` (s, finite, increasing) that :func:`format_time` writes as one not after the
+    row before's (``after``: the time of the row written before ``t``'s first, by an
+    earlier block): the file's readers refuse a time that does not increase. Raised
+    before anything of ``t`` is written."""
+    t = np.asarray(t, dtype=float)
+    prev = t[:-1] if after is None else np.concatenate([[after], t[:-1]])
+    cur = t[1:] if after is None else t
+    near = (cur - prev <= _APART_S) | (np.maximum(np.abs(prev), np.abs(cur)) >= TEN_DIGITS_S)
+    for j in np.flatnonzero(near):
+        a, b = format_time(float(prev[j])), format_time(float(cur[j]))
+        if float(b) <= float(a):
+            row = int(j) + (1 if after is not None else 2)
+            raise UserError(
+                f"{path}: row {row}: t = {time_text(float(cur[j]))} s is written {b}, not after "
+                f"the row before's {a} (t = {time_text(float(prev[j]))} s), and the file's "
+                "readers refuse a time that does not increase: times are written to the "
+                f"microsecond (ten significant digits from {TEN_DIGITS_S:g} s): leave out a "
+                "sample less than a microsecond after the one before, or give t in seconds"
+            )
 
 
 def write_table(
@@ -167,11 +199,14 @@ def estimate_lines(
     outlier: NDArray[np.bool_] | None,
     status: Sequence[str],
     solve_ms: FloatArray,
+    after: float | None = None,
 ) -> str:
     """The estimate CSV lines of several samples, as :func:`estimate_row` and
     :func:`format_cells` write each (``output``, ``output_std`` (n, ny) NaN where there
     is none; ``outlier`` None: no such column); a non-finite output of an estimate is
-    refused (a bug). Written by the compiled core, each number as ``%.10g``."""
+    refused (a bug), and times written as one not after the row before's
+    (:func:`check_written_times`; ``after``: the time of the row written before these).
+    Written by the compiled core, each number as ``%.10g``."""
     status = list(status)  # str (or Status, a str): numpy's array of them calls __str__
     no_estimate = np.fromiter(map("no-estimate".__eq__, status), dtype=np.bool_, count=len(status))
     estimated = ~np.isnan(output).all(axis=1) & ~no_estimate
@@ -181,6 +216,7 @@ def estimate_lines(
         and np.isfinite(output[estimated]).all()
     ):
         raise UserError(f"refusing to write a non-finite value to {path}")
+    check_written_times(path, t, after)
     flags = None if outlier is None else np.ascontiguousarray(outlier, dtype=np.uint8)
     t, output, output_std, solve_ms = (
         np.ascontiguousarray(a, dtype=np.float64) for a in (t, output, output_std, solve_ms)
@@ -237,6 +273,7 @@ def write_estimates(
             f"{path}: t must be finite and strictly increasing (s): the estimate files' "
             "readers refuse a file whose time does not increase"
         )
+    check_written_times(path, t)
     unknown = sorted({str(v) for v in series.status} - set(STATUS_MEANINGS))
     if unknown:
         raise UserError(f"{path}: status {unknown[0]!r} is not one of {', '.join(STATUS_MEANINGS)}")
@@ -258,6 +295,7 @@ def write_truth(
             f"{path}: t must be finite and strictly increasing (s): read_state_table "
             "refuses a file whose time does not increase"
         )
+    check_written_times(path, t)
     if isinstance(outputs, (str, bytes)) or not all(isinstance(o, OutputSpec) for o in outputs):
         raise UserError(
             f"outputs must be OutputSpecs (a Recording's outputs, or a formulation's), got "
@@ -304,6 +342,7 @@ def write_measurements(
             f"{path}: t must be finite and strictly increasing (s): read_measurements "
             "refuses a file whose time does not increase"
         )
+    check_written_times(path, t)
     if np.isinf(z).any():  # NaN is a dropout, written empty; an infinite value is not one
         i, j = np.argwhere(np.isinf(z))[0]
         raise UserError(f"{path}: row {i + 1}: {names[j]} is infinite (a dropout is NaN)")

@@ -61,6 +61,8 @@ class EstimateSink:
         self._cm: Any = None
         self._write: Callable[[Estimate], None] | None = None
         self._write_rows: Callable[..., None] | None = None  # CSV: a block of rows at once
+        #: the time of the last row a block wrote (the next block's must be written after it)
+        self._last_t: float | None = None
 
     def __enter__(self) -> EstimateSink:
         if self.mcap:
@@ -115,7 +117,13 @@ class EstimateSink:
                 solve_ms: FloatArray,
             ) -> None:
                 flags = outlier if self.outlier else None
-                fh.write(estimate_lines(self.path, t, output, output_std, flags, status, solve_ms))
+                fh.write(
+                    estimate_lines(
+                        self.path, t, output, output_std, flags, status, solve_ms, self._last_t
+                    )
+                )
+                if len(t):
+                    self._last_t = float(t[-1])
 
             self._finish = lambda: None
             self._write = write_csv
