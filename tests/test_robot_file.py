@@ -200,6 +200,25 @@ def test_robot_classes_take_numpy_numbers_and_refuse_bools_and_slips() -> None:
             make()
 
 
+def test_an_imu_at_a_subnormal_fraction_is_refused_where_it_is_given(tmp_path: Path) -> None:
+    """``at = 5e-324`` (a subnormal fraction, in (0, 1] but 1 / at overflows: a raw
+    recording's start failed in scipy's least squares) is refused by ``ImuPlacement``
+    and, naming its line, by the robot file; the smallest normal float is taken."""
+    import sys
+
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.robot import ImuPlacement
+
+    said = "IMU 'at' must be a fraction of the section of at least 2.2250738585072014e-308"
+    for at in (5e-324, 1e-310):
+        with pytest.raises(UserError, match=re.escape(f"{said} (the smallest normal float)")):
+            ImuPlacement(0, at)
+    assert ImuPlacement(0, sys.float_info.min).at == 2.2250738585072014e-308
+    robot = _robot(tmp_path / "r.toml", "section = 1\nat = 5e-324", "section = 2")
+    with pytest.raises(InputError, match=rf"r\.toml: line 7: imu 1: {re.escape(said)}"):
+        read_robot(robot)
+
+
 def test_a_gyro_bias_in_deg_s_warns(tmp_path: Path) -> None:
     """gyro_bias = [0.5, -1.2, 0.8] (deg/s written for rad/s: 69 deg/s read) warns, and
     is read as written; a MEMS gyro's bias in rad/s does not."""

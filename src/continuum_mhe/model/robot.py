@@ -15,6 +15,7 @@ section's base; ``at = 1`` is the section's end.
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 import weakref
 from collections.abc import Sequence
@@ -163,7 +164,9 @@ class ImuPlacement:
     Attributes:
         section: 0-based index of the section it is on (a robot file's ``section = 1``
             is ``section=0`` here).
-        at: fraction of that section's length from its base, in ``(0, 1]``.
+        at: fraction of that section's length from its base, in ``(0, 1]``, at least
+            the smallest normal float (``sys.float_info.min``, 2.2e-308: a subnormal
+            fraction is refused).
         mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X, mapping
             sensor-frame vectors into the local backbone frame: applied to raw readings
             on their way in (``continuum_mhe.io.raw_measurements``, ``load_input``); an
@@ -194,6 +197,12 @@ class ImuPlacement:
         if not (is_real(self.at) and 0 < self.at <= 1):
             raise UserError(
                 f"IMU 'at' must be a number in (0, 1] (a fraction of the section), got {self.at!r}"
+            )
+        if self.at < sys.float_info.min:  # a subnormal: 1 / at overflows to infinity
+            raise UserError(
+                f"IMU 'at' must be a fraction of the section of at least "
+                f"{sys.float_info.min!r} (the smallest normal float), got {self.at!r}: an "
+                "IMU at the base reads nothing of the shape"
             )
         object.__setattr__(self, "at", float(self.at))
         if len(self.mount_rpy) != 3 or not all(
