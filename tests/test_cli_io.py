@@ -1793,6 +1793,31 @@ def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
     assert "--truth-shift needs --truth" in capsys.readouterr().err
 
 
+def test_plot_of_a_recording_with_its_truth_is_refused_in_one_line(tmp_path: Path, capsys) -> None:
+    """``plot`` given a recording with truth columns beside its readings (the rod
+    generator's ``x_true, y_true, z_true``) and no estimate drew that truth as the
+    estimate; it is refused, exit 2, naming the file and its truth columns and pointing
+    to ``estimate`` and ``--truth``, and no figure is written. Given as ``--truth`` of an
+    estimate of it, it is drawn."""
+    from importlib.resources import files
+
+    rod = tmp_path / "rod.csv"
+    lines = (files("continuum_mhe") / "data" / "rod_planar.csv").read_text().splitlines()
+    rod.write_text("\n".join(lines[:41]) + "\n")  # the first 2 s
+    fig = tmp_path / "f.png"
+    assert main(["plot", str(rod), "-o", str(fig)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {rod}: a recording with truth columns (x_true, y_true, "
+        "z_true) but no estimate columns (x, y, z, status): run continuum-mhe estimate "
+        f"{rod} -o EST.csv first, then continuum-mhe plot EST.csv --truth {rod}\n"
+    )
+    assert not fig.exists()
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(rod), "--method", "ekf", "-o", str(est)]) == 0
+    assert main(["plot", str(est), "--truth", str(rod), "-o", str(fig)]) == 0
+    assert fig.exists()
+
+
 def test_evaluate_scores_the_calibration_over_the_rows_compared(tmp_path: Path, capsys) -> None:
     """The calibration is over the rows compared, as the RMSEs are: a no-estimate row and
     a row whose tip truth has a gap are in neither, so that a row of ``tip_far_worst_row``

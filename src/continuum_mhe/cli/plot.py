@@ -113,7 +113,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
 
     if args.truth_shift and not args.truth:
         raise InputError("--truth-shift needs --truth TRUTH.csv: it shifts the truth's times")
-    est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS)
+    est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS, truth_as_estimate=False)
     require_an_estimate(args.source, est)
     truth = read_state_table(args.truth, gaps=True) if args.truth else None
     if truth is not None:

@@ -14,6 +14,7 @@ from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
 from continuum_mhe.io.raw_imu import is_raw_header
 from continuum_mhe.io.state_tables import (
     STATE_HEADER_HINT,
+    TRUE_SUFFIX,
     StateTable,
     read_state_table,
     truth_named,
@@ -27,11 +28,16 @@ def is_mcap(path: str) -> bool:
     return Path(path).suffix.lower() == ".mcap"
 
 
-def read_estimates(path: str, then: str, required: Sequence[str] = ()) -> StateTable:
+def read_estimates(
+    path: str, then: str, required: Sequence[str] = (), truth_as_estimate: bool = True
+) -> StateTable:
     """The estimate CSV or MCAP ``path``, with at least ``required`` columns (a CSV's);
     a measurement CSV (tilt or raw, no tip columns) is a one-line error saying to
     estimate it first and then run ``then`` (``view EST.csv``: the command on the
-    estimates)."""
+    estimates). A recording with its truth beside the measurements (``x_true``...) is
+    read as that truth, unless not ``truth_as_estimate``: then it is a one-line error
+    saying that it holds no estimate columns, to estimate it first or give it as
+    ``--truth`` (``plot``, which would draw the truth as an estimate)."""
     if is_mcap(path):
         return read_estimate_table_mcap(path)
     with open_rows(
@@ -40,7 +46,15 @@ def read_estimates(path: str, then: str, required: Sequence[str] = ()) -> StateT
         header = [h for h in rows.header if h != "t"]  # hold dropouts (empty, nan)
         written = [rows.as_written(h) for h in header]
     # a recording with its truth beside the measurements (x_true...) is read as that truth
-    header = truth_named(header, TIP_COLUMNS)
+    named = truth_named(header, TIP_COLUMNS)
+    if named != header and not truth_as_estimate:
+        truths = [w for h, w in zip(header, written) if h.endswith(TRUE_SUFFIX)]
+        raise InputError(
+            f"{path}: a recording with truth columns ({', '.join(truths)}) but no estimate "
+            f"columns ({', '.join(TIP_COLUMNS)}, status): run continuum-mhe estimate {path} "
+            f"-o EST.csv first, then continuum-mhe {then} --truth {path}"
+        )
+    header = named
     tilt = [tilt_columns(n)[0] for n in (1, 2)]  # roll, roll_1
     if not set(TIP_COLUMNS) <= set(header) and (
         is_raw_header(header) or any(c in header for c in tilt)
