@@ -467,6 +467,33 @@ def test_garbled_lines_are_counted_by_cause_and_not_as_missing_samples(n_imus: i
     assert "(about 10 samples missing)" in gaps[1], gaps
 
 
+def test_a_gap_of_exactly_the_gap_reset_on_an_epoch_clock_is_decided_as_the_policy_does() -> None:
+    """A device clock in Unix milliseconds (t near 1.7e9 s): a gap of exactly
+    ``--gap-reset`` (0.3 s, 1700000000.001 to 1700000000.301 s, which subtract to
+    0.30000019 s) is no long gap to the estimator's policy (no gap reset), and live says
+    ``estimating across it`` (not ``estimator restarts``, restarting the raw IMUs'
+    attitude filters where the estimator goes on); a gap 1 ms longer restarts both."""
+    from continuum_mhe.settings import RecoverySettings
+
+    for gap_ms, resets, how in ((300, 0, "estimating across it"), (301, 1, "estimator restarts")):
+        said: list[str] = []
+        f = make_formulation("bend", Robot.single(), NoiseSettings())
+        est = make_estimator("ekf", f, recovery=RecoverySettings(gap_reset=0.3))
+        s = LiveSession(LiveSettings(port="x", fmt="tilt"), est, None, None, say=said.append)
+        last = 1_700_000_000_001  # ms: the last sample before the gap
+        stamps = [last - 50 * i for i in range(39, -1, -1)]
+        stamps += [last + gap_ms + 50 * i for i in range(40)]
+        now = time.monotonic()
+        for ms in stamps:
+            s.handle_line(f"{ms},0.1,0.1".encode(), now + (ms - stamps[0]) / 1e3)
+        s.finish()
+        assert est.diagnostics.gap_resets == resets
+        t = (last + gap_ms) / 1e3
+        assert [m for m in said if m.startswith("gap of")] == [
+            f"gap of {gap_ms / 1e3:.3f} s before t={t:.3f} s (about 5 samples missing); {how}"
+        ]
+
+
 def test_a_line_held_for_jumping_back_is_settled_when_the_device_comes_back() -> None:
     """A line whose clock jumped back, then the device lost and back: the held line is
     the device's restart, estimated before the lines after the reopen (in time order,

@@ -3,6 +3,8 @@ core's calls take (imports nothing from the package)."""
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -48,3 +50,13 @@ def typical_step(t: FloatArray) -> float:
     steps = np.diff(np.asarray(t, dtype=float))
     longer = steps[steps >= BURST_STEP_S]
     return float(np.median(longer if len(longer) else steps))
+
+
+def longer(span: float, limit: float, t: float) -> bool:
+    """Whether the time ``span`` (s) between two samples, the later at ``t`` (s), is
+    longer than ``limit`` (s) by more than the times' rounding, as the compiled
+    sensor-health policy decides it (``longer`` in ``csrc/sensor_health.cpp``): 1 us (a
+    file's times kept to the microsecond) and a few units in the last place of ``t``
+    (2e-7 s at a Unix time of 1.7e9 s), so that a step of exactly the limit, as the
+    times subtract, is not longer."""
+    return span > limit + 1e-6 + 8.0 * sys.float_info.epsilon * abs(t)

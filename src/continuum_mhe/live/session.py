@@ -14,7 +14,7 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
-from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import FloatArray, longer
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
@@ -841,7 +841,9 @@ class LiveSession:
             restart = True
             assert t_prev is not None  # a restart steps back from a sample
             gap_reset = self.estimator.recovery.gap_reset
-            if not (gap_reset and t - t_prev > gap_reset):  # the recording's gap is too short
+            # the recording's gap too short for the estimator's gap reset (as its policy
+            # decides it, the times' rounding allowed)
+            if not (gap_reset and longer(t - t_prev, gap_reset, t)):
                 self._replay_differs(
                     t,
                     f"the clock restart after {t - t_prev:.3f} s of silence, not a gap longer "
@@ -860,7 +862,9 @@ class LiveSession:
                 c.gaps += 1
                 c.missing += lost
                 gap_reset = self.estimator.recovery.gap_reset
-                long_gap = gap_reset is not None and dt > gap_reset
+                # decided as the estimator's policy decides its gap reset (the times'
+                # rounding allowed), so that the two restart together
+                long_gap = gap_reset is not None and longer(dt, gap_reset, t)
                 how = "estimator restarts" if long_gap else "estimating across it"
                 if long_gap:  # the estimator restarts itself (status reset); so do the
                     for conv in self.converters or ():  # attitude filters of raw IMUs
