@@ -46,6 +46,47 @@ def test_objective_is_left_unscaled_at_20_hz() -> None:
     assert objective_scale_exponent(fast.inference.window_problem(), rinv) >= 3
 
 
+def test_the_solvers_of_every_objective_scale_share_derivatives_equal_to_casadis_own() -> None:
+    """The NLP's derivatives are formed once and given to IPOPT's solver of every
+    objective scale; on a window of a two-section robot with a bend bound active
+    (constraints and bounds), the quadratic and a robust loss, scaled and not, the
+    answers are those of the solver for which CasADi forms the derivatives itself."""
+    import casadi as ca
+
+    from continuum_mhe import Measurement
+    from continuum_mhe.estimators.window_nlp import _window_graph, build_nlp, pack_parameters
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+    robot = Robot((Section(0.16, 3.0), Section(0.14, 0.5)), (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("bend", robot)
+    rec = __import__("continuum_mhe").simulate_robot("spatial", robot, duration=1.0, seed=3)
+    est = make_estimator("mhe", f, MHESettings(horizon=8))
+    for t, z in zip(rec.t, rec.z):
+        est.step(Measurement(float(t), z))
+    problem = est.inference.window_problem()
+    p = pack_parameters(problem)
+    X0 = np.tile(problem.xbar, 8) + 0.05
+    for loss in ("l2", "huber"):
+        graph = _window_graph(f, 8, loss, 1.0)
+        assert set(graph.derivatives) == {"hess_lag", "grad_f", "jac_g"}
+        for scale_exp in (0, 3):
+            nlp = build_nlp(f, 8, 100, 1e-10, loss, 1.0, scale_exp)
+            opts = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                    "ipopt.max_iter": 100, "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-6,
+                    "calc_lam_p": False}  # fmt: skip
+            if scale_exp:
+                opts["ipopt.obj_scaling_factor"] = 10.0**-scale_exp
+            own = ca.nlpsol("own", "ipopt", graph.nlp, opts)
+            bounds = {"lbx": nlp.lbx, "ubx": nlp.ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+            ours = np.asarray(nlp.solver(x0=X0, p=p, **bounds)["x"], dtype=float)
+            theirs = np.asarray(own(x0=X0, p=p, **bounds)["x"], dtype=float)
+            assert nlp.solver.stats()["success"] and own.stats()["success"]
+            np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-12)
+            bend_2 = ours.reshape(8, f.nx)[:, 2:4]
+            assert np.isclose(np.hypot(*bend_2.T).max(), 0.5, atol=1e-6)  # on the bound
+        assert _window_graph(f, 8, loss, 1.0) is graph  # formed once for both scales
+
+
 # --- the paper formulation: rows that are not one shape are flagged ----------------------
 def test_paper_formulation_rows_that_drift_are_flagged() -> None:
     rec = simulate("paper3d", duration=20.0, dt=0.05, seed=0)

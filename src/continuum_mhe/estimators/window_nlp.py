@@ -103,27 +103,23 @@ def objective_scale_exponent(problem: WindowProblem, rinv_max: float) -> int:
     return int(math.ceil(math.log10(w / WEIGHT_REFERENCE)))
 
 
-@lru_cache(maxsize=32)
-def build_nlp(
-    formulation: Formulation,
-    horizon: int,
-    max_iter: int,
-    tol: float,
-    loss: str = "l2",
-    scale: float = float("inf"),
-    scale_exp: int = 0,
-) -> Nlp:
-    """The window NLP (decision variables the ``(nx, N)`` states, column-major; the
-    parameters as :func:`pack_parameters` packs them), solved by IPOPT with ``max_iter``
-    and ``tol``, the objective divided by ``10**scale_exp``.
+@dataclass(frozen=True)
+class _WindowGraph:
+    """The window NLP's expressions and its derivative functions, which every objective
+    scale's IPOPT solver shares (:func:`build_nlp`)."""
 
-    A model whose second derivatives are too large to form symbolically (a shooting
-    model: ``second_order_residuals`` False) keeps each node's residual and transition
-    as one function called per node (CasADi MX), and IPOPT takes the Gauss-Newton
-    Hessian of its cost, a robust loss's included (:func:`_gauss_newton_hessian`;
-    limited-memory BFGS with constraints): expanded over the window with its exact
-    Hessian, such a model needs gigabytes a window. Other models are expanded (SX) with the exact
-    Hessian."""
+    nlp: dict[str, Any]
+    derivatives: dict[str, Any]  # nlpsol's options giving them
+    cost: ca.Function
+    ng: int
+
+
+@lru_cache(maxsize=32)
+def _window_graph(formulation: Formulation, horizon: int, loss: str, scale: float) -> _WindowGraph:
+    """The window NLP of :func:`build_nlp` without IPOPT's options: its expressions, and
+    the derivatives IPOPT calls (the exact Hessian of the Lagrangian, the cost's
+    gradient and the constraints' Jacobian; a per-node model's Gauss-Newton Hessian or
+    none), formed once: forming them is most of the time an NLP takes to build."""
     f, n, nx = formulation, horizon, formulation.nx
     per_node = not f.second_order_residuals
     kind: Any = ca.MX if per_node else ca.SX
@@ -158,7 +154,54 @@ def build_nlp(
         g.append(constraint(X[:, i]))
     w, params, constraints = ca.vec(X), par.vector, ca.vertcat(*g)
     ng = int(constraints.numel())
-    nlp: dict[str, Any] = {"x": w, "p": params, "f": cost, "g": constraints}
+    derivatives: dict[str, Any] = {}
+    if per_node and ng == 0:
+        derivatives["hess_lag"] = _gauss_newton_hessian(f, X, par, rinv, w, params, loss, scale)
+    elif per_node:
+        derivatives["ipopt.hessian_approximation"] = "limited-memory"
+    else:  # the functions nlpsol would form itself, as it forms them
+        sigma, lam_g = ca.SX.sym("lam_f"), ca.SX.sym("lam_g", ng)
+        lagrangian = sigma * cost + ca.dot(lam_g, constraints)
+        derivatives["hess_lag"] = ca.Function(
+            "nlp_hess_l", [w, params, sigma, lam_g], [ca.triu(ca.hessian(lagrangian, w)[0])]
+        )
+        derivatives["grad_f"] = ca.Function("nlp_grad_f", [w, params], [cost, ca.gradient(cost, w)])
+        derivatives["jac_g"] = ca.Function(
+            "nlp_jac_g", [w, params], [constraints, ca.jacobian(constraints, w)]
+        )
+    return _WindowGraph(
+        nlp={"x": w, "p": params, "f": cost, "g": constraints},
+        derivatives=derivatives,
+        cost=ca.Function("cost", [w, params], [cost]),
+        ng=ng,
+    )
+
+
+@lru_cache(maxsize=32)
+def build_nlp(
+    formulation: Formulation,
+    horizon: int,
+    max_iter: int,
+    tol: float,
+    loss: str = "l2",
+    scale: float = float("inf"),
+    scale_exp: int = 0,
+) -> Nlp:
+    """The window NLP (decision variables the ``(nx, N)`` states, column-major; the
+    parameters as :func:`pack_parameters` packs them), solved by IPOPT with ``max_iter``
+    and ``tol``, the objective divided by ``10**scale_exp`` (IPOPT's
+    ``obj_scaling_factor``). The NLP's expressions and derivatives are formed once per
+    formulation, horizon and loss, and shared by the solvers of every scale.
+
+    A model whose second derivatives are too large to form symbolically (a shooting
+    model: ``second_order_residuals`` False) keeps each node's residual and transition
+    as one function called per node (CasADi MX), and IPOPT takes the Gauss-Newton
+    Hessian of its cost, a robust loss's included (:func:`_gauss_newton_hessian`;
+    limited-memory BFGS with constraints): expanded over the window with its exact
+    Hessian, such a model needs gigabytes a window. Other models are expanded (SX) with the exact
+    Hessian."""
+    f, n, nx = formulation, horizon, formulation.nx
+    graph = _window_graph(f, n, loss, scale)
     opts: dict[str, Any] = {
         "print_time": False,
         "show_eval_warnings": False,  # a NaN in an evaluation is a failed solve: flagged
@@ -168,23 +211,21 @@ def build_nlp(
         "ipopt.max_iter": max_iter,
         "ipopt.tol": tol,
         "ipopt.acceptable_tol": 1e-6,
+        **graph.derivatives,
     }
     if scale_exp:
         opts["ipopt.obj_scaling_factor"] = 10.0**-scale_exp
-    if per_node and ng == 0:
-        opts["hess_lag"] = _gauss_newton_hessian(f, X, par, rinv, w, params, loss, scale)
-    elif per_node:
-        opts["ipopt.hessian_approximation"] = "limited-memory"
-    solver = ca.nlpsol("mhe", "ipopt", nlp, opts)
+    solver = ca.nlpsol("mhe", "ipopt", graph.nlp, opts)
     lo, hi = f.state_bounds()
     _, glo, ghi = f.constraint_sym(ca.SX.sym("x", nx))
+    ng = graph.ng
     return Nlp(
         solver=solver,
         lbx=np.tile(lo, n),
         ubx=np.tile(hi, n),
         lbg=np.tile(np.asarray(glo, dtype=float).ravel(), n)[:ng],
         ubg=np.tile(np.asarray(ghi, dtype=float).ravel(), n)[:ng],
-        cost=ca.Function("cost", [w, params], [cost]),
+        cost=graph.cost,
     )
 
 
