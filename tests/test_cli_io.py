@@ -1686,7 +1686,7 @@ def test_a_sparser_motion_capture_is_scored_at_the_rows_nearest_its_samples(
     assert got["n"] == len(near) > 290
     assert got["tip_mean_mm"] == pytest.approx(mean, abs=1e-3)
     # plot draws that truth and its error: no NaN row between its samples
-    from continuum_mhe.evaluation.estimate_figure import truth_at_rows
+    from continuum_mhe.evaluation.estimate_tables import truth_at_rows
     from continuum_mhe.evaluation.metrics import aligned_truth
 
     t_sparse = read_state_table(sparse)
@@ -1766,7 +1766,7 @@ def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
     times holds a NaN row there (the error curve breaks, not a straight line across),
     and ``plot --truth-shift`` compares an offset capture as ``evaluate --truth-shift``
     does (no offset warning)."""
-    from continuum_mhe.evaluation.estimate_figure import truth_at_rows
+    from continuum_mhe.evaluation.estimate_tables import truth_at_rows
     from continuum_mhe.evaluation.metrics import aligned_truth
 
     folder, truth, est = mocap_run

@@ -87,7 +87,7 @@ def two_section_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_lengths_from_an_estimate_are_its_robot_s(two_section_run: Path) -> None:
-    from continuum_mhe.evaluation.estimate_figure import lengths_from_estimate, tracked_points
+    from continuum_mhe.evaluation.estimate_tables import lengths_from_estimate, tracked_points
 
     truth = read_state_table(two_section_run / "t.csv")
     np.testing.assert_allclose(lengths_from_estimate(truth), (0.16, 0.14), rtol=1e-9)
@@ -1044,7 +1044,7 @@ def test_plot_and_view_name_the_shift_that_lines_up_a_truth_on_another_clock(
 def test_a_figures_lines_break_at_gaps_not_within_bursts() -> None:
     """Rows stamped in bursts of three 1 us apart every 50 ms (a logger's bursts): no
     break inside the recording; a 1 s hole in it: one break there."""
-    from continuum_mhe.evaluation.estimate_figure import broken
+    from continuum_mhe.evaluation.estimate_tables import broken
 
     t = (np.arange(40)[:, None] * 0.05 + np.array([0.0, 1e-6, 2e-6])).ravel()
     assert not np.isnan(broken(t, np.ones_like(t))[1]).any()

@@ -34,6 +34,7 @@ from continuum_mhe.cli.truth_checks import (
     truth_frame_warning,
 )
 from continuum_mhe.errors import InputError, time_text
+from continuum_mhe.evaluation.estimate_tables import lengths_misfit
 from continuum_mhe.evaluation.metrics import (
     FAR_STD,
     Calibration,
@@ -304,9 +305,6 @@ def _evaluate(args: argparse.Namespace) -> int:
         if (misfit := length_misfit(table.names, table.values, robot.lengths))
         and not (about_another_origin and path == args.truth)
     ]  # tip errors in % of the length are then of another robot's length
-    # here, not at the top: estimate_figure loads matplotlib
-    from continuum_mhe.evaluation.estimate_figure import lengths_misfit
-
     if not (misfits or other_robot or other_recorded or about_another_origin) and (
         sections := lengths_misfit(truth, robot.lengths)
     ):

@@ -19,7 +19,7 @@ from continuum_mhe.model.descriptions import TIP_COLUMNS
 
 if TYPE_CHECKING:
     from continuum_mhe.arrays import FloatArray
-    from continuum_mhe.evaluation.estimate_figure import BackboneOf
+    from continuum_mhe.evaluation.estimate_tables import BackboneOf
     from continuum_mhe.model.robot import Robot
 
 DESCRIPTION = (
@@ -96,8 +96,8 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         warn_other_recorded_robot,
     )
     from continuum_mhe.cli.truth_checks import refuse_an_estimate_as_truth, truth_beside
-    from continuum_mhe.evaluation.estimate_figure import (
-        estimate_figure,
+    from continuum_mhe.evaluation.estimate_figure import estimate_figure
+    from continuum_mhe.evaluation.estimate_tables import (
         has_tip_force,
         lengths_from_estimate,
         lengths_misfit,
@@ -203,7 +203,7 @@ def _tendon_backbone(
     section ends joined, said in a note) without them."""
     from continuum_mhe.cli.config import recorded_option, recorded_tensions
     from continuum_mhe.cli.robot_options import recorded_robot
-    from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
+    from continuum_mhe.evaluation.estimate_tables import has_tip_force, tendon_backbone
     from continuum_mhe.io.tensions import read_tensions
 
     if not has_tip_force(names):

@@ -10,9 +10,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from continuum_mhe.errors import InputError, time_text
+from continuum_mhe.evaluation.estimate_tables import lengths_misfit, truth_at_rows, truth_problem
 from continuum_mhe.evaluation.metrics import (
     SHIFT_MAX_S,
     FrameRotation,
@@ -188,6 +188,8 @@ def frame_fit_warning(path: str, fit: FrameRotation | None, length: float) -> st
     origin = "; about another origin than the robot's base" if moved else ""
     # a turn about the base's z axis is also what an IMU's wrong yaw makes of the
     # estimate (the bending plane it reads turned with it)
+    from scipy.spatial.transform import Rotation  # (slow to import: here, where needed)
+
     axis = Rotation.from_matrix(fit.matrix).as_rotvec()
     about_z = fit.angle_deg >= TURN_MIN_DEG and abs(axis[2]) >= math.cos(
         math.radians(AXIS_NAMED_DEG)
@@ -316,12 +318,6 @@ def truth_beside(
     tip points away from its own angles (:func:`truth_frame_warning`, on a robot of these
     section ``lengths``), a clock offset (:func:`clock_offset_warning`, which advises
     ``shift_option`` and counts in the ``given_shift`` s the truth was shifted by)."""
-    from continuum_mhe.evaluation.estimate_figure import (
-        lengths_misfit,
-        truth_at_rows,
-        truth_problem,
-    )
-
     i_est, rows, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
     at_est = truth_at_rows(est, truth, i_est, rows, interpolated)
     problem = truth_problem(est, at_est or truth)

@@ -91,7 +91,7 @@ def _refuse_tendon_estimate_on_another_robot(
     ``robot``: the robot as read (else read here, before the robot's own notes, unless
     it comes from a pipe, which is read once). False where it was not checked for that
     reason (the caller checks it with the robot it takes), else True."""
-    from continuum_mhe.evaluation.estimate_figure import has_tip_force
+    from continuum_mhe.evaluation.estimate_tables import has_tip_force
     from continuum_mhe.io.estimate_files import read_estimates
     from continuum_mhe.io.robot_file import read_robot
 
@@ -150,7 +150,7 @@ def _warn_other_drawing(args: argparse.Namespace, robot: Robot) -> None:
     another tensions file than the one its options line names: the drawn backbone then
     misses the estimate's section ends and tip."""
     from continuum_mhe.cli.config import beside, recorded_option
-    from continuum_mhe.evaluation.estimate_figure import lengths_misfit
+    from continuum_mhe.evaluation.estimate_tables import lengths_misfit
     from continuum_mhe.io.estimate_files import read_estimates
 
     try:

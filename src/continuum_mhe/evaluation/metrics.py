@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, real_number
+from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.io.position_units import (
     LENGTH_RATIO_TOLERANCE,
     force_unit_against,
@@ -352,12 +353,10 @@ def nees_band(
     a sample; the band is that of the scaled ``chi2`` with the same mean and variance
     (Satterthwaite): ``dof / nu * chi2(nu)`` with ``nu = dof^2 n / tr(C^2)``, which is
     ``chi2(dof n) / n`` for independent axes."""
-    from scipy.stats import chi2
-
     trace_c2 = float(dof) if corr is None else float(np.sum(np.asarray(corr, float) ** 2))
     nu = dof * dof * n / trace_c2
     a = (1 - level) / 2
-    return float(dof / nu * chi2.ppf(a, nu)), float(dof / nu * chi2.ppf(1 - a, nu))
+    return float(dof / nu * chi2_quantile(a, nu)), float(dof / nu * chi2_quantile(1 - a, nu))
 
 
 def normalised_error_correlation(z: FloatArray) -> FloatArray | None:
