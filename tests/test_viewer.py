@@ -381,6 +381,21 @@ def test_live_view_without_rerun_is_one_line_before_the_port(
     assert "pip install 'continuum-mhe[view]'" in _one_error_line(capsys)
 
 
+def test_live_view_without_rerun_nor_pyserial_names_both_extras_in_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """With neither extra of ``live --view`` installed, one line names both packages
+    and the one install of both extras (not the view's alone, then the port's)."""
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    monkeypatch.setitem(sys.modules, "serial", None)
+    args = ["live", "--port", str(tmp_path / "no-such-port"), "--view", str(tmp_path / "v.rrd")]
+    assert main(args) == 2
+    assert _one_error_line(capsys) == (
+        "continuum-mhe: error: live --view needs pyserial and rerun-sdk, which do not import "
+        "here: pip install 'continuum-mhe[robot,view]'"
+    )
+
+
 def test_view_without_robot_draws_the_robot_the_estimate_names(
     tmp_path: Path, two_section: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -79,6 +79,26 @@ def require(module: str, extra: str, feature: str, package: str | None = None) -
     return _quiet_import(module)
 
 
+def require_together(needs: list[tuple[str, str, str]], feature: str) -> None:
+    """One :class:`MissingExtraError` naming every package of ``needs`` (``(module,
+    extra, package on PyPI)``) that does not import, and the one ``pip install`` of
+    all their extras (``continuum-mhe[robot,view]``), so that a feature needing several
+    extras is not refused once for each; nothing where each imports."""
+    lacking = [(package, extra, why) for m, extra, package in needs if (why := import_problem(m))]
+    if len(lacking) < 2:
+        if lacking:
+            package, extra, why = lacking[0]
+            raise missing(package, extra, feature, why)
+        return
+    packages = " and ".join(p for p, _, _ in lacking)
+    extras = ",".join(dict.fromkeys(e for _, e, _ in lacking))
+    upgrade = any(why.startswith(INSTALLED_BROKEN) for _, _, why in lacking)
+    raise MissingExtraError(
+        f"{feature} needs {packages}, which do not import here: "
+        f"pip install 'continuum-mhe[{extras}]'{' --upgrade' if upgrade else ''}"
+    )
+
+
 def available(module: str) -> bool:
     """True if ``module`` can be imported (the import is attempted)."""
     return import_problem(module) is None

@@ -93,8 +93,13 @@ def run(args: argparse.Namespace) -> int:
     if args.view is None:
         refuse_unused_view_options(args, None)
     else:  # the 3D view (continuum_mhe.viewer): checked before the port
+        from continuum_mhe.extras import require_together
         from continuum_mhe.viewer import BackboneView, TendonShapes, require_rerun
 
+        # both of live --view's extras named at once where both are missing
+        require_together(
+            [("serial", "robot", "pyserial"), ("rerun", "view", "rerun-sdk")], "live --view"
+        )
         require_rerun()
         view_sink = viewer_sink_from_args(args)
     # before the port opens: the estimator reads its model here, and a throwaway one pays
