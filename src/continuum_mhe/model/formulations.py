@@ -35,7 +35,7 @@ from __future__ import annotations
 import contextlib
 import math
 from dataclasses import dataclass, field, fields, replace
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import ClassVar
 
 import casadi as ca
@@ -573,9 +573,11 @@ class Formulation:
         d = z - self.measurement_sym(x)
         return ca.atan2(ca.sin(d), ca.cos(d))
 
-    @cached_property
+    @property
+    @lru_cache(maxsize=32)  # noqa: B019 (by value: equal formulations share their functions)
     def functions(self) -> ModelFunctions:
-        """The model's numeric functions (each built on first use)."""
+        """The model's numeric functions (each built on first use, once for all equal
+        formulations)."""
         return ModelFunctions(self)
 
     #: Whether ``Q`` and ``R`` are noise models, so that the covariances the estimators

@@ -44,7 +44,7 @@ cannot push).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
+from functools import lru_cache
 
 import casadi as ca
 import numpy as np
@@ -281,16 +281,19 @@ class TendonStatics:
             s0 += sec.length
         return poses, ca.mtimes(y[1].T, y[2]) / ei
 
-    @cached_property
+    @property
+    @lru_cache(maxsize=8)  # noqa: B019 (by value: equal statics share their functions)
     def function(self) -> ca.Function:
-        """``(k0, F, tau) -> (residual, [vec R, p] per station)`` as a CasADi Function."""
+        """``(k0, F, tau) -> (residual, [vec R, p] per station)`` as a CasADi Function
+        (built once for all equal statics)."""
         k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
         tau = ca.SX.sym("tau", self.robot.n_tendons)
         poses, res = self.shoot(k0, force, tau)
         outs = [ca.vertcat(ca.vec(R), p) for R, p in (poses[s] for s in self.stations())]
         return ca.Function("tendon_statics", [k0, force, tau], [res, ca.horzcat(*outs)])
 
-    @cached_property
+    @property
+    @lru_cache(maxsize=8)  # noqa: B019 (by value: equal statics share their functions)
     def _tip_condition(self) -> ca.Function:
         """``(k0, F, tau) -> (residual, d residual / d k0)``: the tip condition and its
         Jacobian in the base curvature, for :meth:`solve`'s Newton steps."""
