@@ -2062,14 +2062,18 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {est}: the row at t = 0 s")
     assert not view.exists()
-    # one such row among drawable ones: the others are drawn, one warning names it
+    # one such row among drawable ones: drawn through its section ends, as plot draws
+    # it, and one warning names it
     for i in range(header + 1, len(lines)):
         cells = lines[i].rstrip("\n").split(",")
         cells[fx] = "80" if i == header + 3 else "0"
         lines[i] = ",".join(cells) + "\n"
     est.write_text("".join(lines))
     view.unlink(missing_ok=True)
-    first = r"^1 row\(s\) not drawn \(no equilibrium\); the first: the row at t = 0.04 s"
+    first = (
+        r"^1 of the backbones drawn joined through their section ends: the mechanics model "
+        r"holds no equilibrium under their loads; the first: the row at t = 0.04 s"
+    )
     with pytest.warns(UserWarning, match=first):
         assert main(argv) == 0
     assert view.exists()

@@ -764,6 +764,60 @@ def test_a_tendon_robots_live_shapes_are_its_replayed_ones(tendon_view: dict[str
     assert "/world/estimate/backbone" not in rows and "/world/estimate/tip" in rows
 
 
+def test_a_tendon_row_without_an_equilibrium_is_joined_through_its_section_ends(
+    tendon_view: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``view`` of a tendon estimate one of whose rows has a tip force the rod holds no
+    equilibrium under (80 N): that row's backbone is drawn as ``plot`` draws it, from the
+    base through the row's section ends, without IMU frames (no NaN in the file), and
+    the summary counts it apart from the rows the mechanics model draws."""
+    text = Path(tendon_view["est"]).read_text().splitlines(True)
+    header = next(i for i, ln in enumerate(text) if not ln.startswith("#"))
+    names = text[header].rstrip("\n").split(",")
+    bad = header + 4  # the fourth row
+    cells = text[bad].rstrip("\n").split(",")
+    cells[names.index("fx")] = "80"
+    text[bad] = ",".join(cells) + "\n"
+    est = tendon_view["tmp"] / "unsolved.csv"
+    est.write_text("".join(text))
+    rrd = tendon_view["tmp"] / "unsolved.rrd"
+    capsys.readouterr()
+    first = r"^1 of the backbones drawn joined through their section ends: .* the row at t = "
+    with pytest.warns(UserWarning, match=first):
+        argv = ["view", str(est), "--robot", "tendon-two-section", "--inputs",
+                tendon_view["tensions"], "--save", str(rrd), "--points", str(POINTS)]  # fmt: skip
+        assert main(argv) == 0
+    robot, table = read_robot("tendon-two-section"), read_state_table(est, ())
+    n = len(table.t)
+    said = capsys.readouterr().err.strip().splitlines()[-1]
+    assert said == (
+        f"wrote {rrd}: {n} of {n} estimate(s) of {robot.describe()} (1 of them joined "
+        "through their section ends: no equilibrium under their loads)"
+    )
+    rows = read_rrd(rrd)
+    backbone = rows["/world/estimate/backbone"]
+    assert [t for t, _ in backbone] == _ns(table.t)
+    strips = np.array([r["LineStrips3D:strips"] for _, r in backbone], float)
+    assert np.all(np.isfinite(strips))
+    k = bad - header - 1
+    ends = np.array([[table.column(f"{c}_{s}")[k] for c in "xyz"] for s in (1, 2)])
+    np.testing.assert_allclose(strips[k, 0, 0], 0.0, atol=1e-7)
+    np.testing.assert_allclose(strips[k, 0, -1], ends[0], atol=1e-6)
+    np.testing.assert_allclose(strips[k, 0, POINTS // 2], ends[0] / 2, atol=1e-6)
+    np.testing.assert_allclose(strips[k, 1, 0], ends[0], atol=1e-6)
+    np.testing.assert_allclose(strips[k, 1, -1], ends[1], atol=1e-6)
+    np.testing.assert_allclose(strips[k, 1, POINTS // 2], (ends[0] + ends[1]) / 2, atol=1e-6)
+    for i in range(robot.n_imus):  # no frame at that row: cleared, the others drawn
+        frames = rows[f"/world/estimate/imu_{i + 1}"]
+        posed = [t for t, r in frames if r.get("Transform3D:translation")]
+        assert posed == [t for j, t in enumerate(_ns(table.t)) if j != k]
+        for _, r in frames:
+            if r.get("Transform3D:translation"):
+                assert np.all(np.isfinite(np.array(r["Transform3D:translation"], float)))
+        cleared = [t for t, r in frames if not r.get("Transform3D:translation")]
+        assert cleared == [_ns(table.t)[k]]
+
+
 # --- a folder or disk that cannot take the .rrd -----------------------------------------
 def _fill_leaving(folder: Path, room: int) -> Path:
     """A file in ``folder`` that leaves ``room`` bytes free on its disk."""

@@ -11,8 +11,10 @@ from functools import cache, cached_property
 
 import casadi as ca
 import numpy as np
+from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.pcc import pose_at_sym
@@ -111,6 +113,23 @@ def with_imu_twists(robot: Robot, geom: BackboneGeometry, twists: FloatArray) ->
     return BackboneGeometry(geom.sections, rotation, geom.imu_position)
 
 
+def joined_through_ends(
+    geom: BackboneGeometry, rows: NDArray[np.bool_], ends: FloatArray
+) -> BackboneGeometry:
+    """``geom`` with the backbones of the samples ``rows`` (n,) drawn as straight lines
+    from the base through their section ends ``ends`` (rows.sum(), n_sections, 3) m,
+    and their IMU frames NaN (not drawn): the drawing ``plot`` makes of a row whose
+    loads the mechanics model holds no equilibrium under."""
+    sections = geom.sections.copy()
+    m = sections.shape[2]
+    starts = np.concatenate([np.zeros((len(ends), 1, 3)), ends[:, :-1]], axis=1)
+    share = np.linspace(0.0, 1.0, m)[None, None, :, None]
+    sections[rows] = starts[:, :, None, :] + share * (ends - starts)[:, :, None, :]
+    rotation, position = geom.imu_rotation.copy(), geom.imu_position.copy()
+    rotation[rows], position[rows] = np.nan, np.nan
+    return BackboneGeometry(sections, rotation, position)
+
+
 @dataclass(frozen=True)
 class TendonShapes:
     """A tendon robot's shapes for drawing, from its mechanics model: from estimator
@@ -163,6 +182,24 @@ class TendonShapes:
         under has NaN shapes (not drawn), and one warning names the first and counts
         them; where no row has one, a :class:`~continuum_mhe.errors.UserError` names
         the first row."""
+        geom, unsolved = self.solved_forces(t, forces, names, values)
+        if unsolved:
+            warnings.warn(
+                f"{len(unsolved)} row(s) not drawn (no equilibrium); the first: {unsolved[0]}",
+                stacklevel=2,
+            )
+        return geom
+
+    def solved_forces(
+        self,
+        t: FloatArray,
+        forces: FloatArray,
+        names: Sequence[str] = (),
+        values: FloatArray | None = None,
+    ) -> tuple[BackboneGeometry, list[UserError]]:
+        """:meth:`from_forces`'s shapes (NaN in the rows whose loads have no
+        equilibrium) and, in row order, the one-line error of each such row, without
+        the warning; where no row has an equilibrium, the first row's error is raised."""
         if self.tensions is None:
             raise ValueError("from_forces needs the tensions")
         statics = self.statics
@@ -172,22 +209,16 @@ class TendonShapes:
             tau = acting_tensions(self.robot, tau, names, values)
         k0 = np.zeros((len(forces), 3))
         previous = None
-        unsolved: list[tuple[int, ArithmeticError]] = []
+        unsolved: list[UserError] = []
         for i in range(len(forces)):
             try:
                 previous, _ = statics.solve(forces[i], tau[i], previous)
             except ArithmeticError as exc:
-                unsolved.append((i, exc))
+                unsolved.append(no_equilibrium_at(float(t[i]), exc))
                 previous = None
                 k0[i] = np.nan
                 continue
             k0[i] = previous
         if unsolved and len(unsolved) == len(forces):
-            raise no_equilibrium_at(float(t[unsolved[0][0]]), unsolved[0][1])
-        if unsolved:
-            first = no_equilibrium_at(float(t[unsolved[0][0]]), unsolved[0][1])
-            warnings.warn(
-                f"{len(unsolved)} row(s) not drawn (no equilibrium); the first: {first}",
-                stacklevel=2,
-            )
-        return self._geometry(k0, forces, tau)
+            raise unsolved[0]
+        return self._geometry(k0, forces, tau), unsolved

@@ -125,8 +125,16 @@ def replay(
     }[sink.kind]
     if sink.kind == "save":  # written out first: a full disk is said instead
         view.close()
+    joined = view.joined_through_ends["estimate"]
+    if joined:  # as plot draws them: not the mechanics model's backbone
+        drawn_as = (
+            f" ({joined} of them joined through their section ends: no equilibrium under "
+            "their loads)"
+        )
+    else:
+        drawn_as = ""
     print(
-        f"{where}: {drawn} of {len(est.t)} estimate(s) of {robot.describe()}{with_truth}",
+        f"{where}: {drawn} of {len(est.t)} estimate(s) of {robot.describe()}{drawn_as}{with_truth}",
         file=sys.stderr,
     )
     if sink.kind != "save":

@@ -11,6 +11,7 @@ import shutil
 import sys
 import time
 import uuid
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from subprocess import Popen
@@ -38,6 +39,7 @@ from continuum_mhe.viewer.geometry import (
     BackboneGeometry,
     TendonShapes,
     backbone_geometry,
+    joined_through_ends,
     with_imu_twists,
 )
 from continuum_mhe.viewer.sink import ViewerSink, start_web_viewer, stop_web_viewer
@@ -178,6 +180,10 @@ class BackboneView:
         self._status = ""
         self._min_step = 1.0 / max_hz if max_hz else 0.0
         self._drawn_t: float | None = None
+        #: the rows of the estimate and of the truth sent (``log_rows``, ``log_truth``)
+        #: whose loads the mechanics model holds no equilibrium under: their backbones
+        #: drawn through their section ends, as ``plot`` draws them, without IMU frames
+        self.joined_through_ends = {"estimate": 0, "truth": 0}
         #: the angles a shape is drawn from (a truth's backbone needs them): the bends,
         #: and a tendon robot's twists; not an output beyond the shape (``imu_twist``)
         n_sec = robot.n_sections
@@ -410,15 +416,25 @@ class BackboneView:
                     labels=[force_label(f) for f in forces],
                 ),
             )  # fmt: skip
-        if who == "truth" or geom is None:
+        if geom is None:
+            return
+        # a row without an equilibrium: its backbone joined through its section ends
+        # (:func:`joined_through_ends`), no IMU frame
+        posed = np.all(np.isfinite(geom.imu_position.reshape(n, -1)), axis=1)
+        self.joined_through_ends[who] += int(n - posed.sum())
+        if who == "truth":
             return
         for i in range(self.robot.n_imus):
-            send(
-                f"world/{who}/imu_{i + 1}", t,
-                [*rr.Transform3D.columns(translation=geom.imu_position[:, i],
-                                         mat3x3=geom.imu_rotation[:, i]),
-                 *rr.TransformAxes3D.columns(axis_length=[0.1 * size] * n)],
-            )  # fmt: skip
+            if posed.any():
+                send(
+                    f"world/{who}/imu_{i + 1}", t[posed],
+                    [*rr.Transform3D.columns(translation=geom.imu_position[posed, i],
+                                             mat3x3=geom.imu_rotation[posed, i]),
+                     *rr.TransformAxes3D.columns(axis_length=[0.1 * size] * int(posed.sum()))],
+                )  # fmt: skip
+            for tk in t[~posed]:  # the frame of the row before is not this row's
+                rec.set_time("t", duration=nanoseconds(tk))
+                rec.log(f"world/{who}/imu_{i + 1}", rr.Clear(recursive=False))
 
     def log_rows(self, t: FloatArray, values: FloatArray, status: Sequence[str]) -> None:
         """Send a recording's estimates as columns: ``t`` (n,) s, ``values`` (n,
@@ -471,7 +487,24 @@ class BackboneView:
         if self.tendon.tensions is None or not all(c in col for c in TIP_FORCE_COLUMNS):
             return None, tips
         forces = values[:, [col[c] for c in TIP_FORCE_COLUMNS]]
-        return self.tendon.from_forces(t, forces, names, values), tips
+        geom, unsolved = self.tendon.solved_forces(t, forces, names, values)
+        if not unsolved:
+            return geom, tips
+        rows = ~np.all(np.isfinite(geom.sections.reshape(len(t), -1)), axis=1)
+        n_sec = self.robot.n_sections
+        ends = np.repeat(tips[rows][:, None, :], n_sec, axis=1)  # the tip, where no end
+        for k in range(1, n_sec + 1):
+            named = [f"{c}_{k}" for c in "xyz"]
+            if all(c in col for c in named):
+                ends[:, k - 1] = values[rows][:, [col[c] for c in named]]
+            elif k < n_sec:  # a truth without its section ends: one line base to tip
+                ends[:, k - 1] = tips[rows] * k / n_sec
+        warnings.warn(
+            f"{len(unsolved)} of the backbones drawn joined through their section ends: the "
+            f"mechanics model holds no equilibrium under their loads; the first: {unsolved[0]}",
+            stacklevel=3,
+        )
+        return joined_through_ends(geom, rows, ends), tips
 
     def _draws_shape_from(self, name: str) -> bool:
         """Whether a truth's column ``name`` is one the backbone is drawn from: a bend
