@@ -98,6 +98,44 @@ def test_ukf_chart_check_knows_a_singularity_from_a_wrap() -> None:
     assert np.all(np.isfinite(inf._update(xp, Pp, near, np.ones(2))[0]))
 
 
+def test_a_ukf_rate_prior_that_spreads_its_sigma_points_past_its_chart_is_warned_of() -> None:
+    """``initial_rate_std = 50`` rad/s on ``paper3d`` (0.05 s steps): the UKF's first
+    prediction after a start spreads its sigma points 0.5 sqrt(4) 50 0.05 = 2.5 rad of
+    tilt apart, past 2 atan(pi / 2) = 2.01 rad, and every later sample restarts it
+    (``reset``); ``run`` and ``step`` say so once, naming the largest rate within 0.95 of
+    that limit (0.95 * 2.01 / 0.05 = 38.2 rad/s); the EKF and the MHE take the prior
+    (``ok``) and are not warned, nor is the UKF at 38 rad/s, where no sample restarts."""
+    import math
+    import warnings
+
+    from continuum_mhe.io.input_options import OptionWarning
+    from continuum_mhe.model.settings import NoiseSettings
+
+    rec = simulate("paper3d", duration=5)
+    limit = 0.95 * 2 * math.atan(math.pi / 2) / 0.05
+    said = (
+        r"^run: initial_rate_std 50 rad/s spreads the UKF's sigma points up to 2.5 rad of "
+        r"tilt from its prediction over the 0.05 s between samples, near or past the 2.01 "
+        rf"rad .* give initial_rate_std at most {limit:.3g} rad/s"
+    )
+    wide = make_formulation("bend", noise=NoiseSettings(initial_rate_std=50.0))
+    with pytest.warns(OptionWarning, match=said) as caught:
+        series = make_estimator("ukf", wide).run(rec.t, rec.z)
+    assert len(caught) == 1
+    assert list(series.status[1:]) == ["reset"] * (len(rec.t) - 1)
+    ukf = make_estimator("ukf", wide)
+    with pytest.warns(OptionWarning, match=said.replace("^run:", "^step:")) as caught:
+        for k in range(6):
+            ukf.step(Measurement(float(rec.t[k]), rec.z[k]))
+    assert len(caught) == 1
+    for method, rate in (("ekf", 50.0), ("mhe", 50.0), ("ukf", 38.0)):
+        f = make_formulation("bend", noise=NoiseSettings(initial_rate_std=rate))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", OptionWarning)
+            series = make_estimator(method, f).run(rec.t, rec.z)
+        assert list(series.status[1:]) == ["ok"] * (len(rec.t) - 1), method
+
+
 def test_mhe_survives_the_rows_that_stopped_it() -> None:
     data = read_measurements(REPRO / "mhe_stops.csv")
     est = make_estimator("mhe", make_formulation("bend"))

@@ -131,6 +131,12 @@ class Inference(ABC):
         ``no-estimate`` when there is none yet). May raise ``ArithmeticError``,
         ``RuntimeError`` or ``numpy.linalg.LinAlgError`` on a numerical failure."""
 
+    def step_problem(self, step: float) -> str | None:
+        """Why this inference cannot follow its settings on samples ``step`` s apart (the
+        median of a recording's first steps), in words that finish a warning's line;
+        None where it can (here always)."""
+        return None
+
     def clear_counts(self) -> None:
         """Zero the object's own counts (none here; the MHE's second start and branch
         check keep theirs)."""

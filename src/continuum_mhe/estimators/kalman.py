@@ -32,6 +32,7 @@ from continuum_mhe.estimators.sensor_health import (
     numerical_failure,
     status_code,
 )
+from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
 from continuum_mhe.settings import RecoverySettings
 
@@ -287,6 +288,16 @@ class SigmaPointSettings:
 #: How the UKF's failure begins where its sigma points spread a tilt reading across a
 #: half turn (:class:`UnscentedKalmanInference`; the core writes the message).
 UNSCENTED_SPREAD = "the unscented transform's"
+#: The tilt error (rad) whose tangent-plane residual ``2 tan(e / 2)`` is pi: a sigma
+#: point's tilt this far from the reading fails the UKF's update
+#: (:class:`UnscentedKalmanInference`).
+CHART_LIMIT = 2.0 * math.atan(math.pi / 2.0)
+#: The share of :data:`CHART_LIMIT` that the first prediction's sigma points may spread
+#: the tilts over before a start's rate prior is warned of
+#: (:meth:`UnscentedKalmanInference.step_problem`): the reading lies a step's motion
+#: and noise from the prediction, and the updates fail from 0.98 of it on (one
+#: section, ``paper3d``) and 1.05 (two sections, ``spatial``).
+CHART_SHARE = 0.95
 
 
 class UnscentedKalmanInference(_KalmanBase):
@@ -330,6 +341,39 @@ class UnscentedKalmanInference(_KalmanBase):
             list(formulation.measurement_names),
         )  # fmt: skip
         super().__init__(formulation)
+
+    def step_problem(self, step: float) -> str | None:
+        """Where the start's bend-rate prior (``NoiseSettings.initial_rate_std``) spreads
+        the sigma points of the first prediction after a start, ``step`` s on, so far
+        that a reading's tilt can lie :data:`CHART_LIMIT` from a sigma point's (within
+        :data:`CHART_SHARE` of it): every start's first update then fails and restarts
+        the filter from the same prior, sample after sample (status ``reset``). The
+        spread is the sigma points' scale ``alpha sqrt(n + kappa)`` times the largest
+        standard deviation the rates give a tilt reading over the step (the straight
+        robot's tilt Jacobian); the EKF and the MHE take any such prior."""
+        f = self.formulation
+        rows = [] if f.tilt_residual_wraps else tilt_rows(f)
+        if not rows or not isinstance(f, BendFormulation) or not math.isfinite(step):
+            return None
+        x = np.zeros(f.nx)  # straight and still
+        z = np.asarray(f.functions.observe(x), dtype=float).ravel()
+        _, jacobian = (np.asarray(v, dtype=float) for v in f.functions.innovate(z, x))
+        bends = 2 * f.robot.n_sections
+        rate_gain = np.linalg.norm(jacobian.reshape(f.nz, f.nx)[rows, :bends], axis=1).max()
+        scale = self.alpha * math.sqrt(f.nx + self.sigma.kappa) * rate_gain * step
+        rate = f.noise.initial_rate_std
+        spread = scale * rate
+        if spread <= CHART_SHARE * CHART_LIMIT:
+            return None
+        return (
+            f"initial_rate_std {rate:g} rad/s spreads the UKF's sigma points up to "
+            f"{spread:.3g} rad of tilt from its prediction over the {step:.3g} s between "
+            f"samples, near or past the {CHART_LIMIT:.3g} rad at which a reading's "
+            "residual 2 tan(e/2) passes pi and the update fails: a start's first update "
+            "then fails and restarts the filter from the same prior (status reset), past "
+            "it on most samples; give initial_rate_std at most "
+            f"{CHART_SHARE * CHART_LIMIT / scale:.3g} rad/s (the EKF and the MHE take it)"
+        )
 
     def _predict(
         self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float

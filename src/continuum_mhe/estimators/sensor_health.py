@@ -64,6 +64,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.io.input_options import (
     MountingTally,
     MountingWatch,
+    OptionWarning,
     check_mounting,
     mounting_checked,
 )
@@ -311,6 +312,9 @@ class Estimator(Generic[InferenceT]):
         self._units = ReadingUnitsWatch(self._direct_rows)
         #: the unit of the times that step and continue_run hand over
         self._time_steps = TimeStepWatch()
+        #: the step of the first sample times since a reset, for the inference's
+        #: settings (:meth:`~.base.Inference.step_problem`): warned of once a recording
+        self._setting_steps = TimeStepWatch()
         #: run's refusal of times that step faster than any IMU stream, once step or
         #: continue_run found it (raised for every later sample until a reset)
         self._too_fast: str | None = None
@@ -467,6 +471,7 @@ class Estimator(Generic[InferenceT]):
             self._slack_said = False
             self._units.reset()
             self._time_steps.reset()
+            self._setting_steps.reset()
             self._too_fast = None
             self.mounting_watch.reset()
         keep = keep_counts if keep_sensors is None else keep_sensors
@@ -542,7 +547,11 @@ class Estimator(Generic[InferenceT]):
         its outputs' names (:meth:`~continuum_mhe.results.Estimate.value`). Sample
         times whose first steps after a reset exceed 2 s (milliseconds given for
         seconds: every step a gap that restarts the estimate) are warned of once, a
-        :class:`~continuum_mhe.io.csv_files.UnitWarning`.
+        :class:`~continuum_mhe.io.csv_files.UnitWarning`; so are settings the inference
+        cannot follow at their median step (a UKF's start rate prior that spreads its
+        sigma points past its tilt chart:
+        :meth:`~continuum_mhe.estimators.kalman.UnscentedKalmanInference.step_problem`),
+        an :class:`~continuum_mhe.io.input_options.OptionWarning`.
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
@@ -598,6 +607,7 @@ class Estimator(Generic[InferenceT]):
             self.mounting_watch.see(z[None, :], "step")
         if not self._time_steps.done:
             self._warn_time_unit(np.array([t], dtype=float), "step")
+        self._warn_step_problem(np.array([t], dtype=float), "step")
         self._ran = False
         if r.diagnostics_changed:
             self._sync_diagnostics()
@@ -756,6 +766,7 @@ class Estimator(Generic[InferenceT]):
         self._time_steps.done = True  # the whole recording's times were checked above
         self.mounting_watch.done = True  # and its mounting: a continue_run goes on from it
         self._refuse_before_stepping(t, z)
+        self._warn_step_problem(t, "run")
         n = len(t)
         block = RUN_BLOCK if progress is not None else max(n, 1)
         starts: Iterable[int] = range(0, n, block)
@@ -921,6 +932,7 @@ class Estimator(Generic[InferenceT]):
             if problem is not None:
                 raise ReadingUnitsError(problem)
         self._refuse_before_stepping(t, z)
+        self._warn_step_problem(t, "continue_run")
         if check_mounting_start:  # (at once where its samples are in and checked)
             self.mounting_watch.see(z, "continue_run")
         if check_units:
@@ -958,6 +970,23 @@ class Estimator(Generic[InferenceT]):
             problem = self._time_steps.see(t, what)
             if problem is not None:
                 warnings.warn(problem, UnitWarning, stacklevel=3)
+
+    def _warn_step_problem(self, t: FloatArray, what: str) -> None:
+        """An :class:`~continuum_mhe.io.input_options.OptionWarning` (``what: ...``, the
+        method called), once a recording, where the inference cannot follow its settings
+        at the median step of the first sample times handed over
+        (:meth:`~.base.Inference.step_problem`); not where that step is a gap that
+        restarts the estimate at every sample (``recovery.gap_reset``), which predicts
+        across none."""
+        watch = self._setting_steps
+        if watch.done:
+            return
+        watch.see(t, what)
+        gap = self.recovery.gap_reset
+        if watch.step is not None and (gap is None or watch.step <= gap):
+            problem = self.inference.step_problem(watch.step)
+            if problem is not None:
+                warnings.warn(f"{what}: {problem}", OptionWarning, stacklevel=3)
 
     def _refuse_before_stepping(self, t: FloatArray, z: FloatArray) -> None:
         """The :class:`UserError` of the first sample of ``t``, ``z`` that the policy

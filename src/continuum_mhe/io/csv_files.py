@@ -302,6 +302,8 @@ class TimeStepWatch:
         """Forget the times seen: the next sample starts a new stream."""
         self._times: list[float] = []
         self.done = False
+        #: the median of the first :data:`WATCHED_STEPS` steps, s, once judged (else None)
+        self.step: float | None = None
 
     def ahead(self, t: FloatArray) -> list[float]:
         """The times :meth:`see` would hold once it took ``t`` (the first
@@ -328,7 +330,7 @@ class TimeStepWatch:
         if self.done or len(self._times) <= self.WATCHED_STEPS:
             return None
         self.done = True
-        step = float(np.median(np.diff(self._times)))
+        self.step = step = float(np.median(np.diff(self._times)))
         if step <= MS_LIKE_STEP_S:
             return None
         return (
