@@ -528,10 +528,11 @@ SOLVED = ["ok", "fallback-ipopt"]
 
 def solved(name: str) -> list[str]:
     """Statuses of a solved sample: the paper formulation's may be ``drifted`` (its
-    separate position state away from its own angles' kinematics) or ``at-bound`` (its
+    separate position state away from its own angles' kinematics), ``at-bound`` (its
     phi held on the state bound -pi or pi, which its MHE cannot wrap past: paper3d's
-    bending plane turns to 3.06 rad)."""
-    return SOLVED + (["drifted", "at-bound"] if name == "paper" else [])
+    bending plane turns to 3.06 rad) or ``uncertain`` (its weight ``W`` makes its
+    position's standard deviation grow past the robot's length)."""
+    return SOLVED + (["drifted", "at-bound", "uncertain"] if name == "paper" else [])
 
 
 def started(name: str) -> str:

@@ -262,7 +262,8 @@ def test_paper_formulation_recording_is_feasible_and_flagged() -> None:
     z[20:24] = np.nan
     est = MovingHorizonEstimator(f, MHESettings(horizon=15))
     series = est.run(rec.t, z)
-    assert set(series.status) <= {"ok", "dropout", "fallback-ipopt", "drifted"}
+    # uncertain: its weight W makes its position std grow past the robot's length
+    assert set(series.status) <= {"ok", "dropout", "fallback-ipopt", "drifted", "uncertain"}
     lo, hi = f.state_bounds()
     own = series.status != "fallback-ipopt"  # IPOPT relaxes its bounds by ~1e-8
     assert np.all(series.output[own] >= lo) and np.all(series.output[own] <= hi)

@@ -1056,11 +1056,38 @@ def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:
     expected = rec.t - last_wide < 1.0
     assert np.array_equal(s.status == "uncertain", expected)
     assert np.any(expected & ~wide) and 0 < np.sum(expected) < len(s.t)
-    # the paper formulation's W is a weight, not a noise model: never uncertain
+    # the paper formulation's W is a weight, not a noise model: the fraction changes no
+    # status (only a tip std past the robot's length does:
+    # test_no_ok_row_of_the_paper_formulation_has_a_std_past_the_robot)
     paper = make_formulation("paper")
-    s = make_estimator("ekf", paper, recovery=bare(uncertain_fraction=1e-6))
-    series = s.run(rec.t, rec.z)
-    assert set(series.status) == {"ok"} and np.isfinite(series.std).all()
+    runs = [
+        make_estimator("ekf", paper, recovery=bare(uncertain_fraction=frac)).run(rec.t, rec.z)
+        for frac in (1e-6, 100.0)
+    ]
+    assert list(runs[0].status) == list(runs[1].status) and np.isfinite(runs[0].std).all()
+
+
+def test_no_ok_row_of_the_paper_formulation_has_a_std_past_the_robot() -> None:
+    """The paper formulation's ``W = 10 I`` is a weight: its position variance grows by
+    1/10 m^2 a step, past the 0.2 m robot's reach (std 0.32 m) after one step. No row
+    of any method whose written tip standard deviation is past the robot's length is
+    ``ok``: the EKF's first row is ``ok`` (its prior, 0.02 m a coordinate), every later
+    one ``uncertain``, its standard deviations as the weight implies them (0.32 m and
+    more)."""
+    rec = simulate("paper3d", duration=5)
+    paper = make_formulation("paper")
+    for method in ("ekf", "ukf", "mhe"):
+        s = make_estimator(method, paper).run(rec.t, rec.z)
+        tip_std = np.linalg.norm(s.std[:, :3], axis=1)
+        wide = tip_std > 0.2
+        assert wide.sum() > 0 and not np.any(wide & (s.status == "ok")), method
+        # only the width makes a row uncertain here (no consistency or start check)
+        others = np.isin(s.status, ["drifted", "at-bound", "reset"])
+        assert np.array_equal(s.status == "uncertain", wide & ~others), method
+        if method == "ekf":
+            assert list(s.status) == ["ok"] + ["uncertain"] * (len(rec.t) - 1)
+            assert_allclose(s.std[0, :3], 0.02, rtol=1e-9)
+            assert np.all(s.std[1:, :3] > math.sqrt(0.1))
 
 
 def test_no_ok_row_has_a_written_tip_std_beyond_the_fraction() -> None:

@@ -302,14 +302,17 @@ WIDE_NOTICE_SHARE = 0.1
 class WideUncertain:
     """The estimates ``uncertain`` whose written tip standard deviation,
     ``sqrt(std_x^2 + std_y^2 + std_z^2)``, exceeds ``fraction`` times the robot's
-    length (the policy's test for that status), counted block by block (:meth:`add`),
-    for one line at the end (:meth:`notice`) where they are more than
-    :data:`WIDE_NOTICE_SHARE` of the run: ``uncertain`` has several causes, and this
-    one says the readings do not pin the shape down."""
+    length (the policy's test for that status; the robot's length itself for a
+    formulation whose covariance is no noise model, the paper's weight ``W``), counted
+    block by block (:meth:`add`), for one line at the end (:meth:`notice`) where they
+    are more than :data:`WIDE_NOTICE_SHARE` of the run: ``uncertain`` has several
+    causes, and this one says the readings do not pin the shape down (or, with the
+    paper's weight, that its position's standard deviation grows past the robot)."""
 
     def __init__(self, formulation: Formulation, fraction: float) -> None:
         self._tip = list(tip_position_indices(formulation.outputs))
-        self.limit = fraction * formulation.robot.length  # m
+        self._weighted = not formulation.calibrated_covariance
+        self.limit = (1.0 if self._weighted else fraction) * formulation.robot.length  # m
         self.fraction = fraction
         self.count = 0
 
@@ -327,6 +330,14 @@ class WideUncertain:
         are ``uncertain`` for their width; None otherwise."""
         if n == 0 or self.count <= WIDE_NOTICE_SHARE * n:
             return None
+        if self._weighted:
+            return (
+                f"{self.count} of {n} estimates are uncertain with their tip standard "
+                f"deviation past the robot's length ({self.limit * 1e3:.0f} mm): this "
+                "model's process weight W is no noise model, and its position's standard "
+                "deviation grows past the robot's reach (docs/uncertainty.md, the "
+                "uncertain status)"
+            )
         return (
             f"{self.count} of {n} estimates are uncertain with their tip standard deviation "
             f"over --uncertain-fraction {self.fraction:g} of the robot's length "

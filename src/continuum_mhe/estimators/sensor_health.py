@@ -103,6 +103,7 @@ STATUSES: tuple[Status, ...] = tuple(
     next(s for s in Status if s.value == name) for name in _core.STATUS_NAMES
 )
 _CODES = {status.value: code for code, status in enumerate(STATUSES)}
+_OK, _UNCERTAIN = STATUSES.index(Status.OK), STATUSES.index(Status.UNCERTAIN)
 
 
 def status_code(status: Status | str) -> int:
@@ -312,6 +313,15 @@ class Estimator(Generic[InferenceT]):
         self._units = ReadingUnitsWatch(self._direct_rows)
         #: the unit of the times that step and continue_run hand over
         self._time_steps = TimeStepWatch()
+        #: the tip's output columns where the covariance is no noise model (the paper
+        #: formulation's weight ``W``), whose ``ok`` rows with a tip standard deviation
+        #: past the robot's length are made ``uncertain`` here (:meth:`_beyond_reach`;
+        #: the compiled policy judges a noise model's width itself); else empty
+        self._reach_tip = (
+            []
+            if formulation.calibrated_covariance
+            else list(tip_position_indices(formulation.outputs))
+        )
         #: the step of the first sample times since a reset, for the inference's
         #: settings (:meth:`~.base.Inference.step_problem`): warned of once a recording
         self._setting_steps = TimeStepWatch()
@@ -523,7 +533,9 @@ class Estimator(Generic[InferenceT]):
         - ``uncertain``: an ``ok`` estimate whose reported tip standard deviation (the
           readings' constant errors in it) exceeds ``uncertain_fraction`` of the
           robot's length, or whose own one (without them) did within the unobserved
-          window; and every
+          window (a formulation whose covariance is no noise model, the paper's
+          weight ``W``: whose reported tip standard deviation is past the robot's
+          length); and every
           trusted estimate (``ok``, ``fallback-ipopt``, ``branch-restart``) of a robot
           whose IMUs do not determine its shape (:attr:`shape_observable`), or whose
           IMUs that reported within :data:`~continuum_mhe.settings.SILENT_AFTER` (the gap
@@ -603,6 +615,11 @@ class Estimator(Generic[InferenceT]):
         r = self._policy.step(t, z)
         if r.input_error:
             self._refuse(r.input_error, t, z)
+        status = STATUSES[r.status]
+        if self._reach_tip and r.output_std is not None:
+            code = np.array([r.status], dtype=np.int32)
+            self._beyond_reach(code, np.asarray(r.output_std, dtype=float)[None, :])
+            status = STATUSES[int(code[0])]
         if not self.mounting_watch.done:  # a sample the policy took, not one it refused
             self.mounting_watch.see(z[None, :], "step")
         if not self._time_steps.done:
@@ -614,7 +631,7 @@ class Estimator(Generic[InferenceT]):
         else:
             self.inference.sync_counts()
         return Estimate(
-            t, r.state, r.output, r.covariance, STATUSES[r.status], r.solve_ms, r.output_std,
+            t, r.state, r.output, r.covariance, status, r.solve_ms, r.output_std,
             outlier=r.outlier, outputs=self.formulation.outputs,
         )  # fmt: skip
 
@@ -971,6 +988,21 @@ class Estimator(Generic[InferenceT]):
             if problem is not None:
                 warnings.warn(problem, UnitWarning, stacklevel=3)
 
+    def _beyond_reach(self, status: NDArray[np.int32], output_std: FloatArray) -> None:
+        """``status`` (n,) codes changed in place: an ``ok`` row whose tip standard
+        deviation in ``output_std`` (n, ny), ``sqrt(std_x^2 + std_y^2 + std_z^2)``, is
+        past the robot's length is ``uncertain``, for a formulation whose covariance is
+        no noise model (the paper's weight ``W``, which the compiled policy's test of a
+        standard deviation against ``uncertain_fraction`` does not judge): a standard
+        deviation past the robot's reach says the tip may lie anywhere in it."""
+        if not len(status):
+            return
+        with np.errstate(invalid="ignore"):
+            wide = np.linalg.norm(output_std[:, self._reach_tip], axis=1) > (
+                self.formulation.robot.length
+            )
+        status[wide & (status == _OK)] = _UNCERTAIN
+
     def _warn_step_problem(self, t: FloatArray, what: str) -> None:
         """An :class:`~continuum_mhe.io.input_options.OptionWarning` (``what: ...``, the
         method called), once a recording, where the inference cannot follow its settings
@@ -1042,6 +1074,8 @@ class Estimator(Generic[InferenceT]):
             self._sync_diagnostics()
             if err:
                 self._refuse(err, float(t[i + stop]), z[i + stop])
+            if self._reach_tip:
+                self._beyond_reach(batch.status[i : i + stop], batch.output_std[i : i + stop])
             if stop < j - i:  # should_stop said so: the samples stepped
                 return batch.head(i + stop)
         _check_covered(done, n)

@@ -42,7 +42,9 @@ class PaperFormulation(Formulation):
     name: FormulationName = "paper"
     #: ``W`` is a weight (a soft penalty), not a noise model: with ``W = 10 I`` the
     #: implied position covariance grows by 0.1 m^2 a step, so the standard deviations
-    #: are reported as the model implies them but never turn an estimate ``uncertain``.
+    #: are reported as the model implies them, and only a tip standard deviation past
+    #: the robot's length turns an ``ok`` estimate ``uncertain`` (the tip may lie
+    #: anywhere in its reach), not ``uncertain_fraction``.
     calibrated_covariance = False
 
     def __post_init__(self) -> None:
