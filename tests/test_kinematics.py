@@ -678,3 +678,23 @@ def test_pose_at_names_the_sections_it_has() -> None:
     for bad in (2, -1):
         with pytest.raises(ValueError, match=r"section .* 0-based, 0 to 1"):
             pose_at(bends, [0.16, 0.14], bad)
+
+
+def test_equal_formulations_share_their_functions_and_others_do_not() -> None:
+    """A formulation's CasADi functions are built once for all formulations equal to it
+    (by value), and equal tendon statics share their shooting; a robot that differs in
+    one length gets its own."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.model.tendon_statics import TendonStatics
+
+    def robot(length: float) -> Robot:
+        return Robot((Section(0.16, 3.0), Section(length, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+
+    a, b, c = (make_formulation("bend", robot(v)) for v in (0.14, 0.14, 0.15))
+    assert a is not b and a.functions is b.functions and a.functions is not c.functions
+    x = np.array([0.3, 0.1, 0.2, -0.1, 0, 0, 0, 0])
+    assert not np.allclose(np.asarray(a.functions.output(x)), np.asarray(c.functions.output(x)))
+    tendon = read_robot("tendon-two-section")
+    assert TendonStatics(tendon).function is TendonStatics(tendon).function

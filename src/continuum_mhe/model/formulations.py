@@ -180,6 +180,14 @@ def without_load(
     return x, P
 
 
+@lru_cache(maxsize=32)
+def shared_functions(formulation: Formulation) -> ModelFunctions:
+    """The :class:`ModelFunctions` of ``formulation``, one for all formulations equal to
+    it (frozen dataclasses compared by value): a robot's symbolic model is built once
+    however many estimators are made of it."""
+    return ModelFunctions(formulation)
+
+
 @dataclass(frozen=True)
 class Formulation:
     """Base class: subclasses define the symbolic model.
@@ -573,12 +581,11 @@ class Formulation:
         d = z - self.measurement_sym(x)
         return ca.atan2(ca.sin(d), ca.cos(d))
 
-    @property
-    @lru_cache(maxsize=32)  # noqa: B019 (by value: equal formulations share their functions)
+    @cached_property
     def functions(self) -> ModelFunctions:
         """The model's numeric functions (each built on first use, once for all equal
-        formulations)."""
-        return ModelFunctions(self)
+        formulations: :func:`shared_functions`)."""
+        return shared_functions(self)
 
     #: Whether ``Q`` and ``R`` are noise models, so that the covariances the estimators
     #: compute from them describe the errors (the ``uncertain`` status relies on it).

@@ -44,7 +44,7 @@ cannot push).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import casadi as ca
 import numpy as np
@@ -281,26 +281,25 @@ class TendonStatics:
             s0 += sec.length
         return poses, ca.mtimes(y[1].T, y[2]) / ei
 
-    @property
-    @lru_cache(maxsize=8)  # noqa: B019 (by value: equal statics share their functions)
+    @cached_property
     def function(self) -> ca.Function:
         """``(k0, F, tau) -> (residual, [vec R, p] per station)`` as a CasADi Function
-        (built once for all equal statics)."""
+        (built once for all equal statics: :func:`_statics_functions`)."""
+        return _statics_functions(self)[0]
+
+    @cached_property
+    def _tip_condition(self) -> ca.Function:
+        """``(k0, F, tau) -> (residual, d residual / d k0)``: the tip condition and its
+        Jacobian in the base curvature, for :meth:`solve`'s Newton steps."""
+        return _statics_functions(self)[1]
+
+    def _build_function(self) -> ca.Function:
+        """A new :attr:`function` (its symbolic shooting built again)."""
         k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
         tau = ca.SX.sym("tau", self.robot.n_tendons)
         poses, res = self.shoot(k0, force, tau)
         outs = [ca.vertcat(ca.vec(R), p) for R, p in (poses[s] for s in self.stations())]
         return ca.Function("tendon_statics", [k0, force, tau], [res, ca.horzcat(*outs)])
-
-    @property
-    @lru_cache(maxsize=8)  # noqa: B019 (by value: equal statics share their functions)
-    def _tip_condition(self) -> ca.Function:
-        """``(k0, F, tau) -> (residual, d residual / d k0)``: the tip condition and its
-        Jacobian in the base curvature, for :meth:`solve`'s Newton steps."""
-        k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
-        tau = ca.SX.sym("tau", self.robot.n_tendons)
-        res, _ = self.function(k0, force, tau)
-        return ca.Function("tip_condition", [k0, force, tau], [res, ca.jacobian(res, k0)])
 
     def solve(
         self, force: FloatArray, tension: FloatArray, k0: FloatArray | None = None
@@ -414,3 +413,14 @@ def swing_twist_sym(Q: Sym) -> tuple[Sym, Sym, Sym]:
     phi = ca.atan2(ca.if_else(straight, 0.0, -t[1]), ca.if_else(straight, 1.0, -t[0]))
     psi = 2 * ca.atan2(Q[1, 0] - Q[0, 1], 1 + Q[0, 0] + Q[1, 1] + Q[2, 2])
     return theta, phi, psi
+
+
+@lru_cache(maxsize=8)
+def _statics_functions(statics: TendonStatics) -> tuple[ca.Function, ca.Function]:
+    """``(function, tip condition)`` of :class:`TendonStatics`, one pair for all statics
+    equal to ``statics`` (frozen dataclasses compared by value)."""
+    function = statics._build_function()
+    k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
+    tau = ca.SX.sym("tau", statics.robot.n_tendons)
+    res, _ = function(k0, force, tau)
+    return function, ca.Function("tip_condition", [k0, force, tau], [res, ca.jacobian(res, k0)])
