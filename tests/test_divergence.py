@@ -103,7 +103,7 @@ def test_a_ukf_rate_prior_that_spreads_its_sigma_points_past_its_chart_is_warned
     prediction after a start spreads its sigma points 0.5 sqrt(4) 50 0.05 = 2.5 rad of
     tilt apart, past 2 atan(pi / 2) = 2.01 rad, and every later sample restarts it
     (``reset``); ``run`` and ``step`` say so once, naming the largest rate within 0.95 of
-    that limit (0.95 * 2.01 / 0.05 = 38.2 rad/s); the EKF and the MHE take the prior
+    that limit (0.95 * 2 atan(pi / 2) / 0.05 = 38.1 rad/s); the EKF and the MHE take the prior
     (``ok``) and are not warned, nor is the UKF at 38 rad/s, where no sample restarts."""
     import math
     import warnings

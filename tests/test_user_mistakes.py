@@ -1738,13 +1738,15 @@ def test_times_that_are_not_seconds_are_user_errors() -> None:
 
 def test_step_and_continue_run_refuse_the_times_run_refuses() -> None:
     """Times 50 ns apart (``t`` in a unit far below seconds), which ``run`` refuses, are
-    refused by ``continue_run`` and by ``step`` from the
-    fourth sample (three steps judged), each with run's message naming the method, and
-    again at every later sample until ``reset()``; times in seconds step on."""
+    refused by ``continue_run`` and by ``step`` from the sample that ends the first
+    ``TOO_FAST_STEPS`` (100) steps, each with run's message naming the method, and
+    again at every later sample until ``reset()``; times in seconds step on, and so do
+    times in seconds whose first rows are a burst 3 us apart (a serial buffer stamped
+    as it is read), which ``run`` estimates too."""
     from continuum_mhe import Measurement, make_formulation, simulate
     from continuum_mhe.estimators.reading_units import ReadingUnitsError
 
-    rec = simulate("paper3d", duration=0.5)
+    rec = simulate("paper3d", duration=6.0)
     t = rec.t * 1e-6  # 5e-8 s a sample
     said = (
         "t advances by a median of 5e-08 s per sample (2e+07 samples per second): "
@@ -1759,14 +1761,23 @@ def test_step_and_continue_run_refuse_the_times_run_refuses() -> None:
     with pytest.raises(ReadingUnitsError, match=re.escape(f"continue_run: {said}")):
         est.step(Measurement(t[0], rec.z[0]))  # again, until a reset
     est.reset()
-    for i in range(3):
+    for i in range(100):
         assert est.step(Measurement(t[i], rec.z[i])).t == t[i]
-    for i in (3, 4):
+    for i in (100, 101):
         with pytest.raises(ReadingUnitsError, match=re.escape(f"step: {said}")):
             est.step(Measurement(t[i], rec.z[i]))
     est.reset()
     assert est.step(Measurement(rec.t[0], rec.z[0])).t == rec.t[0]
     assert len(est.continue_run(rec.t[1:], rec.z[1:]).status) == len(rec.t) - 1
+    burst = rec.t.copy()
+    burst[1:4] = burst[0] + 3e-6 * np.arange(1, 4)  # rows 2 to 4: 3 us apart
+    for how in ("step", "continue_run", "run"):
+        est.reset()
+        if how == "step":
+            statuses = [est.step(Measurement(ti, zi)).status for ti, zi in zip(burst, rec.z)]
+        else:
+            statuses = list(getattr(est, how)(burst, rec.z).status)
+        assert len(statuses) == len(burst), how  # every sample estimated, none refused
 
 
 def test_write_measurements_refuses_what_read_measurements_would(tmp_path) -> None:
@@ -1791,7 +1802,7 @@ def test_write_measurements_refuses_what_read_measurements_would(tmp_path) -> No
         assert not out.exists()
 
 
-def test_the_writers_refuse_times_their_readers_would_not_read_back(tmp_path) -> None:
+def test_the_writers_refuse_times_their_readers_would_not_read_back(tmp_path, capsys) -> None:
     """Times written as one (1e15 + 0.25 k in ten significant digits: each ``1e+15``;
     1000.25 and 1000.2500001 s, to the microsecond: both ``1000.25``), which
     ``read_state_table`` refused as a time that does not increase, are refused by
@@ -1833,6 +1844,20 @@ def test_the_writers_refuse_times_their_readers_would_not_read_back(tmp_path) ->
     for t in (np.array([0.0, 1e300]), 1e14 + 0.25 * np.arange(n)):
         write_estimates(out, replace(series.rows(slice(0, len(t))), t=t))
         assert read_state_table(out).t.tolist() == t.tolist()
+    # estimate's blocks (1,024 rows each): the row named is the file's, not the block's
+    long = simulate("paper3d", duration=150.0)
+    t = 1000.0 + long.t
+    t[2500] = t[2499] + 1e-7  # data row 2501, 0.1 us after the row before
+    meas = tmp_path / "long.csv"
+    rows = np.column_stack([t, long.z])
+    header = ",".join(["t", *long.measurement_names])
+    np.savetxt(meas, rows, delimiter=",", header=header, comments="", fmt="%.10f")
+    from continuum_mhe.cli import main
+
+    out = tmp_path / "long_est.csv"
+    assert main(["estimate", str(meas), "--method", "ekf", "-o", str(out)]) == 2
+    assert f"{out}: row 2501: t = 1124.9500001 s is written 1124.95" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_benchmark_and_check_robot_sizes_that_cannot_work_are_refused(capsys) -> None:

@@ -328,6 +328,13 @@ class Estimator(Generic[InferenceT]):
         #: run's refusal of times that step faster than any IMU stream, once step or
         #: continue_run found it (raised for every later sample until a reset)
         self._too_fast: str | None = None
+        #: the first sample times since a reset that judge it (:data:`TOO_FAST_STEPS`
+        #: steps), None once judged
+        self._fast_times: list[float] | None = []
+        #: whether step and continue_run refuse times too fast for seconds; False for a
+        #: caller that judges its stream's clock itself, with its own words (``live``:
+        #: a device clock that does not run, or runs in microseconds)
+        self.refuses_fast_times = True
         #: the robot's mounting against the first readings that step and continue_run
         #: hand over (run checks its whole recording); a command line sets its own,
         #: whose messages name its input and its options
@@ -483,6 +490,7 @@ class Estimator(Generic[InferenceT]):
             self._time_steps.reset()
             self._setting_steps.reset()
             self._too_fast = None
+            self._fast_times = []
             self.mounting_watch.reset()
         keep = keep_counts if keep_sensors is None else keep_sensors
         self._policy.reset(keep_counts, keep_counts and keep)
@@ -576,12 +584,13 @@ class Estimator(Generic[InferenceT]):
                 :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SAMPLES` over at least a
                 second: the samples before are estimated; ``run`` checks the whole
                 recording; both a :class:`~.reading_units.ReadingUnitsError`, raised
-                again for every later sample until a reset), times whose first three
-                steps after a reset have a median under
+                again for every later sample until a reset), times whose first
+                :data:`TOO_FAST_STEPS` steps after a reset have a median under
                 :data:`~continuum_mhe.model.formulations.MIN_NOISE_STEP_S` (not
                 seconds: ``run`` refuses a recording whose median step is; a
-                ``ReadingUnitsError`` too, at the fourth sample and every later one
-                until a reset), or
+                ``ReadingUnitsError`` too, from the sample that ends them on until a
+                reset; a burst of rows a few microseconds apart at a stream's start
+                is not enough), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
             ~continuum_mhe.io.input_options.MountingError: at the
@@ -968,14 +977,19 @@ class Estimator(Generic[InferenceT]):
     def _refuse_too_fast(self, t: FloatArray, what: str) -> None:
         """The :class:`~.reading_units.ReadingUnitsError` of :meth:`run` for times that
         step faster than any IMU stream (:func:`too_fast_problem`), judged on the first
-        :data:`~continuum_mhe.io.csv_files.TimeStepWatch.WATCHED_STEPS` steps handed
-        over since a reset (``what``: the method called), before the samples ``t`` are
-        stepped; raised again for every later sample until a reset (a new
-        recording)."""
-        if self._too_fast is None and not self._time_steps.done:
-            times = self._time_steps.ahead(t)
-            if len(times) > TimeStepWatch.WATCHED_STEPS:
+        :data:`TOO_FAST_STEPS` steps handed over since a reset (``what``: the method
+        called), before the samples ``t`` are stepped; raised again for every later
+        sample until a reset (a new recording)."""
+        times = self._fast_times
+        if times is not None and self.refuses_fast_times:
+            for v in t:  # (a time not after the last is refused elsewhere)
+                if len(times) > TOO_FAST_STEPS:
+                    break
+                if not times or float(v) > times[-1]:
+                    times.append(float(v))
+            if len(times) > TOO_FAST_STEPS:
                 self._too_fast = too_fast_problem(what, np.asarray(times))
+                self._fast_times = None
         if self._too_fast is not None:
             raise ReadingUnitsError(self._too_fast)
 
@@ -1080,6 +1094,13 @@ class Estimator(Generic[InferenceT]):
                 return batch.head(i + stop)
         _check_covered(done, n)
         return batch
+
+
+#: Steps after a reset whose median ``step`` and ``continue_run`` judge against
+#: :data:`~continuum_mhe.model.formulations.MIN_NOISE_STEP_S` (``run`` judges a whole
+#: recording's): enough that a burst of rows stamped microseconds apart at a stream's
+#: start (a serial buffer read at once) does not decide it.
+TOO_FAST_STEPS = 100
 
 
 def too_fast_problem(what: str, t: FloatArray) -> str | None:

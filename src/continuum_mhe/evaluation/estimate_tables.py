@@ -209,7 +209,8 @@ def truth_points(est: StateTable, truth: StateTable) -> list[TrackedPoint | None
 
 
 def truth_problem(est: StateTable, truth: StateTable) -> str | None:
-    """Why :func:`estimate_figure` cannot draw ``truth`` beside ``est`` (it has none of
+    """Why :func:`~continuum_mhe.evaluation.estimate_figure.estimate_figure` cannot draw
+    ``truth`` beside ``est`` (it has none of
     the estimate's tracked points, or fewer than two of its rows share a time with the
     estimate's, or it has the bend or position columns of a section the estimate has
     not: a truth of a robot of more sections; or its section ``k`` ends at its tip

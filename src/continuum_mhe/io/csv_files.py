@@ -305,18 +305,6 @@ class TimeStepWatch:
         #: the median of the first :data:`WATCHED_STEPS` steps, s, once judged (else None)
         self.step: float | None = None
 
-    def ahead(self, t: FloatArray) -> list[float]:
-        """The times :meth:`see` would hold once it took ``t`` (the first
-        :data:`WATCHED_STEPS` steps' and one more at most), without taking them: a
-        caller judges them before the samples are stepped."""
-        times = list(self._times)
-        for v in t:
-            if len(times) > self.WATCHED_STEPS:
-                break
-            if not times or float(v) > times[-1]:
-                times.append(float(v))
-        return times
-
     def see(self, t: FloatArray, what: str) -> str | None:
         """Take the sample times ``t`` (s; those not after the last one seen, handed over
         again, are left out); the text of a warning (``what: t advances by a median of

@@ -74,13 +74,14 @@ TEN_DIGITS_S = 1e15
 
 
 def check_written_times(
-    path: str | os.PathLike[str], t: FloatArray, after: float | None = None
+    path: str | os.PathLike[str], t: FloatArray, after: float | None = None, first_row: int = 1
 ) -> None:
     """A :class:`UserError` naming ``path`` and the row (from 1) of the first time of
     ``t`` (s, finite, increasing) that :func:`format_time` writes as one not after the
     row before's (``after``: the time of the row written before ``t``'s first, by an
-    earlier block): the file's readers refuse a time that does not increase. Raised
-    before anything of ``t`` is written."""
+    earlier block; ``first_row``: the row of ``t``'s first time in the file): the file's
+    readers refuse a time that does not increase. Raised before anything of ``t`` is
+    written."""
     t = np.asarray(t, dtype=float)
     prev = t[:-1] if after is None else np.concatenate([[after], t[:-1]])
     cur = t[1:] if after is None else t
@@ -88,13 +89,13 @@ def check_written_times(
     for j in np.flatnonzero(near):
         a, b = format_time(float(prev[j])), format_time(float(cur[j]))
         if float(b) <= float(a):
-            row = int(j) + (1 if after is not None else 2)
+            row = first_row + int(j) + (0 if after is not None else 1)
             raise UserError(
                 f"{path}: row {row}: t = {time_text(float(cur[j]))} s is written {b}, not after "
                 f"the row before's {a} (t = {time_text(float(prev[j]))} s), and the file's "
                 "readers refuse a time that does not increase: times are written to the "
                 f"microsecond (ten significant digits from {TEN_DIGITS_S:g} s): leave out a "
-                "sample less than a microsecond after the one before, or give t in seconds"
+                "sample a microsecond or less after the one before, or give t in seconds"
             )
 
 
@@ -200,12 +201,14 @@ def estimate_lines(
     status: Sequence[str],
     solve_ms: FloatArray,
     after: float | None = None,
+    first_row: int = 1,
 ) -> str:
     """The estimate CSV lines of several samples, as :func:`estimate_row` and
     :func:`format_cells` write each (``output``, ``output_std`` (n, ny) NaN where there
     is none; ``outlier`` None: no such column); a non-finite output of an estimate is
     refused (a bug), and times written as one not after the row before's
-    (:func:`check_written_times`; ``after``: the time of the row written before these).
+    (:func:`check_written_times`; ``after``: the time of the row written before these,
+    ``first_row``: the row of the first of them in the file).
     Written by the compiled core, each number as ``%.10g``."""
     status = list(status)  # str (or Status, a str): numpy's array of them calls __str__
     no_estimate = np.fromiter(map("no-estimate".__eq__, status), dtype=np.bool_, count=len(status))
@@ -216,7 +219,7 @@ def estimate_lines(
         and np.isfinite(output[estimated]).all()
     ):
         raise UserError(f"refusing to write a non-finite value to {path}")
-    check_written_times(path, t, after)
+    check_written_times(path, t, after, first_row)
     flags = None if outlier is None else np.ascontiguousarray(outlier, dtype=np.uint8)
     t, output, output_std, solve_ms = (
         np.ascontiguousarray(a, dtype=np.float64) for a in (t, output, output_std, solve_ms)

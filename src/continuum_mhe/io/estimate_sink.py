@@ -119,7 +119,15 @@ class EstimateSink:
                 flags = outlier if self.outlier else None
                 fh.write(
                     estimate_lines(
-                        self.path, t, output, output_std, flags, status, solve_ms, self._last_t
+                        self.path,
+                        t,
+                        output,
+                        output_std,
+                        flags,
+                        status,
+                        solve_ms,
+                        self._last_t,
+                        first_row=self.rows + 1,
                     )
                 )
                 if len(t):

@@ -218,6 +218,9 @@ class LiveSession:
     ) -> None:
         self.settings = settings
         self.estimator = estimator
+        # the device clock's unit is judged here, with the device's words (a clock that
+        # does not run, or runs in microseconds), not as the estimator's times
+        estimator.refuses_fast_times = False
         self.formulation = estimator.formulation
         #: whether the fast MHE's IPOPT fallback is being built, or need not be
         #: (:meth:`_prepare_fallback`), and the estimates it counts towards a full window
