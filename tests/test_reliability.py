@@ -223,7 +223,7 @@ def test_a_folder_whose_files_cannot_be_removed_is_refused_naming_the_output(
 def test_disk_full_names_the_output(tmp_path, capsys, monkeypatch) -> None:
     meas = _meas(tmp_path)
 
-    def full(*args: object) -> str:
+    def full(*args: object, **kwargs: object) -> str:
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(estimate_sink, "estimate_lines", full)
