@@ -69,6 +69,25 @@ def test_samples_sharing_a_stamp_are_spread_over_its_millisecond() -> None:
     assert np.all(np.diff(t_ms) > 0)
 
 
+def test_samples_of_a_stamp_repeated_many_times_are_written_apart() -> None:
+    """A device clock at a Unix time in ms that repeats one stamp 40 times at 1 kHz (a
+    clock stuck for a while): each sample after the first of the stamp is placed at
+    least 2 us after the one before (the spread over the millisecond, k / (k + 1) ms,
+    would put the 32nd and later ones under a microsecond apart), so that an estimate
+    file, which keeps times to the microsecond, writes each at its own time."""
+    from continuum_mhe.io.estimate_csv import format_time
+
+    clock = DeviceClock()
+    base = 1_700_000_000_000
+    stamps = [base] * 40 + [base + 1 + i for i in range(5)]
+    placed = [clock.place(ms, 1e-3 * i, 1e-3).t for i, ms in enumerate(stamps)]
+    steps = np.diff(placed)
+    assert np.all(steps[:39] >= 2e-6 - 1e-7), steps[:39].min()
+    written = [format_time(t) for t in placed]
+    assert len(set(written)) == len(written)
+    assert placed[1] - placed[0] == pytest.approx(0.5e-3, abs=1e-6)  # the spread's
+
+
 def test_a_repeated_stamp_at_a_slow_rate_is_still_out_of_order() -> None:
     """At 100 Hz an equal stamp is a line sent twice, not a faster sample."""
     s, _ = _session()

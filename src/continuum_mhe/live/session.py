@@ -321,6 +321,7 @@ class LiveSession:
         #: samples since, until the clock is held against the arrival times
         self._clock_checked = False
         self._clock_since: tuple[float, float] | None = None
+        self._clock_since_ms: float | None = None  # the device stamp there, ms
         self._clock_samples = 0
         #: whether the lines' device clock runs a thousand times too fast (microseconds)
         self._microseconds = MicrosecondsCheck()
@@ -697,6 +698,7 @@ class LiveSession:
             return
         if restart or self._clock_since is None:
             self._clock_since, self._clock_samples = (arrival, t), 0
+            self._clock_since_ms = self.clock.last_ms
             return
         self._clock_samples += 1
         since, t0 = self._clock_since
@@ -710,7 +712,7 @@ class LiveSession:
             cause = (
                 "a clock that does not run? (the first field is the device's millis(), "
                 "which must advance with every sample)"
-                if device < 1e-3  # under one millisecond: its repeated stamps spread within it
+                if self.clock.last_ms == self._clock_since_ms  # one stamp, spread
                 else "t_ms in seconds? (the first field is milliseconds, as millis() gives; "
                 "every step reads a thousand times too short)"
             )

@@ -59,6 +59,9 @@ HELD_BACK_S = 0.05
 
 #: Equal stamps are samples of one millisecond while the usual period is below this, s.
 SUB_MS_PERIOD_S = 1.5e-3
+#: The least step (s) between samples that share a stamp: estimate files keep times to
+#: the microsecond, so two samples closer than that would be written as one time.
+REPEAT_MIN_STEP_S = 2e-6
 
 ClockEvent = Literal["first", "next", "wrap", "restart", "out-of-order"]
 
@@ -178,6 +181,8 @@ class DeviceClock:
         if event == "next" and t_ms == last and (period_s is None or period_s < SUB_MS_PERIOD_S):
             repeat = self._repeat + 1  # within the millisecond the stamp names
             t += 1e-3 * repeat / max(self._per_stamp, repeat + 1)
+            if self._t_last is not None:  # more than the last stamp had: ever closer
+                t = max(t, self._t_last + REPEAT_MIN_STEP_S)
         if self._t_last is not None and t <= self._t_last:
             return Placed(t, "out-of-order")
         if repeat == 0:
