@@ -2826,8 +2826,8 @@ def test_the_tension_gain_finds_tensions_given_too_large_and_says_so(
     tips = values[:, [est.names.index(c) for c in "xyz"]]
     shapes = TendonShapes(read_robot("tendon-two-section"), tensions=read_tensions(scaled, 6))
     t = est.t[rows_drawn]
-    acting = shapes.from_forces(t, forces, est.names, values).tip
-    given = shapes.from_forces(t, forces).tip
+    acting = shapes.solved_forces(t, forces, est.names, values)[0].tip
+    given = shapes.solved_forces(t, forces)[0].tip
     assert np.max(np.linalg.norm(acting - tips, axis=1)) < 1e-3
     assert np.max(np.linalg.norm(given - tips, axis=1)) > 10e-3
 

@@ -47,7 +47,7 @@ from continuum_mhe.estimators.base import Status
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.fast.model import NodeEvaluator, node_functions
 from continuum_mhe.estimators.kalman import joseph_update
-from continuum_mhe.estimators.process_noise import process_noise
+from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
 
 if TYPE_CHECKING:
@@ -126,7 +126,7 @@ class BranchCheck:
         self.stats = BranchStats()
         self._inverse: dict[bytes, FloatArray] = {}  # tilt inverse per sample, by its z
         self._node: NodeEvaluator | None = None  # the model's node in the compiled core
-        self._process_noise: dict[float, FloatArray] = {}  # Q(dt) by dt
+        self._process_noise = ProcessNoiseCache(formulation)  # (Q(dt), Q(dt)^-1)
         self._zero_weights: tuple[FloatArray, FloatArray] | None = None
         #: the first test of :meth:`check` (a quadratic loss; None otherwise): a certified
         #: window whose twice window cost is at most entry ``dof`` (its valid measurement
@@ -218,15 +218,6 @@ class BranchCheck:
             self._node = NodeEvaluator(node_functions(self.formulation))
         return self._node
 
-    def _q(self, dt: float) -> FloatArray:
-        """The process noise ``Q(dt)`` (nx, nx), remembered for the last few time steps."""
-        Q = self._process_noise.get(dt)
-        if Q is None:
-            if len(self._process_noise) >= 8:
-                del self._process_noise[next(iter(self._process_noise))]
-            Q = self._process_noise[dt] = process_noise(self.formulation, dt)[0]
-        return Q
-
     def _propagate_prior(self, p: WindowProblem) -> FloatArray:
         f, n, node = self.formulation, self.horizon, self._node_model()
         X = np.empty((n, f.nx))
@@ -256,7 +247,7 @@ class BranchCheck:
             if i < n - 1:
                 dt = float(p.dt[i])
                 x, F, _, _ = node.evaluate(X[i], p.u[i], dt)
-                P = F @ P @ F.T + self._q(dt)
+                P = F @ P @ F.T + self._process_noise(dt)[0]
         return X
 
     # --- keep the best ----------------------------------------------------------------

@@ -612,11 +612,12 @@ class Estimator(Generic[InferenceT]):
                 f"formulation, got {np.shape(measurement.z)}"
             )
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
-        self._refuse_too_fast(np.array([t], dtype=float), "step")
+        times = np.array([t], dtype=float)  # the one sample's, for the stream's checks
+        self._refuse_too_fast(times, "step")
         if self._tension_rows:
-            z = self._check_tensions(z[None, :], np.array([t], dtype=float), stacklevel=3)[0]
+            z = self._check_tensions(z[None, :], times, stacklevel=3)[0]
         if not self._units.done:
-            problem = self._units.see(np.array([t], dtype=float), z[None, :])
+            problem = self._units.see(times, z[None, :])
             if problem is not None:
                 raise ReadingUnitsError(problem)
         if self.mounting_watch.error is not None:  # the robot is still the other way up
@@ -632,8 +633,9 @@ class Estimator(Generic[InferenceT]):
         if not self.mounting_watch.done:  # a sample the policy took, not one it refused
             self.mounting_watch.see(z[None, :], "step")
         if not self._time_steps.done:
-            self._warn_time_unit(np.array([t], dtype=float), "step")
-        self._warn_step_problem(np.array([t], dtype=float), "step")
+            self._warn_time_unit(times, "step")
+        if not self._setting_steps.done:
+            self._warn_step_problem(times, "step")
         self._ran = False
         if r.diagnostics_changed:
             self._sync_diagnostics()

@@ -320,8 +320,9 @@ class LiveSession:
         #: the first sample of the device clock's run (its arrival and time, s), and the
         #: samples since, until the clock is held against the arrival times
         self._clock_checked = False
-        self._clock_since: tuple[float, float] | None = None
-        self._clock_since_ms: float | None = None  # the device stamp there, ms
+        #: where the clock check starts: the arrival (s), the axis time (s) and the
+        #: device's stamp (ms)
+        self._clock_since: tuple[float, float, float | None] | None = None
         self._clock_samples = 0
         #: whether the lines' device clock runs a thousand times too fast (microseconds)
         self._microseconds = MicrosecondsCheck()
@@ -697,11 +698,10 @@ class LiveSession:
         if self._clock_checked:
             return
         if restart or self._clock_since is None:
-            self._clock_since, self._clock_samples = (arrival, t), 0
-            self._clock_since_ms = self.clock.last_ms
+            self._clock_since, self._clock_samples = (arrival, t, self.clock.last_ms), 0
             return
         self._clock_samples += 1
-        since, t0 = self._clock_since
+        since, t0, since_ms = self._clock_since
         host = arrival - since
         if host < CLOCK_CHECK_S or self._clock_samples < CLOCK_CHECK_SAMPLES:
             return
@@ -712,7 +712,7 @@ class LiveSession:
             cause = (
                 "a clock that does not run? (the first field is the device's millis(), "
                 "which must advance with every sample)"
-                if self.clock.last_ms == self._clock_since_ms  # one stamp, spread
+                if self.clock.last_ms == since_ms  # one stamp, spread
                 else "t_ms in seconds? (the first field is milliseconds, as millis() gives; "
                 "every step reads a thousand times too short)"
             )

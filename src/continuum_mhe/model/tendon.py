@@ -60,7 +60,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property
 from typing import ClassVar, Literal
 
@@ -376,9 +376,7 @@ class TendonFormulation(Formulation):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        import dataclasses
-
-        for f in dataclasses.fields(self):  # a number option given None or a string
+        for f in fields(self):  # a number option given None or a string
             kind, v = str(f.type), getattr(self, f.name)
             if kind in ("float", "float | None") and not (
                 is_real(v) or (v is None and kind == "float | None")

@@ -4,7 +4,6 @@ tendon robot, from its mechanics model (:class:`TendonShapes`)."""
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache, cached_property
@@ -140,7 +139,7 @@ class TendonShapes:
     Attributes:
         robot: the robot (with a ``[backbone]`` and its tendons).
         points_per_section: points drawn per section.
-        tensions: the tensions file, for :meth:`from_forces`; None without one.
+        tensions: the tensions file, for :meth:`solved_forces`; None without one.
     """
 
     robot: Robot
@@ -167,29 +166,6 @@ class TendonShapes:
         """Shapes of the estimator states ``states`` (n, nx)."""
         return self._geometry(*TendonFormulation.statics_of_states(states, self.robot.n_tendons))
 
-    def from_forces(
-        self,
-        t: FloatArray,
-        forces: FloatArray,
-        names: Sequence[str] = (),
-        values: FloatArray | None = None,
-    ) -> BackboneGeometry:
-        """Shapes of the tip forces ``forces`` (n, 3) N at the times ``t`` (n,) s under
-        the tensions there (the base curvature solved from the tip condition, each
-        sample from the previous one's), times the tension gains of the rows ``values``
-        (n, len(names)) where they have them (:func:`~continuum_mhe.model.tendon.
-        acting_tensions`). A row whose loads the rod holds no equilibrium
-        under has NaN shapes (not drawn), and one warning names the first and counts
-        them; where no row has one, a :class:`~continuum_mhe.errors.UserError` names
-        the first row."""
-        geom, unsolved = self.solved_forces(t, forces, names, values)
-        if unsolved:
-            warnings.warn(
-                f"{len(unsolved)} row(s) not drawn (no equilibrium); the first: {unsolved[0]}",
-                stacklevel=2,
-            )
-        return geom
-
     def solved_forces(
         self,
         t: FloatArray,
@@ -197,11 +173,15 @@ class TendonShapes:
         names: Sequence[str] = (),
         values: FloatArray | None = None,
     ) -> tuple[BackboneGeometry, list[UserError]]:
-        """:meth:`from_forces`'s shapes (NaN in the rows whose loads have no
-        equilibrium) and, in row order, the one-line error of each such row, without
-        the warning; where no row has an equilibrium, the first row's error is raised."""
+        """Shapes of the tip forces ``forces`` (n, 3) N at the times ``t`` (n,) s under
+        the tensions there (the base curvature solved from the tip condition, each
+        sample from the previous one's), times the tension gains of the rows ``values``
+        (n, len(names)) where they have them (:func:`~continuum_mhe.model.tendon.
+        acting_tensions`), and, in row order, the one-line error of each row whose loads
+        the rod holds no equilibrium under (its shapes NaN); where no row has one, the
+        first row's error is raised."""
         if self.tensions is None:
-            raise ValueError("from_forces needs the tensions")
+            raise ValueError("solved_forces needs the tensions")
         statics = self.statics
         forces = np.asarray(forces, dtype=float)
         tau = np.stack([self.tensions.at(float(tk))[0] for tk in t])
