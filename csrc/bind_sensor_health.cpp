@@ -674,7 +674,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<double> freeze_tolerance, double silent_after, double glitch_factor,
              double drift_reset, double whole_gap_reset,
              std::vector<std::pair<int, int>> free_pairs, std::vector<double> free_reach,
-             std::vector<int> wrapped_outputs, std::vector<double> bound_std_limit) {
+             std::vector<int> wrapped_outputs, std::vector<double> bound_std_limit,
+             bool judges_reach) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -751,6 +752,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             s.free_pairs = std::move(free_pairs);
             s.free_reach = std::move(free_reach);
             s.wrapped_outputs = std::move(wrapped_outputs);
+            s.judges_reach = judges_reach;
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -791,6 +793,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("free_reach") = std::vector<double>(),
           nb::arg("wrapped_outputs") = std::vector<int>(),
           nb::arg("bound_std_limit") = std::vector<double>(),
+          nb::arg("judges_reach") = false,
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "

@@ -995,6 +995,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     std::copy(z, z + s_.nz, gate_z_.begin());
     gate_t_ = t;
   }
+  // a standard deviation past the robot's reach, where no other test judges one (a
+  // covariance that is no noise model): the written row only, after the policy's own
+  // use of its status
+  if (s_.judges_reach && status == ST_OK && out.has_std && !s_.tip_rows.empty() &&
+      tip_std(ystd) > s_.length)
+    status = ST_UNCERTAIN;
   out.status = status;
   out.has_state = has_state;
   out.has_cov = has_cov;

@@ -219,6 +219,9 @@ struct PolicySettings {
   // missing: no reading was used, and the prediction has no tensions) for longer than
   // this restarts as after a gap (the gap reset on; NaN: only gap_reset's)
   double whole_gap_reset = NAN;
+  // a covariance that is no noise model (the paper's weight W): an ok row whose written tip
+  // standard deviation passes the robot's length is uncertain, the tip anywhere in its reach
+  bool judges_reach = false;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)

@@ -1088,6 +1088,10 @@ def test_no_ok_row_of_the_paper_formulation_has_a_std_past_the_robot() -> None:
             assert list(s.status) == ["ok"] + ["uncertain"] * (len(rec.t) - 1)
             assert_allclose(s.std[0, :3], 0.02, rtol=1e-9)
             assert np.all(s.std[1:, :3] > math.sqrt(0.1))
+        # sample by sample (as live steps) the same statuses
+        stepper = make_estimator(method, paper)
+        stepped = [stepper.step(Measurement(float(tk), zk)).status for tk, zk in zip(rec.t, rec.z)]
+        assert stepped == list(s.status), method
 
 
 def test_no_ok_row_has_a_written_tip_std_beyond_the_fraction() -> None:

@@ -103,7 +103,6 @@ STATUSES: tuple[Status, ...] = tuple(
     next(s for s in Status if s.value == name) for name in _core.STATUS_NAMES
 )
 _CODES = {status.value: code for code, status in enumerate(STATUSES)}
-_OK, _UNCERTAIN = STATUSES.index(Status.OK), STATUSES.index(Status.UNCERTAIN)
 
 
 def status_code(status: Status | str) -> int:
@@ -313,15 +312,6 @@ class Estimator(Generic[InferenceT]):
         self._units = ReadingUnitsWatch(self._direct_rows)
         #: the unit of the times that step and continue_run hand over
         self._time_steps = TimeStepWatch()
-        #: the tip's output columns where the covariance is no noise model (the paper
-        #: formulation's weight ``W``), whose ``ok`` rows with a tip standard deviation
-        #: past the robot's length are made ``uncertain`` here (:meth:`_beyond_reach`;
-        #: the compiled policy judges a noise model's width itself); else empty
-        self._reach_tip = (
-            []
-            if formulation.calibrated_covariance
-            else list(tip_position_indices(formulation.outputs))
-        )
         #: the step of the first sample times since a reset, for the inference's
         #: settings (:meth:`~.base.Inference.step_problem`): warned of once a recording
         self._setting_steps = TimeStepWatch()
@@ -412,6 +402,9 @@ class Estimator(Generic[InferenceT]):
             # the start and consistency checks need a covariance that is one (not the
             # paper's weight W)
             checks_start=f.calibrated_covariance,
+            # an ok row with a tip standard deviation past the robot's length is uncertain
+            # where no other test judges a standard deviation (the paper's weight W)
+            judges_reach=not f.calibrated_covariance,
             shape_observable=self.shape_observable,
             start_limit=[math.inf] + [chi2_quantile(quantile, k) for k in range(1, f.nz + 1)],
             start_samples=start_check.SAMPLES,
@@ -626,10 +619,6 @@ class Estimator(Generic[InferenceT]):
         if r.input_error:
             self._refuse(r.input_error, t, z)
         status = STATUSES[r.status]
-        if self._reach_tip and r.output_std is not None:
-            code = np.array([r.status], dtype=np.int32)
-            self._beyond_reach(code, np.asarray(r.output_std, dtype=float)[None, :])
-            status = STATUSES[int(code[0])]
         if not self.mounting_watch.done:  # a sample the policy took, not one it refused
             self.mounting_watch.see(z[None, :], "step")
         if not self._time_steps.done:
@@ -1004,21 +993,6 @@ class Estimator(Generic[InferenceT]):
             if problem is not None:
                 warnings.warn(problem, UnitWarning, stacklevel=3)
 
-    def _beyond_reach(self, status: NDArray[np.int32], output_std: FloatArray) -> None:
-        """``status`` (n,) codes changed in place: an ``ok`` row whose tip standard
-        deviation in ``output_std`` (n, ny), ``sqrt(std_x^2 + std_y^2 + std_z^2)``, is
-        past the robot's length is ``uncertain``, for a formulation whose covariance is
-        no noise model (the paper's weight ``W``, which the compiled policy's test of a
-        standard deviation against ``uncertain_fraction`` does not judge): a standard
-        deviation past the robot's reach says the tip may lie anywhere in it."""
-        if not len(status):
-            return
-        with np.errstate(invalid="ignore"):
-            wide = np.linalg.norm(output_std[:, self._reach_tip], axis=1) > (
-                self.formulation.robot.length
-            )
-        status[wide & (status == _OK)] = _UNCERTAIN
-
     def _warn_step_problem(self, t: FloatArray, what: str) -> None:
         """An :class:`~continuum_mhe.io.input_options.OptionWarning` (``what: ...``, the
         method called), once a recording, where the inference cannot follow its settings
@@ -1090,8 +1064,6 @@ class Estimator(Generic[InferenceT]):
             self._sync_diagnostics()
             if err:
                 self._refuse(err, float(t[i + stop]), z[i + stop])
-            if self._reach_tip:
-                self._beyond_reach(batch.status[i : i + stop], batch.output_std[i : i + stop])
             if stop < j - i:  # should_stop said so: the samples stepped
                 return batch.head(i + stop)
         _check_covered(done, n)
