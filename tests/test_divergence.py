@@ -136,6 +136,39 @@ def test_a_ukf_rate_prior_that_spreads_its_sigma_points_past_its_chart_is_warned
         assert list(series.status[1:]) == ["ok"] * (len(rec.t) - 1), method
 
 
+def test_a_ukf_process_noise_spreading_its_settled_sigma_points_past_its_chart_is_warned() -> None:
+    """``bend_accel_psd = 1e5`` on ``paper3d`` (0.05 s steps): once settled, the UKF's
+    predicted covariance spreads its sigma points 2.79 rad of tilt apart, past 2 atan(pi /
+    2) = 2.01 rad, and most samples restart it (``reset``); ``run`` says so once, naming
+    the setting. At 1e3 (spread 0.29 rad, and two innovation standard deviations 0.59
+    rad more: within the limit) it is not warned of and no sample restarts; nor are the
+    EKF and the MHE at 1e5, nor the UKF with the default at 1 Hz (spread 0.57 rad)."""
+    import warnings
+
+    from continuum_mhe.io.input_options import OptionWarning
+    from continuum_mhe.model.settings import NoiseSettings
+
+    rec = simulate("paper3d", duration=3)
+    noisy = make_formulation("bend", noise=NoiseSettings(bend_accel_psd=1e5))
+    said = (
+        r"^run: bend_accel_psd \(--accel-psd\) 100000 spreads the UKF's sigma points up to "
+        r"2\.79 rad of tilt .* once the filter has settled, .* past the 2\.01 rad .* give a "
+        r"smaller bend_accel_psd"
+    )
+    with pytest.warns(OptionWarning, match=said) as caught:
+        series = make_estimator("ukf", noisy).run(rec.t, rec.z)
+    assert len(caught) == 1
+    assert np.mean(series.status == "reset") > 0.5
+    slow = simulate("paper3d", duration=30)
+    for method, psd, step in (("ukf", 1e3, 1), ("ekf", 1e5, 1), ("mhe", 1e5, 1), ("ukf", 0.5, 20)):
+        f = make_formulation("bend", noise=NoiseSettings(bend_accel_psd=psd))
+        t, z = (rec.t, rec.z) if step == 1 else (slow.t[::step], slow.z[::step])
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", OptionWarning)
+            series = make_estimator(method, f).run(t, z)
+        assert "reset" not in set(series.status), method
+
+
 def test_mhe_survives_the_rows_that_stopped_it() -> None:
     data = read_measurements(REPRO / "mhe_stops.csv")
     est = make_estimator("mhe", make_formulation("bend"))

@@ -298,6 +298,16 @@ CHART_LIMIT = 2.0 * math.atan(math.pi / 2.0)
 #: and noise from the prediction, and the updates fail from 0.98 of it on (one
 #: section, ``paper3d``) and 1.05 (two sections, ``spatial``).
 CHART_SHARE = 0.95
+#: Innovation standard deviations from the prediction that a reading may lie, as the
+#: robot moves, when the settled filter's spread is judged
+#: (:meth:`UnscentedKalmanInference.step_problem`): on ``paper3d`` (0.05 s steps, 400
+#: samples) the UKF's updates fail and restart it from ``bend_accel_psd`` 1e4 on (16
+#: restarts; 174 at 3e4), where a settled spread and two innovation standard deviations
+#: pass :data:`CHART_LIMIT`, and not at 5e3; nor at 1 Hz with the default.
+SETTLED_READING_SIGMAS = 2.0
+#: The most steps the settled covariance of
+#: :meth:`UnscentedKalmanInference._settled_spread` takes.
+SETTLE_STEPS = 1000
 
 
 class UnscentedKalmanInference(_KalmanBase):
@@ -343,14 +353,22 @@ class UnscentedKalmanInference(_KalmanBase):
         super().__init__(formulation)
 
     def step_problem(self, step: float) -> str | None:
-        """Where the start's bend-rate prior (``NoiseSettings.initial_rate_std``) spreads
-        the sigma points of the first prediction after a start, ``step`` s on, so far
-        that a reading's tilt can lie :data:`CHART_LIMIT` from a sigma point's (within
-        :data:`CHART_SHARE` of it): every start's first update then fails and restarts
-        the filter from the same prior, sample after sample (status ``reset``). The
-        spread is the sigma points' scale ``alpha sqrt(n + kappa)`` times the largest
-        standard deviation the rates give a tilt reading over the step (the straight
-        robot's tilt Jacobian); the EKF and the MHE take any such prior."""
+        """Where the UKF's sigma points spread so far over a step of ``step`` s that a
+        reading's tilt can lie :data:`CHART_LIMIT` from a sigma point's, so that updates
+        fail and restart the filter (status ``reset``); the EKF and the MHE take any such
+        setting. Two causes, each measured on the straight, still robot (its tilt
+        Jacobian):
+
+        - the start's bend-rate prior (``NoiseSettings.initial_rate_std``): every start's
+          first prediction spreads the sigma points by the sigma points' scale
+          ``alpha sqrt(n + kappa)`` times the largest standard deviation the rates give a
+          tilt reading over the step, past :data:`CHART_SHARE` of the limit, and each
+          start then fails and restarts from the same prior, sample after sample;
+        - the bends' process noise (``NoiseSettings.bend_accel_psd``): the filter's
+          predicted covariance once it has settled (its own recursion, run on the
+          readings' noise ``R``) spreads the sigma points so far that with a reading
+          :data:`SETTLED_READING_SIGMAS` innovation standard deviations from the
+          prediction, as the robot's motion puts it, the limit is passed."""
         f = self.formulation
         rows = [] if f.tilt_residual_wraps else tilt_rows(f)
         if not rows or not isinstance(f, BendFormulation) or not math.isfinite(step):
@@ -358,11 +376,30 @@ class UnscentedKalmanInference(_KalmanBase):
         x = np.zeros(f.nx)  # straight and still
         z = np.asarray(f.functions.observe(x), dtype=float).ravel()
         _, jacobian = (np.asarray(v, dtype=float) for v in f.functions.innovate(z, x))
+        H = jacobian.reshape(f.nz, f.nx)
         bends = 2 * f.robot.n_sections
-        rate_gain = np.linalg.norm(jacobian.reshape(f.nz, f.nx)[rows, :bends], axis=1).max()
-        scale = self.alpha * math.sqrt(f.nx + self.sigma.kappa) * rate_gain * step
+        scale = self.alpha * math.sqrt(f.nx + self.sigma.kappa)
+        settled = self._settled_spread(H, step)
+        worst = scale * settled[rows] + SETTLED_READING_SIGMAS * np.sqrt(
+            settled[rows] ** 2 + np.diag(f.meas_cov())[rows]
+        )
+        if worst.max() > CHART_LIMIT:
+            psd = f.noise.bend_accel_psd
+            return (
+                f"bend_accel_psd (--accel-psd) {psd:g} spreads the UKF's sigma points up to "
+                f"{scale * settled[rows].max():.3g} rad of tilt from its prediction over "
+                f"the {step:.3g} s between samples once the filter has settled, with "
+                f"readings {SETTLED_READING_SIGMAS:g} standard deviations "
+                f"({(worst - scale * settled[rows]).max():.3g} rad) from it as the robot "
+                f"moves: near or past the {CHART_LIMIT:.3g} rad at which a reading's "
+                "residual 2 tan(e/2) passes pi and the update fails, which restarts the "
+                "filter (status reset); give a smaller bend_accel_psd (the EKF and the MHE "
+                "take it)"
+            )
+        rate_gain = np.linalg.norm(H[rows, :bends], axis=1).max()
+        rate_scale = scale * rate_gain * step
         rate = f.noise.initial_rate_std
-        spread = scale * rate
+        spread = rate_scale * rate
         if spread <= CHART_SHARE * CHART_LIMIT:
             return None
         return (
@@ -372,8 +409,34 @@ class UnscentedKalmanInference(_KalmanBase):
             "residual 2 tan(e/2) passes pi and the update fails: a start's first update "
             "then fails and restarts the filter from the same prior (status reset), past "
             "it on most samples; give initial_rate_std at most "
-            f"{CHART_SHARE * CHART_LIMIT / scale:.3g} rad/s (the EKF and the MHE take it)"
+            f"{CHART_SHARE * CHART_LIMIT / rate_scale:.3g} rad/s (the EKF and the MHE take it)"
         )
+
+    def _settled_spread(self, H: FloatArray, step: float) -> FloatArray:
+        """Each reading's standard deviation (nz,) under the filter's predicted
+        covariance once settled on the straight, still robot: the Kalman covariance
+        recursion with the transition's Jacobian and ``Q`` over ``step`` s, every reading
+        taken with the readings' noise ``R``, until the prediction changes by less than
+        1e-9 of itself (at most :data:`SETTLE_STEPS` steps)."""
+        f = self.formulation
+        nx = f.nx
+        _, F, Q = (
+            np.asarray(v, dtype=float)
+            for v in f.functions.predict(np.zeros(nx), np.zeros(f.nu), step)
+        )
+        F, Q = F.reshape(nx, nx), Q.reshape(nx, nx)
+        R = f.meas_cov()
+        P = np.zeros((nx, nx))  # the first prediction's covariance is Q
+        predicted = np.full((nx, nx), np.nan)
+        for _ in range(SETTLE_STEPS):
+            predicted_next = F @ P @ F.T + Q
+            gain = np.linalg.solve(H @ predicted_next @ H.T + R, H @ predicted_next).T
+            P = predicted_next - gain @ H @ predicted_next
+            done = np.allclose(predicted_next, predicted, rtol=1e-9, atol=0.0)
+            predicted = predicted_next
+            if done:
+                break
+        return np.sqrt(np.maximum(np.diag(H @ predicted @ H.T), 0.0))
 
     def _predict(
         self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
