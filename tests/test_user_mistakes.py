@@ -3797,3 +3797,22 @@ def test_an_estimate_series_built_by_hand_is_checked_in_user_errors() -> None:
         EstimateSeries("ekf", t, ok, np.array(["bogus"] * 3), np.zeros(3))
     series = EstimateSeries("ekf", t, ok.tolist(), status, np.zeros(3))  # type: ignore[arg-type]
     assert [str(s.value) for s in series.statuses()] == ["ok"] * 3
+
+
+def test_an_estimate_series_built_by_hand_takes_its_times_as_an_array() -> None:
+    """An ``EstimateSeries`` made in code with its times as a list is one whose rows a
+    mask selects (the times an array, not a TypeError from indexing the list), and times
+    given as a column (n, 1) or as text are one UserError naming ``t``."""
+    from continuum_mhe import EstimateSeries
+    from continuum_mhe.errors import UserError
+
+    t, out = [0.0, 0.5, 1.0], np.tile([0.01, 0.02, 0.19, 0.1, 0.5], (3, 1))
+    status = np.array(["ok"] * 3)
+    series = EstimateSeries("ekf", t, out, status, [0.1, 0.1, 0.1])  # type: ignore[arg-type]
+    assert series.t.dtype == np.float64 and series.solve_ms.dtype == np.float64
+    late = series.rows(series.t >= 0.5)
+    assert late.t.tolist() == [0.5, 1.0]
+    with pytest.raises(UserError, match=r"^t has shape \(3, 1\), expected \(n,\)"):
+        EstimateSeries("ekf", np.array(t)[:, None], out, status, np.zeros(3))
+    with pytest.raises(UserError, match=r"^t must be an array of numbers"):
+        EstimateSeries("ekf", ["0", "a", "1"], out, status, np.zeros(3))  # type: ignore[arg-type]

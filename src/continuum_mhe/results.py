@@ -341,6 +341,19 @@ class EstimateSeries:
     diagnostics: Diagnostics | None = None
 
     def __post_init__(self) -> None:
+        # arrays of numbers, t one time per sample: a list or a column (n, 1) of times
+        # would pass the shape checks below and fail later, in rows() or a writer
+        for name in ("t", "solve_ms"):
+            value = getattr(self, name)
+            try:
+                if holds_bools(value):
+                    raise TypeError
+                array = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                raise UserError(f"{name} must be an array of numbers, got {value!r:.60}") from None
+            object.__setattr__(self, name, array)
+        if self.t.ndim != 1:
+            raise UserError(f"t has shape {self.t.shape}, expected (n,): one time (s) per sample")
         n = len(self.t)
         for name in ("status", "solve_ms"):  # one per sample (a writer's zip would cut)
             if np.shape(getattr(self, name)) != (n,):
@@ -374,6 +387,8 @@ class EstimateSeries:
             object.__setattr__(self, "output_std", np.full(shape, np.nan))
         elif np.shape(self.output_std) != shape:
             raise UserError(f"output_std has shape {np.shape(self.output_std)}, expected {shape}")
+        else:
+            object.__setattr__(self, "output_std", np.asarray(self.output_std, dtype=float))
 
     @property
     def std(self) -> FloatArray:
