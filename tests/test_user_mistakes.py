@@ -3816,3 +3816,17 @@ def test_an_estimate_series_built_by_hand_takes_its_times_as_an_array() -> None:
         EstimateSeries("ekf", np.array(t)[:, None], out, status, np.zeros(3))
     with pytest.raises(UserError, match=r"^t must be an array of numbers"):
         EstimateSeries("ekf", ["0", "a", "1"], out, status, np.zeros(3))  # type: ignore[arg-type]
+
+
+def test_write_robot_refuses_a_robot_of_another_type_naming_it(tmp_path) -> None:
+    """``write_robot`` given a robot file's name (what ``read_robot`` takes) or None is
+    one UserError naming the argument, and writes no file: not an AttributeError from
+    inside the writer, nor the default robot's file for None."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io import write_robot
+
+    for robot in ("two-section", None):
+        path = tmp_path / "robot.toml"
+        with pytest.raises(UserError, match=r"^write_robot robot must be a Robot or RobotSettings"):
+            write_robot(path, robot)  # type: ignore[arg-type]
+        assert not path.exists()

@@ -645,10 +645,15 @@ def write_robot(path: str | os.PathLike[str], robot: Robot | RobotSettings) -> N
     """Write ``robot`` (read from a file or built in code; a one-section
     :class:`RobotSettings` too) as the robot file ``path`` (:func:`robot_toml`), for the
     commands that take ``--robot FILE`` (``evaluate``, ``view``, ``estimate``). The file
-    is written whole or not at all."""
+    is written whole or not at all; a ``robot`` of another type (a robot file's name,
+    None) is a :class:`UserError` naming it, before ``path`` is touched."""
     from continuum_mhe.io.output_files import atomic_writer
     from continuum_mhe.model.formulations import as_robot
 
+    expect_type(
+        "write_robot robot", robot, (Robot, RobotSettings),
+        "a Robot or RobotSettings (read_robot(NAME) reads a robot file)",
+    )  # fmt: skip
     text = robot_toml(as_robot(robot))
     with atomic_writer(path) as fh:
         fh.write(text)
