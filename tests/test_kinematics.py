@@ -666,6 +666,21 @@ def test_backbone_points_refuses_section_lengths_that_are_no_lengths() -> None:
     assert_allclose(backbone_points([0.2], 0.0, 0.0, [0.2]), [[0.0, 0.0, 0.2]], atol=1e-15)
 
 
+def test_backbone_points_refuses_arc_lengths_of_more_than_one_dimension() -> None:
+    """``backbone_points`` given ``s`` as a table (1, 2) of arc lengths refuses it in a
+    UserError naming ``s`` and its shape (not numpy's ambiguous truth value from
+    inside); a number or a row of arc lengths is taken."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.pcc import backbone_points
+
+    with pytest.raises(
+        UserError, match=r"^backbone_points: s must be an arc length or a 1-D .*\(1, 2\)"
+    ):
+        backbone_points([0.2], 0.0, 0.0, [[0.1, 0.2]])
+    assert backbone_points([0.2], 0.0, 0.0, 0.2).shape == (1, 3)
+    assert backbone_points([0.2], 0.0, 0.0, [0.1, 0.2]).shape == (2, 3)
+
+
 def test_pose_at_names_the_sections_it_has() -> None:
     """``section`` counts from 0; one beyond the robot (the 1-based count a user may
     try) is a ValueError naming the range, not an IndexError from inside."""

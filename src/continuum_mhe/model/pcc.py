@@ -205,14 +205,19 @@ def backbone_points(
 
     Returns (..., len(s), 3) in metres, in the robot's base frame (z along the straight
     robot). ``s = robot.length`` is the tip; a section boundary is that section's end.
-    A section length that is not a positive finite number, and ``theta``, ``phi`` or
-    ``s`` given as text or bools, are a :class:`~continuum_mhe.errors.UserError` naming
-    the argument.
+    A section length that is not a positive finite number, ``theta``, ``phi`` or ``s``
+    given as text or bools, and an ``s`` of more than one dimension, are a
+    :class:`~continuum_mhe.errors.UserError` naming the argument.
     """
     lengths = _section_lengths(robot)
     for name, values in (("theta", theta), ("phi", phi), ("s", s)):
         if np.asarray(values).dtype.kind in "SUO" or holds_bools(values):
             raise UserError(f"backbone_points: {name} must be numbers, got {values!r:.60}")
+    if np.ndim(s) > 1:  # (arc_places takes a number or a row of them)
+        raise UserError(
+            f"backbone_points: s must be an arc length or a 1-D sequence of them (m), got "
+            f"shape {np.shape(s)}"
+        )
     th = np.asarray(theta, dtype=float)
     ph = np.asarray(phi, dtype=float)
     n = len(lengths)
