@@ -527,6 +527,26 @@ def test_estimate_refuses_an_output_another_reader_would_misread(tmp_path, capsy
     assert main(["estimate", str(meas), "-o", str(tmp_path / "e.txt")]) == 0
 
 
+@pytest.mark.parametrize("name", ["e.txt", "e"])
+def test_an_estimate_written_as_txt_or_without_suffix_keeps_its_options(tmp_path, capsys, name):
+    # estimate writes CSV under these names: evaluate, plot and --config read its options
+    # line as they read an estimate .csv's, not the whole file as an options TOML
+    meas, truth = tmp_path / "m.csv", tmp_path / "truth.csv"
+    sim = ["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--duration", "2"]
+    assert main([*sim, "--length", "0.3"]) == 0
+    est = tmp_path / name
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--length", "0.3"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert "TOML" not in err and "warning" not in err
+    assert json.loads(out)["tip_max_pct"] == pytest.approx(json.loads(out)["tip_max_mm"] / 3)
+    again = tmp_path / "again.csv"
+    assert main(["estimate", str(meas), "--config", str(est), "-o", str(again)]) == 0
+    assert "TOML" not in capsys.readouterr().err
+    assert again.read_text().splitlines()[:2] == est.read_text().splitlines()[:2]
+
+
 def test_invalid_option_values_are_one_line_errors(tmp_path, capsys):
     meas = _meas(tmp_path, _good_rows(5))
     for opts in (

@@ -135,12 +135,12 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
         except tomllib.TOMLDecodeError as exc:
             raise InputError(f"{path}: its options note: {shorten(str(exc), 200)}") from None
     held = held_text(path)  # an estimate piped in (read whole, once)
-    estimate = held is not None or p.suffix.lower() == ".csv"
     try:
         text = p.read_text(encoding="utf-8-sig") if held is None else held  # a BOM dropped
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise InputError(f"{path}: cannot read the options file ({why})") from None
+    estimate = held is not None or _estimate_text(p, text)
     offset = indent = 0
     if estimate:
         found = [
@@ -164,6 +164,33 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
     if estimate:
         data = data[OPTIONS_LINE]
     return data, text, offset
+
+
+def _estimate_text(path: Path, text: str) -> bool:
+    """Whether ``text``, the file ``path``'s, is an estimate CSV's rather than a TOML
+    options file's: a ``.csv`` file, or one that ``estimate`` writes as CSV under another
+    name (``.txt``, no suffix), whose first line is its ``# continuum-mhe = ...`` note."""
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return True
+    if suffix == ".toml":
+        return False
+    return _made_note(text.splitlines()[:1]) is not None
+
+
+def _is_estimate_file(path: str) -> bool:
+    """Whether the file ``path`` is an estimate (CSV or MCAP) rather than an options file."""
+    p = Path(path)
+    if p.suffix.lower() in (".csv", ".mcap") or held_text(path) is not None:
+        return True
+    if p.suffix.lower() == ".toml":
+        return False
+    try:
+        with p.open(encoding="utf-8-sig") as fh:
+            first = fh.readline()
+    except (OSError, UnicodeDecodeError):
+        return False
+    return _made_note([first]) is not None
 
 
 def _line(text: str, key: str, offset: int = 0) -> str:
@@ -273,7 +300,7 @@ def apply_config(
                     " give it once"
                 )
             spelled[dest] = key
-    recorded = Path(path).suffix.lower() in (".csv", ".mcap")  # an estimate file
+    recorded = _is_estimate_file(path)  # an estimate file
     defaults: dict[str, Any] = {}
     sources: dict[str, str] = {}
     set_in: dict[str, str] = {}  # the table that set each destination
