@@ -56,6 +56,7 @@ def test_parse_line_protocol() -> None:
         "1,0,0,9999,0,0,0",
         "12,0.1,0.2,9.8,0.01,0.0",
         "12,0,0,0,0.01,0.0,0",  # an accelerometer reading exactly zero
+        "12,1e-200,0,1e-200,0.01,0.0,0",  # one whose square underflows: no direction
     ):
         with pytest.raises(GarbledLine):
             parse_line(bad, "raw")

@@ -337,12 +337,15 @@ def test_mount_calibration_recipe_of_the_docs() -> None:
     np.testing.assert_allclose(z[0, :3], [0.0, 0.0, 1.0], atol=1e-12)
 
 
-def test_zero_acceleration_is_an_error_unless_skipped(tmp_path) -> None:
+@pytest.mark.parametrize("zero", ["0,0,0", "1e-200,0,1e-200", "0,5e-163,0"])
+def test_zero_acceleration_is_an_error_unless_skipped(tmp_path, zero: str) -> None:
+    """A zero, or one so small that its square underflows (no direction to read either:
+    the conversions would make it a dropout that no count or line names)."""
     from continuum_mhe.errors import InputError
     from continuum_mhe.io.raw_imu import read_raw_imu
 
     p = tmp_path / "raw.csv"
-    p.write_text("t,ax,ay,az\n0,0,0,9.81\n0.01,0,0,0\n0.02,0,0.1,9.8\n")
+    p.write_text(f"t,ax,ay,az\n0,0,0,9.81\n0.01,{zero}\n0.02,0,0.1,9.8\n")
     with pytest.raises(InputError, match=r"raw.csv: line 3: acceleration is zero"):
         read_raw_imu(p)
     table = read_raw_imu(p, skip_bad=True)

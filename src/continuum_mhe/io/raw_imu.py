@@ -456,7 +456,10 @@ def raw_blocks(
         # hypot: no overflow to inf for a corrupt 1e200
         acc_norm = np.hypot.reduce(acc, axis=1)
         gyr_norm = np.hypot.reduce(block[:, 3:6], axis=1) if has_gyro else np.zeros(len(acc))
-        zero = acc_norm == 0.0  # no gravity direction to read
+        # no gravity direction to read: a zero, or a magnitude whose square underflows
+        # (under about 1e-162 m/s^2), which the conversions' norm takes as zero
+        with np.errstate(under="ignore"):
+            zero = (acc_norm == 0.0) | (np.einsum("ij,ij->i", acc, acc) == 0.0)
         huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
         check_accel_range(label, acc_norm)
         which = "" if n_imus == 1 else f"IMU {i + 1}: "
@@ -464,6 +467,9 @@ def raw_blocks(
         for j in np.flatnonzero(zero | huge) if said_here else ():
             msg = f"line {lines[int(j)]}: {which}" + (
                 "acceleration is zero (no gravity direction)"
+                if zero[j] and acc_norm[j] == 0.0
+                else f"acceleration is zero to double precision (|a| {acc_norm[j]:.3g} "
+                "m/s^2: no gravity direction)"
                 if zero[j]
                 else f"a reading beyond any IMU's range (|a| {acc_norm[j]:.3g} m/s^2, "
                 f"limit {ACCEL_READING_MAX:g}; |omega| {gyr_norm[j]:.3g} rad/s, limit "

@@ -117,6 +117,8 @@ def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> li
             raise GarbledLine(beyond_range(v, imu, n_imus))
         if ax == 0.0 and ay == 0.0 and az == 0.0:
             raise GarbledLine("accelerometer reads exactly zero")
+        if ax * ax + ay * ay + az * az == 0.0:  # a square underflows: no direction either
+            raise GarbledLine("accelerometer reads zero to double precision")
     else:
         suffix = f"_{imu + 1}" if n_imus > 1 else ""
         for name, value, limit, bound in zip(("roll", "pitch"), v, TILT_LIMITS, ("pi", "pi/2")):
@@ -134,7 +136,8 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1, n_tensions: int = 0)
 
     Raises :class:`GarbledLine` for anything else that is not a complete, plausible
     sample (wrong field count, a bad time, non-numbers, non-finite or out-of-range
-    values, an accelerometer that reads exactly zero, a negative tension). On a line of
+    values, an accelerometer that reads zero or so near it that its square underflows, a
+    negative tension). On a line of
     several IMUs, an IMU whose values are bad is a dropout (NaN, said in
     :attr:`Sample.problems`) and the others are kept; a line with no good IMU is
     garbled, and so is one with a bad tension (the model cannot predict the IMUs
