@@ -236,6 +236,28 @@ def test_live_replaces_a_glitch_before_its_derivatives_are_given_and_a_replay_al
         assert np.max(np.abs(getattr(own, part) - streamed)) < 1e-9
 
 
+@pytest.mark.parametrize("size", [1e9, 1e200])
+def test_a_huge_glitch_in_a_stream_takes_the_curve_through_its_neighbours(size: float) -> None:
+    """``live``'s stream (and a replay of a recording's own tension columns) replaces a
+    glitch of any size by the curve through its neighbours, as a tensions file does:
+    not by the glitch less its departure, which rounding takes to 0 N from 1e17 N on."""
+    clean = np.round(_smooth(3, fastest=1.0), 6)
+    v = clean.copy()
+    v[150, 0] = size
+    given = {}
+    for name, x in (("clean", clean), ("glitched", v)):
+        stream = TensionStream("serial", 3)
+        out = []
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TensionsWarning)
+            for tk, vk in zip(T, x):
+                out.extend(stream.push(float(tk), vk))
+            out.extend(stream.end())
+        given[name] = np.array([s.values for s in out])
+    assert stream.glitches == 1
+    assert np.max(np.abs(given["glitched"] - given["clean"])) < 1e-4
+
+
 def test_a_stream_of_noise_has_no_glitch_and_starts_afresh_after_its_end() -> None:
     """A slow motion with a load cell's white noise (2 mN at 50 Hz, 40 streams): no
     sample is taken as a glitch, from the first; after :meth:`TensionStream.end` the

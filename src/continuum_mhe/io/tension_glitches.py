@@ -398,8 +398,11 @@ class StreamGlitches:
         for a, node in ((4, 3), (5, 2)):  # rows i - 2 and i - 1: the glitch is node 3, 2
             echoed &= np.abs(signed[a] + weights[a, node] * h) < SIGNATURE_TOLERANCE * np.abs(h)
         glitch = (np.abs(h) > limit) & echoed
+        # the curve through its neighbours as such (v - h would lose it to rounding
+        # against a glitch of 1e17 N or more)
+        curve = weights[-1] @ v[[i - 2, i - 1, i + 1, i + 2]]
         for c in np.flatnonzero(glitch):
-            used = max(float(v[i, c] - h[c]), 0.0)
+            used = max(float(curve[c]), 0.0)
             self.replaced.append((self.first + i, int(c), float(v[i, c]), used))
             self.values[i][c] = used
         if glitch.any():  # the two samples after it departed from its glitch: again
