@@ -547,6 +547,28 @@ def test_an_estimate_written_as_txt_or_without_suffix_keeps_its_options(tmp_path
     assert again.read_text().splitlines()[:2] == est.read_text().splitlines()[:2]
 
 
+@pytest.mark.parametrize("value", ["3", '"ekf"', "[1, 2]"])
+def test_an_options_line_that_is_no_table_is_said_not_a_crash(tmp_path, capsys, value):
+    # evaluate and plot warn and use the default robot, as for an options line that is
+    # not TOML; --config refuses it in one line
+    meas, truth = tmp_path / "m.csv", tmp_path / "truth.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth)]) == 0
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    lines = est.read_text().splitlines()
+    assert lines[1].startswith("# options = {")
+    lines[1] = f"# options = {value}"
+    est.write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "line 2: options = " in err and "not a table" in err
+    assert main(["estimate", str(meas), "--config", str(est), "-o", str(tmp_path / "a.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error:" in err and "not a table of options" in err
+    assert not (tmp_path / "a.csv").exists()
+
+
 def test_invalid_option_values_are_one_line_errors(tmp_path, capsys):
     meas = _meas(tmp_path, _good_rows(5))
     for opts in (

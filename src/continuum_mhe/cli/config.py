@@ -131,9 +131,12 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
             )
         text = f"{OPTIONS_LINE} = {note}"
         try:
-            return tomllib.loads(text)[OPTIONS_LINE], text, 0
+            recorded = tomllib.loads(text)[OPTIONS_LINE]
         except tomllib.TOMLDecodeError as exc:
             raise InputError(f"{path}: its options note: {shorten(str(exc), 200)}") from None
+        if not isinstance(recorded, dict):
+            raise UnreadableOptions(f"{path}: its options note: {_not_a_table(recorded)}")
+        return recorded, text, 0
     held = held_text(path)  # an estimate piped in (read whole, once)
     try:
         text = p.read_text(encoding="utf-8-sig") if held is None else held  # a BOM dropped
@@ -163,7 +166,17 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
         raise InputError(f"{path}: nested too deep to be an options file") from None
     if estimate:
         data = data[OPTIONS_LINE]
+        if not isinstance(data, dict):
+            raise UnreadableOptions(f"{path}: line {offset + 1}: {_not_a_table(data)}")
     return data, text, offset
+
+
+def _not_a_table(value: Any) -> str:
+    """The problem of an estimate's recorded options that are ``value``, not a table."""
+    return (
+        f"{OPTIONS_LINE} = {shorten(repr(value), 60)} is not a table of options "
+        f"({OPTIONS_LINE} = {{method = ..., ...}})"
+    )
 
 
 def _estimate_text(path: Path, text: str) -> bool:
