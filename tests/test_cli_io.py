@@ -569,6 +569,36 @@ def test_an_options_line_that_is_no_table_is_said_not_a_crash(tmp_path, capsys, 
     assert not (tmp_path / "a.csv").exists()
 
 
+@pytest.mark.parametrize("again", ["t_ms,ax,ay,az,gx,gy,gz", "t_ms,ay,ax,az,gy,gx,gz"])
+def test_a_capture_that_declares_its_fields_again_in_another_order_is_refused(
+    tmp_path, capsys, again
+):
+    # a board restarted with other firmware mid-capture: the rows after its second
+    # '# fields:' line would be read by the first's order, each value as another's
+    sim = tmp_path / "raw.csv"
+    assert main(["simulate", "paper3d", "--imu", "raw", "-o", str(sim), "--duration", "3"]) == 0
+    rows = [r.split(",") for r in sim.read_text().splitlines()[1:]]
+    order = [again.split(",").index(c) for c in "t_ms,ax,ay,az,gx,gy,gz".split(",")]
+    lines = ["# fields: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s)"]
+    for i, r in enumerate(rows):
+        r = [str(round(float(r[0]) * 1000)), *r[1:]]
+        if i == 30:
+            lines.append(f"# fields: {again} (ms, m/s^2, rad/s)")
+        if i >= 30:
+            r = [r[order.index(k)] for k in range(7)]
+        lines.append(",".join(r))
+    capture = _write(tmp_path / "capture.csv", "\n".join(lines) + "\n")
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    code = main(["estimate", str(capture), "-o", str(out), "--method", "ekf"])
+    err = capsys.readouterr().err
+    if again.startswith("t_ms,ax"):  # the same fields again: a board reset, read on
+        assert code == 0 and out.exists()
+        return
+    assert code == 2 and not out.exists()
+    assert err.count("\n") == 1 and "capture.csv: line 32: " in err and "another order" in err
+
+
 def test_invalid_option_values_are_one_line_errors(tmp_path, capsys):
     meas = _meas(tmp_path, _good_rows(5))
     for opts in (

@@ -21,6 +21,7 @@ from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.io.text_rows import (
     MAX_LINE_BYTES,
     TextRows,
+    check_declared_again,
     column_indices,
     decode_line,
     parse_float,
@@ -486,7 +487,9 @@ class _SampleChecks:
                 table.cut.line = first + text.count(b"\n")
             block = None if table.cut.line is not None else self._parse(text, first)
             if block is None:
-                yield from self.rows(_split_rows(table.name, text, first, table.separator))
+                yield from self.rows(
+                    _split_rows(table.name, text, first, table.separator, tuple(table.header))
+                )
             elif len(block):
                 yield block
             if drained:
@@ -599,14 +602,19 @@ def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes, bool]]
         first += text.count(b"\n")
 
 
-def _split_rows(name: str, text: bytes, first: int, sep: str) -> Iterator[tuple[int, list[str]]]:
+def _split_rows(
+    name: str, text: bytes, first: int, sep: str, header: tuple[str, ...] = ()
+) -> Iterator[tuple[int, list[str]]]:
     """The data rows of the lines ``text`` (numbered from ``first``) read one at a time,
-    as :attr:`TextRows.rows` reads them (a line cut where :func:`read_line` cuts it)."""
+    as :attr:`TextRows.rows` reads them (a line cut where :func:`read_line` cuts it; a
+    comment that declares the ``header``'s columns in another order refused)."""
     lines = text.split(b"\n")
     last = lines.pop()  # the text after the last line end: a line without one, or b""
     raw = [ln + b"\n" for ln in lines] + ([last] if last else [])
     for n, line in enumerate(raw, start=first):
         text_line = decode_line(name, n, line[: MAX_LINE_BYTES + 2])
         s = text_line.strip()
-        if s and not s.startswith("#"):
+        if s.startswith("#"):
+            check_declared_again(name, n, s, header)
+        elif s:
             yield n, split_fields(text_line, sep)

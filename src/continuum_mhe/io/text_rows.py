@@ -495,7 +495,7 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
         if "t" not in header and "t_ms" in header:
             header[header.index("t_ms")] = "t"
             scale = 1e-3
-        rows = _data_rows(name, lines, pending, sep, cut)
+        rows = _data_rows(name, lines, pending, sep, cut, tuple(header))
     except BaseException:
         fh.close()
         raise
@@ -508,18 +508,41 @@ def _data_rows(
     pending: list[tuple[int, str]],
     sep: str,
     cut: CutLine,
+    header: tuple[str, ...] = (),
 ) -> Iterator[tuple[int, list[str]]]:
     """The data rows of ``pending`` and ``lines``; a last data line without an end is
     said (:func:`warn_cut_line`) unless the reader says it (``cut.checked``), once the
     reader has taken it (asks for the row after it): a reader that refuses the row
-    says that alone."""
+    says that alone. A later comment that declares the ``header``'s columns in another
+    order (``# fields:``, a device that restarted with other firmware, two captures
+    joined) is an error naming its line: the rows after it would be read by place, each
+    value as another column's."""
     for n, text in itertools.chain(pending, lines):
         s = text.strip()
-        if not s or s.startswith("#"):
+        if s.startswith("#"):
+            check_declared_again(name, n, s, header)
+            continue
+        if not s:
             continue
         yield n, split_fields(text, sep)
         if n == cut.line and not cut.checked:
             warn_cut_line(name, n)
+
+
+def check_declared_again(name: str, line: int, comment: str, header: tuple[str, ...]) -> None:
+    """Refuse a comment among the data rows that declares the ``header``'s columns (lower
+    case, ``t_ms`` as ``t``) in another order."""
+    names = declared_fields(comment)
+    if names is None or not header:
+        return
+    again = tuple("t" if f.lower() == "t_ms" else f.lower() for f in names)
+    if again != header and sorted(again) == sorted(header):
+        raise InputError(
+            f"{name}: line {line}: '{shorten(comment, 80)}' declares the columns in another "
+            f"order than the header in force ({','.join(header)}): the rows after it would be "
+            "read as each other's columns (a device restarted with other firmware, or two "
+            "captures joined?); split the file there"
+        )
 
 
 #: header names a recording's time column often has elsewhere; the files here name it ``t``
