@@ -1522,6 +1522,7 @@ def test_an_options_line_that_makes_no_robot_is_said(tmp_path, capsys, edit, sai
     assert main(["evaluate", str(est), str(truth)]) == 0
     err = capsys.readouterr().err
     assert f"note: {est}: {said}" in err and "the default one section of 0.2 m is used" in err
+    assert err.count("note:") == 1, err  # said once
 
 
 @pytest.mark.skipif(not Path("/proc/self/mem").exists(), reason="needs Linux's /proc")

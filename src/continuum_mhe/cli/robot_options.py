@@ -109,11 +109,12 @@ def estimate_robot(
     the estimate's options line records, where it can be read
     (said in a note ending in ``use``, what the command does on it); else one section
     of :data:`DEFAULT_LENGTH`. ``warned``: where a warning goes (printed when None)."""
-    robot = None if robot_given(args) else recorded_robot(path, use)
+    given = robot_given(args)
+    robot = None if given else recorded_robot(path, use)
     if robot is not None:
         return robot
     robot = robot_from_args(args)
-    if not args.robot and getattr(args, "length", None) is None:
+    if given and not args.robot and getattr(args, "length", None) is None:
         # --mounting alone: the recorded robot's sections, turned as given
         recorded = recorded_robot(path, use)
         if recorded is not None:
