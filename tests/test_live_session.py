@@ -740,6 +740,33 @@ def test_fields_named_in_another_order_stop_the_session() -> None:
     assert s.fatal is None and any("check --format and --robot" in m for m in said), said
 
 
+def test_fields_named_again_in_another_order_stop_the_session() -> None:
+    """A device that named live's fields in its order, then after samples (a board
+    restarted with other firmware) names them in another: the later line stops the
+    session as the first would, the estimates of the samples up to it kept (read as
+    declared); the same declaration said again at a restart does not stop it,
+    and a later declaration of other fields is said once, however often it comes."""
+    s, said = _session()
+    now = time.monotonic()
+    s.handle_line(b"# fields: t_ms,roll,pitch (ms, rad, rad)", now)
+    _feed(s, [0, 20, 40])
+    s.handle_line(b"# fields: t_ms,roll,pitch (ms, rad, rad)", now)
+    assert s.fatal is None
+    s.handle_line(b"# fields: t_ms,pitch,roll (ms, rad, rad)", now)
+    assert s.fatal is not None and not s.wrong_units and s.discarded is None
+    assert (
+        "t_ms,roll,pitch" in s.fatal
+        and "the estimates of the 3 samples up to it are kept" in s.fatal
+    ), s.fatal
+    s, said = _session()
+    s.handle_line(b"# fields: t_ms,roll,pitch (ms, rad, rad)", now)
+    _feed(s, [0, 20, 40])
+    for _ in range(3):
+        s.handle_line(b"# fields: t_ms,r,p (ms, rad, rad)", now)
+    assert s.fatal is None
+    assert len([m for m in said if "check --format and --robot" in m]) == 1, said
+
+
 def test_a_line_cut_after_the_device_named_its_fields_gets_no_other_format_hint() -> None:
     """A line of the wrong field count in a one-IMU tilt session whose fields the
     device named (``# fields:``) is a garbled line without a format hint ('--format

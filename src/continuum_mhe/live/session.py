@@ -290,7 +290,9 @@ class LiveSession:
         self.solve_ms: deque[float] = deque(maxlen=200)
         self._periods: deque[float] = deque(maxlen=50)
         self._period: float | None = None  # median of _periods, while they are unchanged
-        self._fields_checked = False
+        #: the ``# fields:`` declarations judged so far (a device that restarts says its
+        #: own again; another firmware may say others): each said once
+        self._fields_seen: set[tuple[str, ...]] = set()
         #: the device named the fields --format and --robot expect (its ``# fields:``
         #: line): a line of another count is cut or garbled, not another format
         self._fields_match = False
@@ -632,8 +634,10 @@ class LiveSession:
             c.header = text
         self.messages.show(text, arrival)
         names = header_fields(text)
-        if names is not None and not self._fields_checked:
-            self._fields_checked = True
+        # every declaration, a later one too (a board restarted with other firmware)
+        if names is not None and names not in self._fields_seen:
+            later = bool(self._fields_seen)  # after a declaration the samples followed
+            self._fields_seen.add(names)
             want = line_fields(self.settings.fmt, self.n_imus, self.n_tensions)
             self._fields_match = names == want
             if names != want:
@@ -647,8 +651,15 @@ class LiveSession:
                     )
                 )
                 if sorted(names) == sorted(want):  # every reading would be another's
-                    self.wrong_units = True
-                    self.fatal = f"{self.settings.port}: {said}"
+                    # the samples up to a later declaration were read as declared:
+                    # their estimates stay
+                    self.wrong_units = not later
+                    kept = (
+                        f" (the estimates of the {c.samples} samples up to it are kept)"
+                        if later
+                        else ""
+                    )
+                    self.fatal = f"{self.settings.port}: {said}{kept}"
                 else:
                     self.say(said)
 
