@@ -238,8 +238,41 @@ FAR_OFF_MOUNT_DEG = 30.0
 BOARD_POSE_DEG = 15.0
 
 
+def common_lean(cal: Calibration, yaws_deg: Sequence[float]) -> tuple[float, list[float]]:
+    """The lean that the flat boards of a raw calibration ``cal`` (those within
+    :data:`FAR_OFF_MOUNT_DEG` of the straight robot's gravity direction) share: each
+    one's gravity direction, its horizontal part turned about the backbone by its yaw
+    ``yaws_deg`` (the robot file's, degrees) into the backbone's frame, averaged; as the
+    mean's angle (deg) and each board's lean along the mean's direction (deg). A base not
+    level, or a section bent at rest, leans every board after it the same way by as
+    much; boards tilted on their disks lean each its own way, and their mean stays
+    small. ``(0.0, [])`` with fewer than two such boards."""
+    leans = []
+    for imu, yaw in zip(cal.imus, yaws_deg):
+        if imu.mount_rpy is None:
+            return 0.0, []
+        roll, pitch = (math.radians(a) for a in imu.mount_rpy[:2])
+        if math.degrees(math.acos(min(1.0, math.cos(roll) * math.cos(pitch)))) > FAR_OFF_MOUNT_DEG:
+            continue  # a board on its side or upside down: its axes are not the backbone's
+        m = np.asarray(imu.mean[:3], dtype=float)
+        m = m / max(float(np.linalg.norm(m)), 1e-12)
+        c, s = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+        leans.append(np.array([c * m[0] - s * m[1], s * m[0] + c * m[1]]))
+    if len(leans) < 2:
+        return 0.0, []
+    mean = np.mean(leans, axis=0)
+    size = float(np.linalg.norm(mean))
+    if size == 0.0:
+        return 0.0, [0.0] * len(leans)
+    along = [math.degrees(math.asin(max(-1.0, min(1.0, float(v @ mean) / size)))) for v in leans]
+    return math.degrees(math.asin(min(1.0, size))), along
+
+
 def rest_tilt_warning(
-    cal: Calibration, mounting: Mounting = "z-up", degrees_fix: str = "pass --degrees"
+    cal: Calibration,
+    mounting: Mounting = "z-up",
+    degrees_fix: str = "pass --degrees",
+    yaws_deg: Sequence[float] | None = None,
 ) -> str | None:
     """A warning where every IMU of a calibration ``cal`` reads more than
     :data:`REST_TILT_WARN_DEG` from the straight robot's gravity direction (``mounting``
@@ -247,7 +280,11 @@ def rest_tilt_warning(
     as its IMU's mounting, which a bent robot or a tilted base at rest puts into every
     estimate; one IMU alone cannot tell its own tilted mounting from a tilted base), and
     for any IMU of a raw one that reads more than :data:`FAR_OFF_MOUNT_DEG` from it and
-    is not a board on its side or upside down (:data:`BOARD_POSE_DEG`);
+    is not a board on its side or upside down (:data:`BOARD_POSE_DEG`); with the IMUs'
+    yaws ``yaws_deg`` (the robot file's), also where two or more flat boards lean the
+    same way (:func:`common_lean`) by over :data:`REST_TILT_WARN_DEG` on average, each
+    by over half of it along that direction (a bent robot or a base not level whose
+    lean some boards' own tilts on their disks hide from the first test);
     and where every IMU of a tilt one reads more than :data:`DEGREES_LIKE_TILT_DEG`,
     but its angles, read as degrees, would each lie within :data:`REST_TILT_WARN_DEG`
     (degrees given for radians: ``degrees_fix`` says what to do)."""
@@ -286,7 +323,7 @@ def rest_tilt_warning(
             if a > FAR_OFF_MOUNT_DEG and min(abs(a - 90.0), abs(a - 180.0)) > BOARD_POSE_DEG
         ]
         if not far:
-            return None
+            return _common_lean_warning(cal, yaws_deg)
         who = ", ".join(str(i) for i, _ in far)
         angles = ", ".join(f"{a:.1f}" for _, a in far)
         reads = f"IMU {who} reads" if len(far) == 1 else f"IMUs {who} read"
@@ -306,6 +343,24 @@ def rest_tilt_warning(
         "was the robot straight and its base level at rest? If not, every estimate is off "
         "by as much; record the rest again (IMUs mounted tilted on their disks are "
         "calibrated right)"
+    )
+
+
+def _common_lean_warning(cal: Calibration, yaws_deg: Sequence[float] | None) -> str | None:
+    """:func:`rest_tilt_warning`'s warning of a lean that the boards share, or None."""
+    if yaws_deg is None:
+        return None
+    lean, along = common_lean(cal, yaws_deg)
+    if lean <= REST_TILT_WARN_DEG or min(along, default=0.0) <= REST_TILT_WARN_DEG / 2:
+        return None
+    each = ", ".join(f"{a:.1f}" for a in along)
+    return (
+        f"the IMUs' gravity directions lean {lean:.1f} degrees the same way on average, "
+        f"turned into the backbone's frame by the robot file's yaws (each board {each} "
+        "degrees that way), and mount_rpy takes that as their mountings: was the robot "
+        "straight and its base level at rest? A base not level, or a section bent, leans "
+        "every board the same way, where boards tilted on their disks lean each its own "
+        "way; if it was not, every estimate is off by as much: record the rest again"
     )
 
 

@@ -156,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     for knock in knocks:
         print(f"{PROG}: warning: {source}: {knock}", file=sys.stderr)
     fix = "pass --degrees" if args.source else "the board must send radians"
-    tilted = rest_tilt_warning(cal, robot.mounting, fix)
+    tilted = rest_tilt_warning(cal, robot.mounting, fix, [imu.mount_rpy[2] for imu in robot.imus])
     if tilted:
         print(f"{PROG}: warning: {source}: {tilted}", file=sys.stderr)
     if fmt == "raw":
