@@ -552,6 +552,39 @@ def test_calibrate_refuses_most_imus_upside_down_against_the_mounting(
     assert "IMU 3 (of 3) reads gravity 180 degrees" in err and "IMUs 1" not in err, err
 
 
+def test_a_board_upside_down_at_rest_says_its_yaw_is_unseen(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """IMU 2 of the two-section robot turned over about its y axis (x and z reversed) at
+    rest: gravity reads as for a board turned over about its x axis, which calibrate
+    writes (a roll of 180 degrees, the file's yaw), 180 degrees off in yaw for this one
+    (a hanging three-section robot so calibrated: no row ok, 195 mm off on average). The
+    upside-down warning says that the yaw is the file's and that --bend measures it."""
+    rest = tmp_path / "rest.csv"
+    assert (
+        main(["simulate", "rest", "--robot", "two-section", "--imu", "raw", "-o", str(rest)]) == 0
+    )
+    header, *rows = rest.read_text().splitlines()
+    names = header.split(",")
+    flip = [names.index(f"{c}_2") for c in ("ax", "az", "gx", "gz")]
+    turned = []
+    for row in rows:
+        v = row.split(",")
+        for j in flip:
+            v[j] = repr(-float(v[j]))
+        turned.append(",".join(v))
+    rest.write_text("\n".join([header, *turned]) + "\n")
+    capsys.readouterr()
+    code, out, err = _calibrate_main(capsys, "--from", str(rest), "--robot", "two-section")
+    assert code == 0 and "IMU 2: mounting" in out, err
+    assert err.count("\n") == 1, err
+    assert "IMU 2 (of 2) reads gravity 180 degrees" in err, err
+    assert (
+        "its yaw is the robot file's, right for a board turned over about its x axis: one "
+        "turned over about its y axis reads gravity alike and lies 180 degrees from that yaw"
+    ) in err and "(--bend) measures it" in err, err
+
+
 def test_calibrate_reads_files_and_writes_robot_files(tmp_path, capsys) -> None:
     """--from - (standard input, which calibrate would read twice) is refused in one
     line, as a pipe is; --write-robot takes a .toml name; a nan reading names what

@@ -142,6 +142,13 @@ def run(args: argparse.Namespace) -> int:
     if args.write_robot and fmt != "raw":
         raise InputError(f"{source}: --write-robot needs a raw recording (this one is {fmt})")
     if fmt == "raw" and (flipped := check_rest_mounting(source, values, robot, bool(args.robot))):
+        if not args.bend:  # gravity does not tell a board turned over about x from one about y
+            flipped += (
+                "; its yaw is the robot file's, right for a board turned over about its x "
+                "axis: one turned over about its y axis reads gravity alike and lies 180 "
+                "degrees from that yaw (its section's bending plane turned half a turn): a "
+                "bend in a known plane (--bend) measures it"
+            )
         print(f"{PROG}: warning: {source}: {flipped}", file=sys.stderr)
     knocks: list[str] = []
     if fmt == "raw":
