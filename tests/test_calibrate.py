@@ -300,6 +300,34 @@ def test_calibrate_refuses_a_moving_recording(capsys: pytest.CaptureFixture[str]
     assert code == 2 and "--bend BEND.csv" in err
 
 
+def test_an_accelerometer_off_g_at_rest_is_noted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shipped planar-S rest with IMU 2's accelerometer scaled by 1.03 (a scale error
+    inside MEMS specifications) reads 3.8 % over g: calibrate says so in a note naming the
+    IMU and pointing to the six-position method, which a rest cannot replace; the rest as
+    shipped gets no such note."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    rest = data / "planar-s_rest.csv"
+    robot = ("--robot", "two-section")
+    code, _, err = _calibrate_main(capsys, "--from", str(rest), *robot)
+    assert code == 0 and "from g" not in err, err
+    header, *rows = rest.read_text().splitlines()
+    values = np.array([[float(v) for v in r.split(",")] for r in rows])
+    values[:, 7:10] *= 1.03  # ax_2, ay_2, az_2
+    scaled = tmp_path / "scaled_rest.csv"
+    scaled.write_text(
+        header + "\n" + "\n".join(",".join(f"{v:.10g}" for v in r) for r in values) + "\n"
+    )
+    code, _, err = _calibrate_main(capsys, "--from", str(scaled), *robot)
+    assert code == 0, err
+    (note,) = [line for line in err.splitlines() if "from g" in line]
+    assert note.startswith(f"continuum-mhe: note: {scaled}: the accelerometer magnitude at rest")
+    # (IMU 2 reads 0.8 % over g as shipped: its accelerometer bias)
+    assert "IMU 2 10.183 m/s^2 (+3.8 %)" in note and "IMU 1 " not in note
+    assert "six-position method" in note
+
+
 def test_the_stillness_bounds_are_options_for_a_noisier_imu(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -576,6 +576,42 @@ def rest_gravity_problem(values: FloatArray, fmt: LineFormat, n_imus: int) -> st
     return None
 
 
+#: A still accelerometer whose mean magnitude lies further than this share from g has a
+#: scale or offset error a rest does not separate from its mounting (MEMS
+#: accelerometers are specified to about 1 to 3 % in sensitivity; g varies by 0.5 % over
+#: the Earth's surface).
+REST_GRAVITY_NOTE_SHARE = 0.02
+
+
+def rest_gravity_note(values: FloatArray, fmt: LineFormat, n_imus: int) -> str | None:
+    """A note naming the IMUs of the raw samples ``values`` (n, 6 * n_imus, or 3 without
+    gyros) whose mean accelerometer magnitude lies more than
+    :data:`REST_GRAVITY_NOTE_SHARE` from g, or None: a scale or offset error, which tilts
+    the readings by up to about its share of g in radians and which a rest does not
+    measure. Tilt readings: None."""
+    if fmt != "raw":
+        return None
+    k = VALUES_PER_IMU[fmt]
+    off = []
+    for i in range(n_imus):
+        acc = values[:, k * i : k * i + 3]
+        norm = np.linalg.norm(acc[np.all(np.isfinite(acc), axis=1)], axis=1)
+        if len(norm):
+            share = float(norm.mean()) / STANDARD_GRAVITY - 1.0
+            if abs(share) > REST_GRAVITY_NOTE_SHARE:
+                off.append(f"IMU {i + 1} {float(norm.mean()):.3f} m/s^2 ({100 * share:+.1f} %)")
+    if not off:
+        return None
+    return (
+        f"the accelerometer magnitude at rest is more than "
+        f"{100 * REST_GRAVITY_NOTE_SHARE:g} % from g ({STANDARD_GRAVITY:.2f} m/s^2): "
+        f"{'; '.join(off)}: a scale or offset error, which tilts the readings by up to "
+        "about that share of g in radians and which a rest does not measure (mount_rpy "
+        "takes its tilt at this pose); calibrate the accelerometers with the six-position "
+        "method (docs/hardware.md) where that matters"
+    )
+
+
 def motion_at_rest(
     values: FloatArray,
     fmt: LineFormat,

@@ -23,6 +23,7 @@ from continuum_mhe.calibration.at_rest import (
     frozen_at_rest,
     knocks_at_rest,
     motion_at_rest,
+    rest_gravity_note,
     rest_gravity_problem,
     rest_tilt_warning,
     rolls_kept,
@@ -133,6 +134,8 @@ def run(args: argparse.Namespace) -> int:
     gyro_std = STILL_GYRO_STD if args.still_gyro_std is None else args.still_gyro_std
     if unit := rest_gravity_problem(values, fmt, robot.n_imus):
         raise InputError(f"{source}: {unit}")
+    if scaled := rest_gravity_note(values, fmt, robot.n_imus):
+        print(f"{PROG}: note: {source}: {scaled}", file=sys.stderr)
     moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
     if moved:
         raise InputError(f"{source}: {moved}")
