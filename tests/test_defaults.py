@@ -150,6 +150,33 @@ def test_the_bound_warning_names_the_robot_files_key_or_the_option(tmp_path, cap
     assert line.endswith("raise --theta-max if it bends so far") and "robot file" not in line
 
 
+def test_a_bound_reached_by_readings_that_restart_the_estimator_puts_the_robot_file_first(
+    tmp_path, capsys
+):
+    """The spatial rod's raw recording (its first 4 s) with its two IMUs' columns swapped
+    in the header, and a robot file bounding each bend at 2 rad: the readings restart
+    the estimator on many samples (warned of), and estimates sit on the bound; the
+    bound's warning says the restarts come first, to check the robot file before raising
+    the bound, which alone would not help. (Restarts of an estimate that diverged past a
+    bound the robot passes do not: the spatial rod's tilt with a 90-degree bound,
+    test_the_bound_warning_names_the_robot_files_key_or_the_option.)"""
+    lines = (ROD / "spatial_raw.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+    swapped = lines[0].replace("_1", "_X").replace("_2", "_1").replace("_X", "_2")
+    meas = tmp_path / "swapped_raw.csv"
+    meas.write_text(swapped + "".join(lines[1:201]), encoding="utf-8")
+    robot = _robot(tmp_path, "\ntheta_max = 2.0")
+    assert main(["estimate", str(meas), "--robot", str(robot), "-o", str(tmp_path / "e.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "restarted the estimator (readings inconsistent with its estimate" in err
+    line = _bound_warning(err)
+    assert line.endswith(
+        "but the restarts warned of above come first: readings that the model of the robot "
+        "does not explain push the estimates onto the bound too (check the robot file "
+        f"against the robot first; raise theta_max in the robot file {robot} only if it "
+        "bends so far)"
+    ), line
+
+
 def test_a_bound_no_robot_reaches_points_to_the_robot_file_not_to_raising_it(tmp_path, capsys):
     """Estimates held at the default bound (3 rad, 172 degrees) come from readings the
     model does not explain (here a rod that twists about itself), not from a robot

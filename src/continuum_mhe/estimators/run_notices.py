@@ -97,14 +97,22 @@ class BendsOnBound:
         self.statuses.update(str(v) for v in status[on])
 
     def notice(
-        self, n: int, method: str, holds: bool, raise_it: str, observable: bool = True
+        self,
+        n: int,
+        method: str,
+        holds: bool,
+        raise_it: str,
+        observable: bool = True,
+        contradicted: bool = False,
     ) -> str | None:
         """One line for the estimates counted on (or beyond) the bound, of ``n``, by
         ``method`` (the estimator's name), which ``holds`` its bends to the bound (the
         MHE's constraints) or not (the filters); ``raise_it`` says how to raise the
         bound (``raise theta_max in the robot file R``); ``observable``: whether the
         robot's IMUs determine its shape (where they do not, the bends they leave free
-        drift to the bound). None without."""
+        drift to the bound); ``contradicted``: whether the readings restarted the
+        estimator on many samples (said in a warning of its own), which then comes
+        before raising the bound. None without."""
         if not self.count:
             return None
         sections = self._robot.sections
@@ -143,6 +151,13 @@ class BendsOnBound:
                 "section, at and mount_rpy, the sections' lengths and order, the mounting; "
                 "check-robot lists them), or the robot does what the model cannot follow "
                 "(a backbone that twists about itself)"
+            )
+        elif contradicted:
+            further = (
+                f"and the robot may bend further than the bound allows{missing}; but the "
+                "restarts warned of above come first: readings that the model of the robot "
+                "does not explain push the estimates onto the bound too (check the robot "
+                f"file against the robot first; {raise_it} only if it bends so far)"
             )
         else:
             further = (
