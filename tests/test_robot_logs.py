@@ -500,6 +500,37 @@ def test_a_nan_in_a_log_message_is_refused_as_in_a_csv(
     assert "dropout: 1" in capsys.readouterr().err
 
 
+def test_a_zero_acceleration_in_a_log_message_is_refused_as_in_a_csv(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A message whose linear_acceleration is zero (no gravity direction: a driver's
+    placeholder) is one line naming the topic and the message, exit 2, nothing written,
+    as a CSV row's zero acceleration is; with --skip-bad it is a dropout, counted in the
+    run's line with the first such message, as a CSV's bad rows are."""
+    acc = recording["acc"].copy()
+    acc[[59, 60]] = 0.0
+    bag = write_ros2_bag(tmp_path / "bag2", {**recording, "acc": acc})
+    table = write_raw_csv(tmp_path / "raw.csv", {**recording, "acc": acc})
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(table), "-o", str(out)]) == 2
+    assert "acceleration is zero (no gravity direction)" in capsys.readouterr().err
+    assert main(["estimate", str(bag), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "topic /tip/imu: the message at t = 1.18 s" in err
+    assert "(message 60): linear_acceleration is zero (|a| 0 m/s^2: no gravity direction)" in err
+    assert err.endswith("(a dropout; --skip-bad keeps it, skip_bad=True in Python)\n")
+    assert not out.exists()
+    assert main(["estimate", str(bag), "-o", str(out), "--skip-bad"]) == 0
+    err = capsys.readouterr().err
+    assert "dropout: 2" in err
+    assert "bad rows: 2 sample(s) with a bad value, read as a dropout of its IMU; first: " in err
+    assert "topic /tip/imu: message 60: linear_acceleration is zero" in err
+    from_table = tmp_path / "t.csv"
+    assert main(["estimate", str(table), "-o", str(from_table), "--skip-bad"]) == 0
+    capsys.readouterr()
+    np.testing.assert_array_equal(_states(out)[1], _states(from_table)[1])
+
+
 def test_accelerations_marked_absent_are_dropouts_as_nan_fields(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:

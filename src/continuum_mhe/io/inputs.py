@@ -215,6 +215,8 @@ class EstimateInput:
         notes: one-line reports for the user (e.g. how samples of several topics paired).
         clock: what a robot log's ``t`` was read from
             (:attr:`~continuum_mhe.io.robot_logs.ImuLog.clock`).
+        dropouts: a robot log's messages whose bad reading ``skip_bad`` read as a
+            dropout of their IMU (a CSV's are among ``skipped``).
     """
 
     kind: str
@@ -225,6 +227,7 @@ class EstimateInput:
     skipped: list[str] = field(default_factory=list)
     notes: tuple[str, ...] = ()
     clock: str = "header stamps"
+    dropouts: list[str] = field(default_factory=list)
 
 
 # --- step 2: the options against this input ----------------------------------------------
@@ -847,7 +850,8 @@ def _log_stream(
     python: bool = False,
 ) -> MeasurementStream:
     data = _load_log(p, options, formulation)
-    problems = RowProblems(len(data.skipped), data.skipped[:20], dropped=len(data.skipped))
+    said = data.skipped + data.dropouts
+    problems = RowProblems(len(said), said[:20], dropped=len(data.skipped))
     check_mounting(str(p), data.z, data.formulation, robot_name, python)
     readings = _readings(data.formulation)
     readings.add(data.z)
@@ -915,14 +919,17 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         )
     options, f = decide_model(str(p), "log", has_gyro, options, formulation)
     blocks = []
+    # the messages skip_bad read as dropouts (their time, what was bad), said in the summary
+    dropouts: list[tuple[float, str]] = []
     for log, place in zip(logs, robot.imus):
         if options.use_orientation:
-            blocks.append(tilt_from_quaternion(_orientations(p, t, log, options.skip_bad)))
+            blocks.append(
+                tilt_from_quaternion(_orientations(p, t, log, options.skip_bad, dropouts))
+            )
         else:
             raw = imu_settings_for(options.raw, place)  # as a table's (and live's)
-            if not options.skip_bad:
-                _refuse_a_missing_value(p, t, log)
-            acc, gyr = _readings_in_range(p, t, log, options.skip_bad)
+            _refuse_a_missing_value(p, t, log, options.skip_bad, dropouts)
+            acc, gyr = _readings_in_range(p, t, log, options.skip_bad, dropouts)
             blocks.append(_convert_log(p, t, acc, gyr, raw, log.topic))
     clock = " and ".join(sorted({log.clock for log in logs}))
     notes += tuple(
@@ -944,14 +951,17 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         for log in logs
         if log.reordered
     )
-    return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes, clock)
+    z, said = np.hstack(blocks), [what for _, what in sorted(dropouts, key=lambda d: d[0])]
+    return EstimateInput("log", t, z, f, t0_ns, skipped, notes, clock, said)
 
 
-def _orientations(path: Path, t: FloatArray, log: ImuLog, skip_bad: bool) -> FloatArray:
+def _orientations(
+    path: Path, t: FloatArray, log: ImuLog, skip_bad: bool, dropouts: list[tuple[float, str]]
+) -> FloatArray:
     """``log``'s orientations for ``--orientation``: a topic without any is refused in one
     line; a message without one (``orientation_covariance[0] = -1``, a zero or
     non-finite quaternion: a filter still starting) is named in one line, or with
-    ``skip_bad`` a dropout (NaN)."""
+    ``skip_bad`` a dropout (NaN), described in ``dropouts`` with its time."""
     unpaired = _unpaired(log)  # a sample without this topic's message: a dropout
     absent = np.asarray(~np.isfinite(log.orientation).all(axis=1), dtype=bool) & ~unpaired
     if (absent | unpaired).all():
@@ -967,6 +977,14 @@ def _orientations(path: Path, t: FloatArray, log: ImuLog, skip_bad: bool) -> Flo
             f"or a zero or non-finite quaternion; {int(absent.sum())} such): --skip-bad keeps "
             "them as dropouts (skip_bad=True in Python)"
         )
+    dropouts += [
+        (
+            float(t[i]),
+            f"topic {log.topic}: {_message_number(log, int(i))}: no orientation "
+            "(orientation_covariance[0] = -1, or a zero or non-finite quaternion)",
+        )
+        for i in np.flatnonzero(absent)
+    ]
     return np.where((absent | unpaired)[:, None], np.nan, log.orientation)
 
 
@@ -986,56 +1004,76 @@ def _message_number(log: ImuLog, i: int) -> str:
     return f"sample {i + 1}"
 
 
-def _refuse_a_missing_value(path: Path, t: FloatArray, log: ImuLog) -> None:
+def _refuse_a_missing_value(
+    path: Path, t: FloatArray, log: ImuLog, skip_bad: bool, dropouts: list[tuple[float, str]]
+) -> None:
     """One line for the first message of ``log`` whose acceleration or angular rate
-    holds a NaN or an infinity, as a CSV's empty or nan field is (a dropout only with
-    ``--skip-bad``)."""
+    holds a NaN or an infinity, as a CSV's nan field is; with ``skip_bad`` (a dropout)
+    each such message is described in ``dropouts`` with its time."""
     unpaired = _unpaired(log)
+    counted = np.zeros(len(t), dtype=bool)
     for name, values in (("linear_acceleration", log.acc), ("angular_velocity", log.gyr)):
         if values is None:
             continue
-        bad = ~np.isfinite(values).all(axis=1) & ~unpaired
-        if bad.any():
-            i = int(np.argmax(bad))
+        bad = ~np.isfinite(values).all(axis=1) & ~unpaired & ~counted
+        counted |= bad  # a message said once, for its first field that is bad
+        for i in np.flatnonzero(bad):
             shown = values[i].tolist()
             if np.isnan(values[i]).all():
                 shown = f"absent (NaN, or marked absent: {name}_covariance[0] = -1)"
+            if skip_bad:
+                said = f"topic {log.topic}: {_message_number(log, int(i))}: {name} is {shown}"
+                dropouts.append((float(t[i]), said))
+                continue
             raise InputError(
                 f"{path}: topic {log.topic}: the message at t = {time_text(float(t[i]))} s "
-                f"({_message_number(log, i)}): {name} is {shown} (a dropout; --skip-bad keeps it, "
-                "skip_bad=True in Python)"
+                f"({_message_number(log, int(i))}): {name} is {shown} (a dropout; --skip-bad "
+                "keeps it, skip_bad=True in Python)"
             )
 
 
 def _readings_in_range(
-    path: Path, t: FloatArray, log: ImuLog, skip_bad: bool
+    path: Path, t: FloatArray, log: ImuLog, skip_bad: bool, dropouts: list[tuple[float, str]]
 ) -> tuple[FloatArray, FloatArray | None]:
-    """``log``'s accelerations and rates, a message whose reading lies beyond any IMU's
+    """``log``'s accelerations and rates, a message whose acceleration is zero (no
+    gravity direction, as a CSV row's zero is) or whose reading lies beyond any IMU's
     range (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`: a corrupt value) named in
     one line as a CSV's row is, or with ``skip_bad`` a dropout (NaN), as a message with
-    a NaN is."""
+    a NaN is, described in ``dropouts`` with its time."""
     acc = np.array(log.acc, dtype=float)
     gyr = None if log.gyr is None else np.array(log.gyr, dtype=float)
-    with np.errstate(invalid="ignore"):  # a NaN (a dropout) is no reading out of range
+    with np.errstate(invalid="ignore", under="ignore"):  # a NaN (a dropout) is neither
         acc_norm = np.hypot.reduce(acc, axis=1)  # hypot: no overflow of a finite 1e200
         gyr_norm = np.zeros(len(acc)) if gyr is None else np.hypot.reduce(gyr, axis=1)
         huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
+        # no gravity direction to read: a zero, or a magnitude whose square underflows
+        zero = (acc_norm == 0.0) | (np.einsum("ij,ij->i", acc, acc) == 0.0)
     # an accelerometer in another unit is said as a CSV's is, not as a corrupt message:
     # raw counts (most readings beyond range), or mm/s^2 (its median about 9810)
     label = f"{path}: topic {log.topic}"
     check_accel_range(label, acc_norm)
     check_accel_units(label, acc)
-    out = np.flatnonzero(huge & ~_unpaired(log))
-    if len(out) and not skip_bad:
-        i = int(out[0])
+    finite = np.isfinite(acc).all(axis=1) & (gyr is None or np.isfinite(gyr).all(axis=1))
+    # (a message with a NaN is said by _refuse_a_missing_value)
+    for i in np.flatnonzero((huge | zero) & finite & ~_unpaired(log)):
+        what = (
+            f"linear_acceleration is zero (|a| {acc_norm[i]:.3g} m/s^2: no gravity direction)"
+            if zero[i]
+            else f"a reading beyond any IMU's range (|a| {acc_norm[i]:.3g} m/s^2, limit "
+            f"{ACCEL_READING_MAX:g}; |omega| {gyr_norm[i]:.3g} rad/s, limit "
+            f"{GYRO_READING_MAX:g}): a corrupt value"
+        )
+        if skip_bad:
+            dropouts.append(
+                (float(t[i]), f"topic {log.topic}: {_message_number(log, int(i))}: {what}")
+            )
+            continue
         raise InputError(
             f"{label}: the message at t = {time_text(float(t[i]))} s "
-            f"({_message_number(log, i)}): a reading beyond any IMU's range (|a| "
-            f"{acc_norm[i]:.3g} m/s^2, limit {ACCEL_READING_MAX:g}; |omega| "
-            f"{gyr_norm[i]:.3g} rad/s, limit {GYRO_READING_MAX:g}): a corrupt value "
-            "(a dropout; --skip-bad keeps it, skip_bad=True in Python)"
+            f"({_message_number(log, int(i))}): {what} (a dropout; --skip-bad keeps it, "
+            "skip_bad=True in Python)"
         )
-    acc[huge] = np.nan
+    acc[huge | zero] = np.nan  # a zero acceleration's rates kept, as a CSV row's are
     if gyr is not None:
         gyr[huge] = np.nan
     return acc, gyr
