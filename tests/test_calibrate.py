@@ -736,8 +736,8 @@ def test_an_empty_or_impossible_reading_left_out_is_said(tmp_path, capsys, cell)
     err = capsys.readouterr().err
     t = float(cells[0])
     assert err == (
-        f"continuum-mhe: warning: {bad}: 1 of {len(lines) - 1} row(s) with a reading missing "
-        f"or beyond any IMU's range (the first at t = {t:g} s): that IMU's reading is left "
+        f"continuum-mhe: warning: {bad}: 1 of {len(lines) - 1} row(s) with a reading missing, "
+        f"zero or beyond any IMU's range (the first at t = {t:g} s): that IMU's reading is left "
         "out of its mean and noise there\n"
     )
 

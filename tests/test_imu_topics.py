@@ -632,6 +632,43 @@ def test_calibrate_from_topics_equals_the_csv(kind: str, tmp_path: Path, capsys)
     assert "--topic chooses the IMUs of a ROS bag or MCAP file" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("reading", ["zero", "corrupt"])
+def test_calibrate_from_topics_leaves_an_impossible_reading_out_as_the_csv(
+    reading: str, tmp_path: Path, capsys
+) -> None:
+    """``calibrate --from`` a log whose IMU 1 has one message with a zero acceleration (a
+    driver's placeholder), or with a rate beyond any gyro's range (a corrupt value): that
+    reading is left out of the mean and noise and said with its time, and the report and
+    robot file equal those of the same readings as a CSV file (not a robot said to have
+    moved, its calibration ruined by one message)."""
+    rows = np.loadtxt(REST, delimiter=",", skiprows=1)
+    if reading == "zero":
+        rows[10, 1:4] = 0.0
+    else:
+        rows[10, 4] = 5e3
+    table = tmp_path / "rest.csv"
+    with REST.open() as fh:
+        header = fh.readline().strip()
+    np.savetxt(table, rows, delimiter=",", header=header, comments="", fmt="%.17g")
+    stamps = T0_NS + np.round(rows[:, 0] * 1e9).astype(np.int64)
+    imus = [{"stamps": stamps, "acc": rows[:, 1 + 6 * k : 4 + 6 * k],
+             "gyr": rows[:, 4 + 6 * k : 7 + 6 * k]} for k in range(2)]  # fmt: skip
+    log = write_mcap_topics(tmp_path / "rest.mcap", imus)
+    reports = []
+    for source, topics in ((table, []), (log, ["--topic", TOPICS[0], "--topic", TOPICS[1]])):
+        robot = tmp_path / f"{Path(source).suffix[1:]}.toml"
+        argv = ["calibrate", "--from", str(source), "--robot", "two-section", *topics]
+        assert main([*argv, "--write-robot", str(robot)]) == 0
+        captured = capsys.readouterr()
+        assert captured.err.startswith(
+            f"continuum-mhe: warning: {source}: 1 of {len(rows)} row(s) with a reading "
+            f"missing, zero or beyond any IMU's range (the first at t = {rows[10, 0]:g} s): "
+            "that IMU's reading is left out of its mean and noise there\n"
+        )
+        reports.append((captured.out.replace(str(source), "SOURCE"), robot.read_text()))
+    assert reports[0] == reports[1]
+
+
 def test_a_bags_metadata_file_names_the_folder(tmp_path: Path, capsys) -> None:
     """A ROS 2 bag's ``metadata.yaml`` given for the bag (not read as a CSV file without
     IMU columns): one line naming the folder, for estimate and calibrate."""

@@ -108,10 +108,10 @@ def run(args: argparse.Namespace) -> int:
             raise _without_skip_bad(exc, "the still robot") from None
         source = args.source
         missing = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
-        if len(missing):  # an empty field, a reading beyond any IMU's range: a dropout
+        if len(missing):  # an empty field, a zero or impossible reading: a dropout
             left_out = (
                 f"{PROG}: warning: {source}: {len(missing)} of {len(t)} row(s) with a reading "
-                f"missing or beyond any IMU's range (the first at t = "
+                f"missing, zero or beyond any IMU's range (the first at t = "
                 f"{time_text(float(t[missing[0]]))} s): that IMU's reading is left out of its "
                 "mean and noise there"
             )

@@ -479,7 +479,9 @@ def _raw_log_recording(
     path: Path, n_imus: int, topics: Sequence[str]
 ) -> tuple[FloatArray, FloatArray]:
     """``(t, values)`` of a robot log's Imu ``topics``, paired as ``estimate`` pairs
-    them: ``ax, ay, az, gx, gy, gz`` per IMU, NaN where a topic has no sample."""
+    them: ``ax, ay, az, gx, gy, gz`` per IMU, NaN where a topic has no sample, and where
+    a message's acceleration is zero or its reading beyond any IMU's range (its
+    acceleration; its rates too for a reading beyond range), as a multi-IMU table's."""
     if n_imus > 1 or len(topics) > 1:
         paired = read_imu_topics(path, topics, n_imus)
         logs, t = paired.logs, paired.t
@@ -495,9 +497,15 @@ def _raw_log_recording(
                 "every IMU's gyro"
             )
         name = f"{path}: topic {log.topic}"
-        check_accel_units(name, log.acc)
-        check_gyro_units(name, log.gyr, True, t, log.acc)
-        blocks.append(np.hstack([log.acc, log.gyr]))
+        # a zero or impossible reading is left out, as a multi-IMU table's is (said by
+        # the caller), not averaged into the rest
+        acc, gyr = np.array(log.acc, dtype=float), np.array(log.gyr, dtype=float)
+        _, _, zero, huge = _impossible_readings(acc, gyr)
+        acc[zero | huge] = np.nan
+        gyr[huge] = np.nan
+        check_accel_units(name, acc)
+        check_gyro_units(name, gyr, True, t, acc)
+        blocks.append(np.hstack([acc, gyr]))
     return t, np.hstack(blocks)
 
 
@@ -1032,6 +1040,21 @@ def _refuse_a_missing_value(
             )
 
 
+def _impossible_readings(
+    acc: FloatArray, gyr: FloatArray | None
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
+    """``(|a|, |omega|, zero, huge)`` of each message's readings (rows of ``acc`` and
+    ``gyr``): an acceleration with no gravity direction (a zero, or a magnitude whose
+    square underflows), and a reading beyond any IMU's range (:data:`ACCEL_READING_MAX`,
+    :data:`GYRO_READING_MAX`); a NaN row (a dropout) is neither."""
+    with np.errstate(invalid="ignore", under="ignore"):
+        acc_norm = np.hypot.reduce(acc, axis=1)  # hypot: no overflow of a finite 1e200
+        gyr_norm = np.zeros(len(acc)) if gyr is None else np.hypot.reduce(gyr, axis=1)
+        huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
+        zero = (acc_norm == 0.0) | (np.einsum("ij,ij->i", acc, acc) == 0.0)
+    return acc_norm, gyr_norm, zero, huge
+
+
 def _readings_in_range(
     path: Path, t: FloatArray, log: ImuLog, skip_bad: bool, dropouts: list[tuple[float, str]]
 ) -> tuple[FloatArray, FloatArray | None]:
@@ -1042,12 +1065,7 @@ def _readings_in_range(
     a NaN is, described in ``dropouts`` with its time."""
     acc = np.array(log.acc, dtype=float)
     gyr = None if log.gyr is None else np.array(log.gyr, dtype=float)
-    with np.errstate(invalid="ignore", under="ignore"):  # a NaN (a dropout) is neither
-        acc_norm = np.hypot.reduce(acc, axis=1)  # hypot: no overflow of a finite 1e200
-        gyr_norm = np.zeros(len(acc)) if gyr is None else np.hypot.reduce(gyr, axis=1)
-        huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
-        # no gravity direction to read: a zero, or a magnitude whose square underflows
-        zero = (acc_norm == 0.0) | (np.einsum("ij,ij->i", acc, acc) == 0.0)
+    acc_norm, gyr_norm, zero, huge = _impossible_readings(acc, gyr)
     # an accelerometer in another unit is said as a CSV's is, not as a corrupt message:
     # raw counts (most readings beyond range), or mm/s^2 (its median about 9810)
     label = f"{path}: topic {log.topic}"
