@@ -908,8 +908,9 @@ def test_a_db3_path_is_read_only_as_the_bag_its_metadata_lists(
     lone = tmp_path / "lone"
     lone.mkdir()
     shutil.copy(own, lone / "run.db3")
-    with pytest.raises(InputError, match=r"needs the metadata\.yaml that rosbag2 wrote"):
+    with pytest.raises(InputError, match=r"needs the metadata\.yaml that rosbag2 wrote") as err:
         read_imu_log(lone / "run.db3")
+    assert str(err.value).endswith("a recorder that stopped? ros2 bag reindex writes it")
 
 
 def test_pair_tolerance_on_one_imu_s_topic_is_refused(

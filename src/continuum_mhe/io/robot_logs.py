@@ -306,7 +306,8 @@ def _bag_folder(path: Path) -> Path:
     if not meta.is_file():
         raise InputError(
             f"{path}: a ROS 2 bag's .db3 needs the metadata.yaml that rosbag2 wrote beside "
-            "it (give the bag's folder, as rosbag2 recorded it)"
+            "it (give the bag's folder, as rosbag2 recorded it); its folder has none: a "
+            "recorder that stopped? ros2 bag reindex writes it"
         )
     listed = rf"^\s*-\s*['\"]?{re.escape(path.name)}['\"]?\s*$"  # a relative_file_paths entry
     if not re.search(listed, meta.read_text(errors="replace"), re.MULTILINE):
