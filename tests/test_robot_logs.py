@@ -1325,6 +1325,49 @@ def test_a_tendon_robots_log_without_tensions_is_told_to_give_them_with_inputs(
         _tensions(InputOptions(), robot, "tendon-two-section", csv_path)
 
 
+def test_a_logs_tensions_stamped_since_1970_are_taken_on_its_clock(
+    recording: dict[str, Any], tmp_path: Path
+) -> None:
+    """A tendon robot's log (its tip IMU alone) with tensions stamped on the log's own
+    clock (seconds since 1970, as a tension topic exported beside the IMU's has them):
+    taken on the log's clock, t = 0 at IMU 1's first stamp, and said in a note; the
+    samples equal those with the same tensions counted from that stamp (to the
+    float64 resolution of times since 1970, 2.4e-7 s). The estimate's t0_ns is the
+    log's."""
+    from dataclasses import replace
+
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.registry import make_formulation
+
+    log = write_mcap(tmp_path / "run.mcap", recording)
+    robot = read_robot("tendon-two-section")
+    f = make_formulation("bend", replace(robot, imus=robot.imus[1:]))
+    t = np.arange(0.0, 3.2, 0.02)
+    tensions = 0.1 + 0.05 * np.sin(t)[:, None] * np.ones((1, robot.n_tendons))
+    header = "t," + ",".join(f"tension_{i + 1}" for i in range(robot.n_tendons))
+    files = {}
+    for name, t0 in (("counted.csv", 0), ("epoch.csv", T0_NS)):
+        ns = t0 + np.round(t * 1e9).astype(np.int64)  # written to the nanosecond
+        rows = [
+            f"{n // 10**9}.{n % 10**9:09d}," + ",".join(f"{v:.6f}" for v in row)
+            for n, row in zip(ns.tolist(), tensions)
+        ]
+        files[name] = tmp_path / name
+        files[name].write_text(header + "\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    counted = load_input(log, InputOptions(tensions=str(files["counted.csv"])), f)
+    epoch = load_input(log, InputOptions(tensions=str(files["epoch.csv"])), f)
+    assert counted.t0_ns == epoch.t0_ns == T0_NS
+    np.testing.assert_allclose(epoch.z, counted.z, rtol=0, atol=1e-4)
+    assert np.array_equal(epoch.t, counted.t)
+    assert epoch.notes == (
+        f"{files['epoch.csv']}: its times, since 1970, are taken on the log's clock: t = 0 "
+        "at IMU 1's first stamp, 1700000000.123456789 s",
+    )
+    assert not counted.notes
+
+
 def test_an_options_files_topics_give_way_to_the_command_line_and_to_a_csv(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -92,6 +92,7 @@ from continuum_mhe.io.robot_logs import (
 )
 from continuum_mhe.io.sample_rows import RowProblems, SampleBlock, sample_blocks
 from continuum_mhe.io.tensions import (
+    EPOCH_LIKE_S,
     Tensions,
     read_tensions,
     tendon_formulation_for,
@@ -433,7 +434,10 @@ def load_input(
     t = np.concatenate([b[0] for b in blocks]) if blocks else np.empty(0)
     z = np.vstack([b[1] for b in blocks]) if blocks else np.empty((0, nz))
     note_mounting_checked(z, stream.formulation.robot)  # the stream checked them
-    return EstimateInput(stream.kind, t, z, stream.formulation, 0, problems.first)
+    return EstimateInput(
+        stream.kind, t, z, stream.formulation, stream.t0_ns, problems.first,
+        stream.description.notes,
+    )  # fmt: skip
 
 
 def read_recording(
@@ -688,6 +692,15 @@ def _append_tensions(
     f = tendon_formulation_for(stream.formulation, options)
     k = f.robot.n_tendons
     blocks = stream.blocks
+    if tensions is not None and stream.t0_ns and tensions.t[0] >= EPOCH_LIKE_S:
+        # a robot log's tensions on its clock (times since 1970): the log's t = 0 is IMU
+        # 1's first stamp, t0_ns
+        seconds, ns = divmod(stream.t0_ns, 10**9)
+        tensions = replace(tensions, t=(tensions.t - seconds) - ns * 1e-9)
+        stream.description.notes += (
+            f"{tensions.name}: its times, since 1970, are taken on the log's clock: t = 0 "
+            f"at IMU 1's first stamp, {seconds}.{ns:09d} s",
+        )
 
     def with_tensions() -> Iterator[tuple[FloatArray, FloatArray]]:
         first = last = math.nan
