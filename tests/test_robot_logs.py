@@ -106,6 +106,26 @@ def write_mcap(
     return path
 
 
+def write_ros1_mcap(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> Path:
+    """An MCAP of ``rec``'s Imu messages in ROS 1's encoding, as ``mcap convert run.bag``
+    writes a ROS 1 bag's (schema ``sensor_msgs/Imu``, encoding ``ros1msg``)."""
+    from mcap.writer import CompressionType, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    msgdef, _ = store.generate_msgdef(IMU, ros_version=1)
+    with path.open("wb") as fh:
+        w = Writer(fh, compression=CompressionType.NONE)
+        w.start(profile="ros1")
+        sid = w.register_schema(name="sensor_msgs/Imu", encoding="ros1msg", data=msgdef.encode())
+        cid = w.register_channel(topic=topic, message_encoding="ros1", schema_id=sid)
+        for ns, a, g in zip(rec["stamps"], rec["acc"], rec["gyr"]):
+            data = bytes(store.serialize_ros1(imu_msg(store, int(ns), a, g, True), IMU))
+            w.add_message(cid, log_time=int(ns), data=data, publish_time=int(ns))
+        w.finish()
+    return path
+
+
 def write_raw_csv(path: Path, rec: dict[str, Any]) -> Path:
     t = (rec["stamps"] - rec["stamps"][0]) / 1e9
     with path.open("w", newline="") as fh:
@@ -130,13 +150,16 @@ def _states(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return read_states(path)
 
 
-@pytest.mark.parametrize("kind", ["ros2", "ros1", "mcap"])
+@pytest.mark.parametrize("kind", ["ros2", "ros1", "mcap", "ros1-mcap"])
 @pytest.mark.parametrize("model", ["tilt", "direct"])
 def test_log_gives_same_estimates_as_csv(
     tmp_path: Path, recording: dict[str, Any], kind: str, model: str
 ) -> None:
-    writer = {"ros2": write_ros2_bag, "ros1": write_ros1_bag, "mcap": write_mcap}[kind]
-    name = {"ros2": "bag2", "ros1": "run.bag", "mcap": "run.mcap"}[kind]
+    writer = {
+        "ros2": write_ros2_bag, "ros1": write_ros1_bag, "mcap": write_mcap,
+        "ros1-mcap": write_ros1_mcap,
+    }[kind]  # fmt: skip
+    name = {"ros2": "bag2", "ros1": "run.bag", "mcap": "run.mcap", "ros1-mcap": "r1.mcap"}[kind]
     log = writer(tmp_path / name, recording)
     csv_in = write_raw_csv(tmp_path / "raw.csv", recording)
     opts = ["--method", "ekf", "--imu-model", model]

@@ -411,21 +411,26 @@ def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, 
     fh = path.open("rb")
     reader = _mcap_reader(fh)[0]
     store = get_typestore(Stores.ROS2_HUMBLE)
+    # ROS 1's messages (an MCAP converted from a ROS 1 bag, `mcap convert run.bag`)
+    ros1_store = get_typestore(Stores.ROS1_NOETIC)
 
     def gen() -> Iterator[tuple[int, Any]]:
         try:
             for schema, channel, message in _mcap_messages(reader, [name]):
-                if channel.message_encoding == "cdr":
+                if channel.message_encoding in ("cdr", "ros1"):
                     msgtype = schema.name if schema is not None else IMU_TYPES[0]
                     if msgtype == "sensor_msgs/Imu":
                         msgtype = IMU_TYPES[0]
-                    yield message.log_time, store.deserialize_cdr(message.data, msgtype)
+                    if channel.message_encoding == "cdr":
+                        yield message.log_time, store.deserialize_cdr(message.data, msgtype)
+                    else:
+                        yield message.log_time, ros1_store.deserialize_ros1(message.data, msgtype)
                 elif channel.message_encoding == "json":
                     yield message.log_time, json.loads(message.data)
                 else:
                     raise InputError(
                         f"{path}: topic {name}: message encoding "
-                        f"{channel.message_encoding!r} is not supported (cdr or json)"
+                        f"{channel.message_encoding!r} is not supported (cdr, ros1 or json)"
                     )
         finally:
             fh.close()
