@@ -156,8 +156,8 @@ def test_a_bound_reached_by_readings_that_restart_the_estimator_puts_the_robot_f
     """The spatial rod's raw recording (its first 4 s) with its two IMUs' columns swapped
     in the header, and a robot file bounding each bend at 2 rad: the readings restart
     the estimator on many samples (warned of), and estimates sit on the bound; the
-    bound's warning says the restarts come first, to check the robot file before raising
-    the bound, which alone would not help. (Restarts of an estimate that diverged past a
+    bound's warning, besides raising the bound, says that where the robot file does not
+    describe the robot raising it does not help. (Restarts of an estimate that diverged past a
     bound the robot passes do not: the spatial rod's tilt with a 90-degree bound,
     test_the_bound_warning_names_the_robot_files_key_or_the_option.)"""
     lines = (ROD / "spatial_raw.csv").read_text(encoding="utf-8").splitlines(keepends=True)
@@ -170,10 +170,10 @@ def test_a_bound_reached_by_readings_that_restart_the_estimator_puts_the_robot_f
     assert "restarted the estimator (readings inconsistent with its estimate" in err
     line = _bound_warning(err)
     assert line.endswith(
-        "but the restarts warned of above come first: readings that the model of the robot "
-        "does not explain push the estimates onto the bound too (check the robot file "
-        f"against the robot first; raise theta_max in the robot file {robot} only if it "
-        "bends so far)"
+        f"raise theta_max in the robot file {robot} if it bends so far (but the restarts "
+        "warned of above say that readings contradicted the estimates: where the robot "
+        "file does not describe the robot, as with IMUs swapped or turned over, raising "
+        "the bound does not help)"
     ), line
 
 

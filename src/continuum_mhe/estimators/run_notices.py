@@ -111,8 +111,9 @@ class BendsOnBound:
         bound (``raise theta_max in the robot file R``); ``observable``: whether the
         robot's IMUs determine its shape (where they do not, the bends they leave free
         drift to the bound); ``contradicted``: whether the readings restarted the
-        estimator on many samples (said in a warning of its own), which then comes
-        before raising the bound. None without."""
+        estimator on many samples (said in a warning of its own): a bound too tight
+        does that, and so does a robot file that does not describe the robot, which
+        raising the bound does not mend. None without."""
         if not self.count:
             return None
         sections = self._robot.sections
@@ -154,10 +155,11 @@ class BendsOnBound:
             )
         elif contradicted:
             further = (
-                f"and the robot may bend further than the bound allows{missing}; but the "
-                "restarts warned of above come first: readings that the model of the robot "
-                "does not explain push the estimates onto the bound too (check the robot "
-                f"file against the robot first; {raise_it} only if it bends so far)"
+                f"and the robot may bend further than the bound allows{missing}; "
+                f"{raise_it} if it bends so far (but the restarts warned of above say that "
+                "readings contradicted the estimates: where the robot file does not "
+                "describe the robot, as with IMUs swapped or turned over, raising the bound "
+                "does not help)"
             )
         else:
             further = (
