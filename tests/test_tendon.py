@@ -209,6 +209,67 @@ def test_the_statics_say_when_the_rod_holds_no_equilibrium() -> None:
         statics.solve(np.array([np.nan, 0.0, 0.0]), np.zeros(6))
 
 
+SOFT_TENDON_FILE = (
+    """
+[backbone]
+youngs_modulus = 60e9
+shear_modulus = 23e9
+radius = 0.0004
+density = 6450
+[[section]]
+length = 0.15
+disks = 8
+[[section]]
+length = 0.25
+disks = 12
+"""
+    + "".join(
+        f"[[tendon]]\nsection = {k}\nangle = {a}\nradius = {r}\n"
+        for k, r, angles in ((1, 0.008, (45, 135, 225, 315)), (2, 0.006, (0, 90, 180, 270)))
+        for a in angles
+    )
+    + "[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+)
+
+
+def test_a_drawn_backbone_follows_the_rows_where_the_loads_hold_two_equilibria(
+    tmp_path: Path,
+) -> None:
+    """A soft backbone under a tip force eleven times its buckling load holds more than
+    one equilibrium: solved from the straight rod, the last of 41 rows whose loads grow
+    in proportion reaches one whose tip is over 100 mm from the one the rows come
+    through, each solved from the one before (as the generator's rod and ``view`` follow
+    them). ``plot``'s backbone of that row (``tendon_backbone``) is the rows' one."""
+    from continuum_mhe.evaluation.estimate_tables import tendon_backbone
+
+    path = tmp_path / "soft.toml"
+    path.write_text(SOFT_TENDON_FILE)
+    robot = read_robot(path)
+    statics = TendonStatics(robot)
+    force = np.array([0.0571, 0.1093, 0.0925])  # a generator recording's, at t = 1.56 s
+    tension = np.array([1.0598, 0.5874, 0.003, 0.4753, 1.5312, 0.4865, 0.063, 1.1077])
+    scale = np.linspace(0.0, 1.0, 41)
+    t = 0.02 * np.arange(len(scale))
+    k0 = None
+    for s in scale:
+        k0, poses = statics.solve(s * force, s * tension, k0)
+    followed = poses[Station(1, 1.0)][1]
+    _, cold = statics.solve(force, tension)
+    assert np.linalg.norm(cold[Station(1, 1.0)][1] - followed) > 0.1  # another one
+    table_path = tmp_path / "tensions.csv"
+    names = ["t"] + [f"tension_{j}" for j in range(1, 9)]
+    write_table(table_path, names, [[tk, *(s * tension)] for tk, s in zip(t, scale)])
+    tensions = read_tensions(table_path, 8)
+    table = StateTable(
+        t=t,
+        names=("fx", "fy", "fz"),
+        values=scale[:, None] * force,
+        status=np.array(["ok"] * len(t)),
+    )
+    points = tendon_backbone(robot, tensions)
+    np.testing.assert_allclose(points(table, len(t) - 1)[-1], followed, atol=1e-3)
+
+
 def test_a_small_tip_force_gives_the_cantilever_deflection() -> None:
     """``F L^3 / (3 EI)`` for a force across the straight rod, to first order."""
     robot = _one_section()

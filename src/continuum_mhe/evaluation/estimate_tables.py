@@ -144,20 +144,46 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
     model's equilibrium (:meth:`TendonStatics.backbone_points`) at the row's tip force
     (:data:`TIP_FORCE_COLUMNS`) and the tensions at the row's time (an
     :class:`~continuum_mhe.errors.InputError` where ``tensions`` do not cover it), times
-    the row's tension gains where it has them (:func:`acting_tensions`)."""
+    the row's tension gains where it has them (:func:`acting_tensions`).
+
+    The equilibrium is followed along the table's rows from its first, each row's
+    solved from the one before it (as ``view`` solves them): under loads past the ones
+    that buckle the backbone the rod holds more than one equilibrium, and a solution
+    from the straight rod can reach another one than the rows came through (the tip
+    hundreds of millimetres from the row's). A row whose loads are not finite, or not
+    covered by ``tensions``, or hold no equilibrium on the way leaves the next row to
+    start from the straight rod."""
     statics = TendonStatics(robot)
+    followed: dict[int, tuple[StateTable, int, FloatArray | None]] = {}
+
+    def loads(table: StateTable, row: int) -> tuple[FloatArray, FloatArray]:
+        force = np.array([table.column(c)[row] for c in TIP_FORCE_COLUMNS])
+        given, _, _ = tensions.at(float(table.t[row]))
+        names = [c for c in table.names if c.startswith("tension_gain_")]
+        values = np.array([[table.column(c)[row] for c in names]])
+        return force, acting_tensions(robot, given, names, values)[0]
 
     def points(table: StateTable, row: int) -> FloatArray:
-        force = np.array([table.column(c)[row] for c in TIP_FORCE_COLUMNS])
-        t = float(table.t[row])
-        given, _, _ = tensions.at(t)
-        gains = [c for c in table.names if c.startswith("tension_gain_")]
-        values = np.array([[table.column(c)[row] for c in gains]])
-        tension = acting_tensions(robot, given, gains, values)[0]
+        held = followed.get(id(table))
+        start, k0 = (
+            (held[1], held[2]) if held and held[0] is table and held[1] < row else (-1, None)
+        )
+        for r in range(start + 1, row):  # the rows before it, each from the one before
+            try:
+                force, tension = loads(table, r)
+                if not (np.all(np.isfinite(force)) and np.all(np.isfinite(tension))):
+                    continue  # a gap (a lost marker): the next row from this one's start
+                k0, _ = statics.solve(force, tension, k0)
+            except (ArithmeticError, UserError):
+                k0 = None
+        force, tension = loads(table, row)
         try:
-            return statics.backbone_points(force, tension, POINTS_PER_SECTION)
+            k0, _ = statics.solve(force, tension, k0)
+            followed[id(table)] = (table, row, k0)
+            return statics.backbone_points(force, tension, POINTS_PER_SECTION, k0=k0)
         except ArithmeticError as exc:
-            raise UnsolvedBackbone(str(no_equilibrium_at(t, exc))) from None
+            followed[id(table)] = (table, row, None)
+            raise UnsolvedBackbone(str(no_equilibrium_at(float(table.t[row]), exc))) from None
 
     return points
 

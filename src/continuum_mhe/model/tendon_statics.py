@@ -367,14 +367,19 @@ class TendonStatics:
         return x if norm < TIP_CONDITION_TOL else None
 
     def backbone_points(
-        self, force: FloatArray, tension: FloatArray, points_per_section: int = 16
+        self,
+        force: FloatArray,
+        tension: FloatArray,
+        points_per_section: int = 16,
+        k0: FloatArray | None = None,
     ) -> FloatArray:
         """The backbone at equilibrium under the tip force ``force`` (N, base frame) and
         the tensions ``tension`` (N): ``(n_sections * points_per_section + 1, 3)`` m,
         from the base (the origin) to the tip, evenly spaced along each section (for
         drawing; the points also end the integration's steps, so the curve is at least
-        as fine as the estimators' model)."""
-        k0, _ = self.solve(force, tension)
+        as fine as the estimators' model). ``k0``: where :meth:`solve` starts (the
+        equilibrium nearest a neighbouring row's, where the loads hold more than one)."""
+        k0, _ = self.solve(force, tension, k0)
         points, _, _ = self.drawing_function(points_per_section)(k0, force, tension)
         return np.vstack([np.zeros(3), np.asarray(points, dtype=float).T])
 
