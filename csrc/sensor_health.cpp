@@ -987,8 +987,11 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     }
   }
   // the gate predicts from an estimate the readings confirmed only: readings far from an
-  // estimate that is not trusted may be right where it is wrong
-  gate_has_ = has_state && has_cov && !failed && status == ST_OK;
+  // estimate that is not trusted may be right where it is wrong. And from the first
+  // estimate of a start, uncertain for that alone: it fits its reading, and a reading
+  // half a turn from it (whose linearised prediction widens as far, so that the
+  // consistency check passes it) would otherwise confirm a shape fitted to itself
+  gate_has_ = has_state && has_cov && !failed && (status == ST_OK || start_unconfirmed);
   if (gate_has_) {
     std::copy(x, x + s_.nx, gate_x_.begin());
     std::copy(P, P + static_cast<size_t>(s_.nx) * s_.nx, gate_P_.begin());
