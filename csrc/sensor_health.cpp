@@ -505,6 +505,12 @@ const double* SensorHealth::gate_glitches(double t, const double* z, int& gated)
   const double* out = z;
   for (size_t k = 0; k < n; ++k) {
     const int b = gate_imus_[k];
+    // from a start's first estimate, only such a reading (near the opposite gravity
+    // direction) is a glitch: one far from the start by its prediction as well says
+    // that the start may be wrong, which the bad-start check judges
+    if (gate_from_start_ &&
+        std::find(again.begin(), again.end(), static_cast<int>(k)) == again.end())
+      continue;
     // (a NIS that is not finite is beyond any limit)
     if (!(gate_nis_[k] <= gate_limit_[k])) {
       if (out == z) {
@@ -988,10 +994,11 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   }
   // the gate predicts from an estimate the readings confirmed only: readings far from an
   // estimate that is not trusted may be right where it is wrong. And from the first
-  // estimate of a start, uncertain for that alone: it fits its reading, and a reading
-  // half a turn from it (whose linearised prediction widens as far, so that the
-  // consistency check passes it) would otherwise confirm a shape fitted to itself
+  // estimate of a start, uncertain for that alone, for a reading half a turn from it
+  // alone (whose linearised prediction widens as far, so that the consistency check
+  // passes it, and which would confirm a shape fitted to itself): gate_from_start_
   gate_has_ = has_state && has_cov && !failed && (status == ST_OK || start_unconfirmed);
+  gate_from_start_ = gate_has_ && status != ST_OK;
   if (gate_has_) {
     std::copy(x, x + s_.nx, gate_x_.begin());
     std::copy(P, P + static_cast<size_t>(s_.nx) * s_.nx, gate_P_.begin());

@@ -325,6 +325,9 @@ class SensorHealth {
   std::vector<double> gate_x_, gate_P_, gate_z_, gated_z_, gated_mask_;
   double gate_t_ = -INFINITY;
   bool gate_has_ = false;
+  // the gate's estimate is a start's first (not ok): only a reading near the opposite
+  // gravity direction, judged again with the Jacobian at the reading before, is gated
+  bool gate_from_start_ = false;
   std::vector<std::vector<int>> gate_sets_;  // scratch: the IMUs' judged rows, their NIS
   std::vector<int> gate_imus_, gate_given_;
   std::vector<char> imu_row_;  // 1 on the rows of an IMU's block

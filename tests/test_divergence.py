@@ -64,8 +64,8 @@ def test_ukf_gimbal_flip_is_not_ok_with_a_collapsed_covariance() -> None:
     # (-1414 against +130): an unchecked update keeps x = +0.127 m where the reading says
     # -0.127, status ok, with std y 1e-6 m. The reading, a half turn 10 ms after the
     # start's first estimate, is skipped as a glitch (the row inconsistent, the estimate
-    # its prediction); taken after a start the glitch test does not judge (a gap before
-    # it), the update fails and restarts the UKF from it
+    # its prediction); with the glitch test off, the update fails and restarts the UKF
+    # from it
     data = read_measurements(REPRO / "gimbal_flip.csv")
     est = make_estimator("ukf", make_formulation("bend"))
     series = est.run(data.t, data.z)
@@ -162,8 +162,8 @@ def test_a_ukf_process_noise_spreading_its_settled_sigma_points_past_its_chart_i
     noisy = make_formulation("bend", noise=NoiseSettings(bend_accel_psd=1e5))
     said = (
         r"^run: bend_accel_psd \(--accel-psd\) 100000 spreads the UKF's sigma points up to "
-        r"2\.79 rad of tilt .* once the filter has settled, .* past the 2\.01 rad .* give a "
-        r"smaller bend_accel_psd"
+        r"2\.79 rad of tilt .* once the filter has settled, .* past the 2\.01 rad .* a "
+        r"smaller bend_accel_psd narrows the spread"
     )
     with pytest.warns(OptionWarning, match=said) as caught:
         series = make_estimator("ukf", noisy).run(rec.t, rec.z)

@@ -765,6 +765,14 @@ def test_fields_named_again_in_another_order_stop_the_session() -> None:
         s.handle_line(b"# fields: t_ms,r,p (ms, rad, rad)", now)
     assert s.fatal is None
     assert len([m for m in said if "check --format and --robot" in m]) == 1, said
+    s.handle_line(b"# fields: t_ms,roll,pitch (ms, rad, rad)", now)  # live's again
+    assert s._fields_match
+    # samples read before any declaration, then one in another order: they were read
+    # as live's order, not the device's, and their estimates are not kept
+    s, said = _session()
+    _feed(s, [0, 20, 40])
+    s.handle_line(b"# fields: t_ms,pitch,roll (ms, rad, rad)", now)
+    assert s.fatal is not None and s.wrong_units and "are kept" not in s.fatal
 
 
 def test_a_line_cut_after_the_device_named_its_fields_gets_no_other_format_hint() -> None:

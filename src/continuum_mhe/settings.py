@@ -276,8 +276,9 @@ class RecoverySettings:
             several shapes that fit the readings narrows around it whether or not it is
             the robot's.
         glitch: an IMU's reading whose NIS against the prediction from an ``ok``
-            estimate, or from the first estimate of a start (uncertain until a reading
-            confirms it), exceeds this many times the one-sample limit (times the model error
+            estimate (or, for a reading near the opposite gravity direction, from the
+            first estimate of a start, uncertain until a reading confirms it) exceeds
+            this many times the one-sample limit (times the model error
             the readings showed) is skipped as a glitch (:data:`GLITCH_FACTOR`, the
             default); not for a robust MHE, whose loss weighs such readings, nor for the
             ``paper`` formulation, which has no consistency check; None: never (command

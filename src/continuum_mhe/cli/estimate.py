@@ -329,7 +329,6 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         )
         raise interrupted
     restarts = diag.restarts + diag.bad_starts + diag.reject_resets
-    restarts_note = None
     if stream.kind == "log" and len(args.topic or ()) > 1:  # topics in the wrong order, most often
         warn_topic_order(stream.name, args.topic, n, restarts)
     elif restarts_note := restarts_notice(n, restarts, diag.last_failure):
@@ -370,13 +369,11 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             )
     raise_it = robot_fix("theta_max", args.robot)
     holds = est.inference.holds_bounds
-    # readings that contradicted the estimate on many samples, said above: restarts from
-    # the readings (a bad start, rejected readings), not those of an estimate that
-    # diverged (which an estimate held beyond a bound it passes may do)
-    contradicted = (
-        restarts_note is not None
-        and restarts_notice(n, diag.bad_starts + diag.reject_resets) is not None
-    )
+    # readings that contradicted the estimate on many samples, said above (by
+    # restarts_notice, or warn_topic_order for a log's topics, on the same share):
+    # restarts from the readings (a bad start, rejected readings), not those of an
+    # estimate that diverged (which an estimate held beyond a bound it passes may do)
+    contradicted = restarts_notice(n, diag.bad_starts + diag.reject_resets) is not None
     if bound_note := tally.bound.notice(
         n, args.method, holds, raise_it, est.shape_observable, contradicted
     ):

@@ -73,7 +73,8 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         default=RecoverySettings.glitch,
         metavar="FACTOR",
         help="an IMU's reading whose normalised innovation against the prediction from an "
-        "ok estimate (or a start's first) exceeds FACTOR times the chi-square 99.99 %% "
+        "ok estimate (or, near the opposite gravity direction, a start's first) exceeds "
+        "FACTOR times the chi-square 99.99 %% "
         "quantile (times the model error the readings showed) is skipped as a glitch "
         "(that IMU's dropout for the "
         "sample, the row not ok); the next reading is taken, as the robot may have moved "

@@ -303,7 +303,8 @@ CHART_SHARE = 0.95
 #: (:meth:`UnscentedKalmanInference.step_problem`): on ``paper3d`` (0.05 s steps, 400
 #: samples) the UKF's updates fail and restart it from ``bend_accel_psd`` 1e4 on (16
 #: restarts; 174 at 3e4), where a settled spread and two innovation standard deviations
-#: pass :data:`CHART_LIMIT`, and not at 5e3; nor at 1 Hz with the default.
+#: pass :data:`CHART_LIMIT`, and not at 5e3; nor at 1 Hz with the default (there the
+#: two-section rods' tilt recordings are warned of, and restart too).
 SETTLED_READING_SIGMAS = 2.0
 #: The most steps the settled covariance of
 #: :meth:`UnscentedKalmanInference._settled_spread` takes.
@@ -393,8 +394,9 @@ class UnscentedKalmanInference(_KalmanBase):
                 f"({(worst - scale * settled[rows]).max():.3g} rad) from it as the robot "
                 f"moves: near or past the {CHART_LIMIT:.3g} rad at which a reading's "
                 "residual 2 tan(e/2) passes pi and the update fails, which restarts the "
-                "filter (status reset); give a smaller bend_accel_psd (the EKF and the MHE "
-                "take it)"
+                "filter (status reset); a smaller bend_accel_psd narrows the spread where "
+                "the robot's motion between samples allows it (the EKF and the MHE take "
+                "it)"
             )
         rate_gain = np.linalg.norm(H[rows, :bends], axis=1).max()
         rate_scale = scale * rate_gain * step

@@ -150,9 +150,10 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
     solved from the one before it (as ``view`` solves them): under loads past the ones
     that buckle the backbone the rod holds more than one equilibrium, and a solution
     from the straight rod can reach another one than the rows came through (the tip
-    hundreds of millimetres from the row's). A row whose loads are not finite, or not
-    covered by ``tensions``, or hold no equilibrium on the way leaves the next row to
-    start from the straight rod."""
+    hundreds of millimetres from the row's). A row whose loads are not finite is passed
+    over (the next row starts from the one before it); one whose time ``tensions`` do
+    not cover, or whose loads hold no equilibrium, leaves the next row to start from
+    the straight rod."""
     statics = TendonStatics(robot)
     followed: dict[int, tuple[StateTable, int, FloatArray | None]] = {}
 

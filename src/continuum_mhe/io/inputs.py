@@ -692,9 +692,13 @@ def _append_tensions(
     f = tendon_formulation_for(stream.formulation, options)
     k = f.robot.n_tendons
     blocks = stream.blocks
-    if tensions is not None and stream.t0_ns and tensions.t[0] >= EPOCH_LIKE_S:
-        # a robot log's tensions on its clock (times since 1970): the log's t = 0 is IMU
-        # 1's first stamp, t0_ns
+    if (
+        tensions is not None
+        and stream.t0_ns >= EPOCH_LIKE_S * 1e9
+        and tensions.t[0] >= EPOCH_LIKE_S
+    ):
+        # a robot log's tensions on its clock (times since 1970, as the log's stamps):
+        # the log's t = 0 is IMU 1's first stamp, t0_ns
         seconds, ns = divmod(stream.t0_ns, 10**9)
         tensions = replace(tensions, t=(tensions.t - seconds) - ns * 1e-9)
         stream.description.notes += (

@@ -635,12 +635,12 @@ class LiveSession:
         self.messages.show(text, arrival)
         names = header_fields(text)
         # every declaration, a later one too (a board restarted with other firmware)
-        if names is not None and names not in self._fields_seen:
-            later = bool(self._fields_seen)  # after a declaration the samples followed
-            self._fields_seen.add(names)
+        if names is not None:
             want = line_fields(self.settings.fmt, self.n_imus, self.n_tensions)
+            # the samples so far were read by the declaration in force: live's order
+            kept = self._fields_match and c.samples > 0
             self._fields_match = names == want
-            if names != want:
+            if names != want and names not in self._fields_seen:
                 tensions = f" and {self.n_tensions} tensions" if self.n_tensions else ""
                 said = (
                     f"the device names {len(names)} fields ({','.join(names)}) but "
@@ -651,17 +651,17 @@ class LiveSession:
                     )
                 )
                 if sorted(names) == sorted(want):  # every reading would be another's
-                    # the samples up to a later declaration were read as declared:
-                    # their estimates stay
-                    self.wrong_units = not later
-                    kept = (
+                    # samples read under a declaration in live's order keep their
+                    # estimates; those read under none, or another, do not
+                    self.wrong_units = not kept
+                    self.fatal = f"{self.settings.port}: {said}" + (
                         f" (the estimates of the {c.samples} samples up to it are kept)"
-                        if later
+                        if kept
                         else ""
                     )
-                    self.fatal = f"{self.settings.port}: {said}{kept}"
                 else:
                     self.say(said)
+            self._fields_seen.add(names)
 
     def unended_bytes(self, nbytes: int, arrival: float) -> None:
         """``nbytes`` have arrived since the last line end, more than a line may hold: a
