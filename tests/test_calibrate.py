@@ -742,6 +742,37 @@ def test_an_empty_or_impossible_reading_left_out_is_said(tmp_path, capsys, cell)
     )
 
 
+@pytest.mark.parametrize("cells", [("0", "0", "0"), ("1e6", "0", "0")], ids=["zero", "huge"])
+def test_an_impossible_reading_of_one_imu_is_left_out_as_of_several(
+    tmp_path, capsys, cells
+) -> None:
+    """A zero acceleration, or one of 1e6 m/s^2, on one row of a one-IMU rest recording
+    is left out and said, as one IMU's of several is, and the IMU's means, noise and
+    mounting equal those of the recording without that row."""
+    from continuum_mhe.cli import main
+
+    rest = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    lines = (rest / "planar-s_rest.csv").read_text().splitlines()
+    one = [",".join(line.split(",")[:7]).replace("_1", "") for line in lines]
+    bad_cells = one[11].split(",")
+    bad_cells[1:4] = cells
+    bad, clean = tmp_path / "bad.csv", tmp_path / "clean.csv"
+    bad.write_text("\n".join([*one[:11], ",".join(bad_cells), *one[12:]]) + "\n")
+    clean.write_text("\n".join([*one[:11], *one[12:]]) + "\n")
+    assert main(["calibrate", "--from", str(clean)]) == 0
+    want = capsys.readouterr().out
+    assert main(["calibrate", "--from", str(bad)]) == 0
+    out, err = capsys.readouterr()
+    assert err == (
+        f"continuum-mhe: warning: {bad}: 1 of {len(one) - 1} row(s) with a reading missing, "
+        f"zero or beyond any IMU's range (the first at t = {float(bad_cells[0]):g} s): that "
+        "IMU's reading is left out of its mean and noise there\n"
+    )
+    # the same means, noise and mounting (the sample count and steps are the file's)
+    imus = [line for line in out.splitlines() if line.startswith("IMU 1")]
+    assert imus and imus == [line for line in want.splitlines() if line.startswith("IMU 1")]
+
+
 def _two_imu_rest(path: Path, tilts_deg: tuple[float, float], n: int = 400) -> np.ndarray:
     """A two-IMU rest recording at 100 Hz (noise on each gyro's x), the IMUs tilted by
     ``tilts_deg`` about x; returns its values (n, 12)."""

@@ -71,7 +71,6 @@ from continuum_mhe.io.raw_imu import (
     raw_blocks,
     raw_layout,
     raw_to_measurements,
-    read_raw_imu,
     read_raw_imus,
     sample_kind,
 )
@@ -467,11 +466,9 @@ def read_recording(
             f"{path}: --degrees is for a tilt recording's roll and pitch; this one is raw "
             "(accelerometer in m/s^2, gyro in rad/s)"
         )
-    tables = (
-        read_raw_imus(path, n_imus, fix=ROBOT_FIX, range_dropouts=True).imus
-        if n_imus > 1
-        else [read_raw_imu(path)]
-    )  # an impossible reading of one of several IMUs: left out, and said by the caller
+    # an impossible reading (a zero acceleration, one beyond any IMU's range): left out,
+    # and said by the caller, of one IMU as of several
+    tables = read_raw_imus(path, n_imus, fix=ROBOT_FIX, range_dropouts=True).imus
     for i, tab in enumerate(tables, start=1):
         if tab.gyr is None:
             raise InputError(f"{path}: IMU {i} has no gyro columns (gx, gy, gz)")

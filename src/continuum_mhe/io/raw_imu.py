@@ -441,8 +441,9 @@ def raw_blocks(
     :data:`GYRO_READING_MAX`), is an error naming the line (and, of several IMUs, the
     IMU), or with ``skip_bad`` a dropout of that IMU's sample (recorded); of several
     IMUs, a non-finite value that reached here makes that IMU's sample a dropout
-    (NaN), and so does a zero or out-of-range reading where ``range_dropouts`` (for a
-    caller that counts and says them: ``calibrate``'s rest recording)."""
+    (NaN), and so does a zero or out-of-range reading where ``range_dropouts`` (one IMU
+    or several, for a caller that counts and says them: ``calibrate``'s rest
+    recording)."""
     k = 6 if has_gyro else 3
     out: list[tuple[FloatArray, FloatArray | None]] = []
     for i in range(n_imus):
@@ -463,7 +464,7 @@ def raw_blocks(
         huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
         check_accel_range(label, acc_norm)
         which = "" if n_imus == 1 else f"IMU {i + 1}: "
-        said_here = n_imus == 1 or not range_dropouts  # else the caller counts them
+        said_here = not range_dropouts  # else the caller counts them
         for j in np.flatnonzero(zero | huge) if said_here else ():
             msg = f"line {lines[int(j)]}: {which}" + (
                 "acceleration is zero (no gravity direction)"
