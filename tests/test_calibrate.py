@@ -473,6 +473,22 @@ def test_calibrate_from_the_port_takes_lines_with_tensions(tmp_path: Path) -> No
     assert "IMU 2: mounting with the robot straight: --mount-rpy 5,-3,0" in out
 
 
+def _turned_over_about_y(source: Path, out: Path, imus: tuple[int, ...]) -> None:
+    """The raw recording ``source`` written to ``out`` with the IMUs ``imus`` (numbered
+    from 1) turned over about their y axis: x and z of the accelerometer and gyro
+    negated."""
+    header, *rows = source.read_text().splitlines()
+    names = header.split(",")
+    flip = [names.index(f"{c}_{k}") for k in imus for c in ("ax", "az", "gx", "gz")]
+    turned = []
+    for row in rows:
+        v = row.split(",")
+        for j in flip:
+            v[j] = repr(-float(v[j]))
+        turned.append(",".join(v))
+    out.write_text("\n".join([header, *turned]) + "\n")
+
+
 def test_calibrate_refuses_a_robot_file_whose_mounting_gravity_contradicts(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -552,17 +568,8 @@ def test_calibrate_refuses_most_imus_upside_down_against_the_mounting(
     down.write_text('mounting = "z-down"\n' + sections + imus)
     rest = tmp_path / "rest.csv"
     assert main(["simulate", "rest", "--robot", str(up), "--imu", "raw", "-o", str(rest)]) == 0
-    header, *rows = rest.read_text().splitlines()
-    names = header.split(",")
-    flip = [names.index(f"{c}_{k}") for k in (1, 2) for c in ("ax", "az", "gx", "gz")]
-    turned = []
-    for row in rows:
-        v = row.split(",")
-        for j in flip:
-            v[j] = repr(-float(v[j]))
-        turned.append(",".join(v))
     hanging = tmp_path / "hanging_rest.csv"
-    hanging.write_text("\n".join([header, *turned]) + "\n")
+    _turned_over_about_y(rest, hanging, (1, 2))
     out = tmp_path / "cal.toml"
     capsys.readouterr()
     code, stdout, err = _calibrate_main(
@@ -592,16 +599,7 @@ def test_a_board_upside_down_at_rest_says_its_yaw_is_unseen(
     assert (
         main(["simulate", "rest", "--robot", "two-section", "--imu", "raw", "-o", str(rest)]) == 0
     )
-    header, *rows = rest.read_text().splitlines()
-    names = header.split(",")
-    flip = [names.index(f"{c}_2") for c in ("ax", "az", "gx", "gz")]
-    turned = []
-    for row in rows:
-        v = row.split(",")
-        for j in flip:
-            v[j] = repr(-float(v[j]))
-        turned.append(",".join(v))
-    rest.write_text("\n".join([header, *turned]) + "\n")
+    _turned_over_about_y(rest, rest, (2,))
     capsys.readouterr()
     code, out, err = _calibrate_main(capsys, "--from", str(rest), "--robot", "two-section")
     assert code == 0 and "IMU 2: mounting" in out, err

@@ -552,6 +552,18 @@ DEG_S_SPREAD_RATIO = 3.0
 REST_GRAVITY_RANGE = (0.5, 2.0)
 
 
+def _accel_magnitudes(values: FloatArray, fmt: LineFormat, n_imus: int) -> list[float | None]:
+    """Each IMU's mean accelerometer magnitude (m/s^2) over the raw samples ``values``
+    whose three accelerations are finite, or None for an IMU without one."""
+    k = VALUES_PER_IMU[fmt]
+    means: list[float | None] = []
+    for i in range(n_imus):
+        acc = values[:, k * i : k * i + 3]
+        norm = np.linalg.norm(acc[np.all(np.isfinite(acc), axis=1)], axis=1)
+        means.append(float(norm.mean()) if len(norm) else None)
+    return means
+
+
 def rest_gravity_problem(values: FloatArray, fmt: LineFormat, n_imus: int) -> str | None:
     """Why the raw samples ``values`` (n, 6 * n_imus, or 3 without gyros) cannot be a
     still robot's in m/s^2, or None: an IMU whose mean accelerometer magnitude is
@@ -559,15 +571,9 @@ def rest_gravity_problem(values: FloatArray, fmt: LineFormat, n_imus: int) -> st
     that a unit's larger numbers are not read as a motion). Tilt readings: None."""
     if fmt != "raw":
         return None
-    k = VALUES_PER_IMU[fmt]
-    for i in range(n_imus):
-        acc = values[:, k * i : k * i + 3]
-        norm = np.linalg.norm(acc[np.all(np.isfinite(acc), axis=1)], axis=1)
-        if not len(norm):
-            continue
-        mean = float(norm.mean())
+    for i, mean in enumerate(_accel_magnitudes(values, fmt, n_imus)):
         low, high = REST_GRAVITY_RANGE
-        if not low * STANDARD_GRAVITY <= mean <= high * STANDARD_GRAVITY:
+        if mean is not None and not low * STANDARD_GRAVITY <= mean <= high * STANDARD_GRAVITY:
             return (
                 f"IMU {i + 1}'s accelerometer magnitude at rest is {mean:.4g}, not about "
                 f"{STANDARD_GRAVITY:.2f} m/s^2: another unit? (at rest cm/s^2 reads about "
@@ -591,15 +597,11 @@ def rest_gravity_note(values: FloatArray, fmt: LineFormat, n_imus: int) -> str |
     measure. Tilt readings: None."""
     if fmt != "raw":
         return None
-    k = VALUES_PER_IMU[fmt]
-    off = []
-    for i in range(n_imus):
-        acc = values[:, k * i : k * i + 3]
-        norm = np.linalg.norm(acc[np.all(np.isfinite(acc), axis=1)], axis=1)
-        if len(norm):
-            share = float(norm.mean()) / STANDARD_GRAVITY - 1.0
-            if abs(share) > REST_GRAVITY_NOTE_SHARE:
-                off.append(f"IMU {i + 1} {float(norm.mean()):.3f} m/s^2 ({100 * share:+.1f} %)")
+    off = [
+        f"IMU {i + 1} {mean:.3f} m/s^2 ({100 * (mean / STANDARD_GRAVITY - 1.0):+.1f} %)"
+        for i, mean in enumerate(_accel_magnitudes(values, fmt, n_imus))
+        if mean is not None and abs(mean / STANDARD_GRAVITY - 1.0) > REST_GRAVITY_NOTE_SHARE
+    ]
     if not off:
         return None
     return (

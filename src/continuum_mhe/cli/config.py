@@ -143,7 +143,7 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise InputError(f"{path}: cannot read the options file ({why})") from None
-    estimate = held is not None or _estimate_text(p, text)
+    estimate = held is not None or _is_estimate_file(path, text)
     offset = indent = 0
     if estimate:
         found = [
@@ -179,31 +179,26 @@ def _not_a_table(value: Any) -> str:
     )
 
 
-def _estimate_text(path: Path, text: str) -> bool:
-    """Whether ``text``, the file ``path``'s, is an estimate CSV's rather than a TOML
-    options file's: a ``.csv`` file, or one that ``estimate`` writes as CSV under another
-    name (``.txt``, no suffix), whose first line is its ``# continuum-mhe = ...`` note."""
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
+def _is_estimate_file(path: str, text: str | None = None) -> bool:
+    """Whether the file ``path`` (its ``text``, where read already) is an estimate
+    rather than a TOML options file: a ``.csv`` or ``.mcap`` file, one piped in, or one
+    that ``estimate`` writes as CSV under another name (``.txt``, no suffix), whose first
+    line is its ``# continuum-mhe = ...`` note."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix in (".csv", ".mcap") or held_text(path) is not None:
         return True
     if suffix == ".toml":
         return False
-    return _made_note(text.splitlines()[:1]) is not None
-
-
-def _is_estimate_file(path: str) -> bool:
-    """Whether the file ``path`` is an estimate (CSV or MCAP) rather than an options file."""
-    p = Path(path)
-    if p.suffix.lower() in (".csv", ".mcap") or held_text(path) is not None:
-        return True
-    if p.suffix.lower() == ".toml":
-        return False
-    try:
-        with p.open(encoding="utf-8-sig") as fh:
-            first = fh.readline()
-    except (OSError, UnicodeDecodeError):
-        return False
-    return _made_note([first]) is not None
+    if text is not None:
+        first = text.splitlines()[:1]
+    else:
+        try:
+            with p.open(encoding="utf-8-sig") as fh:
+                first = [fh.readline()]
+        except (OSError, UnicodeDecodeError):
+            return False
+    return _made_note(first) is not None
 
 
 def _line(text: str, key: str, offset: int = 0) -> str:

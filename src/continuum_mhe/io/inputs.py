@@ -68,6 +68,7 @@ from continuum_mhe.io.raw_imu import (
     RawImuConverter,
     RawImuSettings,
     csv_input_kind,
+    impossible_readings,
     raw_blocks,
     raw_layout,
     raw_to_measurements,
@@ -501,7 +502,7 @@ def _raw_log_recording(
         # a zero or impossible reading is left out, as a multi-IMU table's is (said by
         # the caller), not averaged into the rest
         acc, gyr = np.array(log.acc, dtype=float), np.array(log.gyr, dtype=float)
-        _, _, zero, huge = _impossible_readings(acc, gyr)
+        _, _, zero, huge = impossible_readings(acc, gyr)
         acc[zero | huge] = np.nan
         gyr[huge] = np.nan
         check_accel_units(name, acc)
@@ -1054,21 +1055,6 @@ def _refuse_a_missing_value(
             )
 
 
-def _impossible_readings(
-    acc: FloatArray, gyr: FloatArray | None
-) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
-    """``(|a|, |omega|, zero, huge)`` of each message's readings (rows of ``acc`` and
-    ``gyr``): an acceleration with no gravity direction (a zero, or a magnitude whose
-    square underflows), and a reading beyond any IMU's range (:data:`ACCEL_READING_MAX`,
-    :data:`GYRO_READING_MAX`); a NaN row (a dropout) is neither."""
-    with np.errstate(invalid="ignore", under="ignore"):
-        acc_norm = np.hypot.reduce(acc, axis=1)  # hypot: no overflow of a finite 1e200
-        gyr_norm = np.zeros(len(acc)) if gyr is None else np.hypot.reduce(gyr, axis=1)
-        huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
-        zero = (acc_norm == 0.0) | (np.einsum("ij,ij->i", acc, acc) == 0.0)
-    return acc_norm, gyr_norm, zero, huge
-
-
 def _readings_in_range(
     path: Path, t: FloatArray, log: ImuLog, skip_bad: bool, dropouts: list[tuple[float, str]]
 ) -> tuple[FloatArray, FloatArray | None]:
@@ -1079,7 +1065,7 @@ def _readings_in_range(
     a NaN is, described in ``dropouts`` with its time."""
     acc = np.array(log.acc, dtype=float)
     gyr = None if log.gyr is None else np.array(log.gyr, dtype=float)
-    acc_norm, gyr_norm, zero, huge = _impossible_readings(acc, gyr)
+    acc_norm, gyr_norm, zero, huge = impossible_readings(acc, gyr)
     # an accelerometer in another unit is said as a CSV's is, not as a corrupt message:
     # raw counts (most readings beyond range), or mm/s^2 (its median about 9810)
     label = f"{path}: topic {log.topic}"

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, finite_reals
@@ -414,6 +415,23 @@ def raw_layout(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tuple[tuple
     return ("t", *(c + s for s in suffixes for c in fields)), bool(gyro)
 
 
+def impossible_readings(
+    acc: FloatArray, gyr: FloatArray | None
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
+    """``(|a|, |omega|, zero, huge)`` of each row of ``acc`` (n, 3) m/s^2 and ``gyr``
+    (n, 3) rad/s, or None without gyros: an acceleration with no gravity direction (a
+    zero, or a magnitude whose square underflows, under about 1e-162 m/s^2, which the
+    conversions' norm takes as zero), and a reading beyond any IMU's range
+    (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`); a NaN row (a dropout) is
+    neither."""
+    with np.errstate(invalid="ignore", under="ignore"):
+        acc_norm = np.hypot.reduce(acc, axis=1)  # hypot: no overflow of a finite 1e200
+        gyr_norm = np.zeros(len(acc)) if gyr is None else np.hypot.reduce(gyr, axis=1)
+        huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
+        zero = (acc_norm == 0.0) | (np.einsum("ij,ij->i", acc, acc) == 0.0)
+    return acc_norm, gyr_norm, zero, huge
+
+
 def raw_blocks(
     name: str,
     values: FloatArray,
@@ -454,14 +472,9 @@ def raw_blocks(
         if n_imus > 1:
             block[~np.all(np.isfinite(block), axis=1)] = np.nan
         acc = block[:, :3]
-        # hypot: no overflow to inf for a corrupt 1e200
-        acc_norm = np.hypot.reduce(acc, axis=1)
-        gyr_norm = np.hypot.reduce(block[:, 3:6], axis=1) if has_gyro else np.zeros(len(acc))
-        # no gravity direction to read: a zero, or a magnitude whose square underflows
-        # (under about 1e-162 m/s^2), which the conversions' norm takes as zero
-        with np.errstate(under="ignore"):
-            zero = (acc_norm == 0.0) | (np.einsum("ij,ij->i", acc, acc) == 0.0)
-        huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
+        acc_norm, gyr_norm, zero, huge = impossible_readings(
+            acc, block[:, 3:6] if has_gyro else None
+        )
         check_accel_range(label, acc_norm)
         which = "" if n_imus == 1 else f"IMU {i + 1}: "
         said_here = not range_dropouts  # else the caller counts them
