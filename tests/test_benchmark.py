@@ -618,3 +618,24 @@ def test_benchmark_refuses_repeats_beyond_its_limit(capsys: pytest.CaptureFixtur
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--repeats must lie in [1, 1000]" in err, err
+
+
+def test_the_robot_benchmark_refuses_a_tendon_robot_in_its_own_words(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``benchmark --robot`` with a tendon robot: one line saying that the fast MHE does
+    not take its model and what estimates it, not the simulator's refusal of scenarios;
+    nothing written."""
+    from continuum_mhe.cli import main
+
+    out = tmp_path / "b.json"
+    argv = ["benchmark", "--robot", "tendon-two-section", "--horizons", "5", "--duration",
+            "1", "--repeats", "1", "--json", str(out)]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "continuum-mhe: error: tendon-two-section: a tendon robot is not timed by benchmark: "
+        "the fast MHE does not take its model (estimate --method ekf, ukf or mhe --solver "
+        "ipopt do)\n"
+    )
+    assert not out.exists()

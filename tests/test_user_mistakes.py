@@ -3830,3 +3830,46 @@ def test_write_robot_refuses_a_robot_of_another_type_naming_it(tmp_path) -> None
         with pytest.raises(UserError, match=r"^write_robot robot must be a Robot or RobotSettings"):
             write_robot(path, robot)  # type: ignore[arg-type]
         assert not path.exists()
+
+
+def test_plot_of_a_paper_formulation_estimate_draws_the_recorded_robot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The paper formulation's x, y, z are states of their own, off the end of the arc
+    of its bend: plot takes the robot its options line records (0.2 m), as evaluate and
+    view do, without a warning that the truth or the given robot file is another
+    robot's."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth)]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--formulation", "paper"]) == 0
+    robot = tmp_path / "one.toml"
+    robot.write_text('mounting = "z-up"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n')
+    capsys.readouterr()
+    fig = tmp_path / "f.png"
+    for extra in ([], ["--robot", str(robot)]):
+        assert main(["plot", str(est), "--truth", str(truth), "-o", str(fig), "--overwrite",
+                     *extra]) == 0  # fmt: skip
+        err = capsys.readouterr().err
+        assert "warning" not in err, (extra, err)
+
+
+def test_plot_warns_of_a_robot_file_of_another_mounting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """plot --robot with the estimate's sections but the other mounting draws the robot
+    turned over: a warning, as evaluate and view give; the same file with the estimate's
+    mounting, none."""
+    meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas)]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    fig = tmp_path / "f.png"
+    for mounting, warned in (("z-down", True), ("z-up", False)):
+        robot = tmp_path / f"{mounting}.toml"
+        robot.write_text(
+            f'mounting = "{mounting}"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n'
+        )
+        capsys.readouterr()
+        assert main(["plot", str(est), "--robot", str(robot), "-o", str(fig), "--overwrite"]) == 0
+        err = capsys.readouterr().err
+        assert (f"says {mounting}: the robot file's is used, which turns the estimate's "
+                "base over" in err) is warned, err  # fmt: skip

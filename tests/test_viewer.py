@@ -668,6 +668,30 @@ def test_a_tendon_robot_is_drawn_from_its_mechanics_model(tendon_view: dict[str,
     assert truth.shape[1:] == (robot.n_sections, POINTS + 1, 3)
 
 
+def test_view_says_when_the_models_backbone_misses_the_estimated_tip(
+    tendon_view: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tendon estimate viewed with a robot file of a softer backbone (its tendons,
+    sections and IMUs the estimate's): the mechanics model's backbone at the rows' tip
+    forces and tensions ends far from the estimated tips, and a warning says by how
+    much, as plot's does; with the estimate's own robot file none."""
+    from importlib.resources import files
+
+    text = (files("continuum_mhe") / "data" / "robots" / "tendon_two_section.toml").read_text()
+    soft = tendon_view["tmp"] / "soft.toml"
+    soft.write_text(text.replace("youngs_modulus = 54e9", "youngs_modulus = 30e9"))
+    assert "youngs_modulus = 30e9" in soft.read_text()
+    rrd = tendon_view["tmp"] / "soft.rrd"
+    capsys.readouterr()
+    assert main(["view", str(tendon_view["est"]), "--robot", str(soft), "--inputs",
+                 tendon_view["tensions"], "--save", str(rrd)]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "backbone at the estimate's tip force and the tensions ends up to" in err, err
+    own = ["--robot", "tendon-two-section", "--inputs", tendon_view["tensions"]]
+    assert main(["view", str(tendon_view["est"]), *own, "--save", str(rrd), "--overwrite"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_a_tendon_robots_tip_force_is_an_arrow_from_its_tip(tendon_view: dict[str, Any]) -> None:
     """The estimated tip force, and the truth's, are arrows from their tips along the
     force, ``force_arrow_scale`` m per N (0.15 of the robot's length per E I / L^2),

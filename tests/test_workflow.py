@@ -493,6 +493,16 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
     rest.write_bytes((rod / "spatial-tendon_rest.csv").read_bytes())
     link = tmp_path / "link.csv"
     link.symlink_to(tensions)
+    # an estimate named as a figure (plot's default output is the estimate's name with
+    # .png), a truth as one, and a robot file as a benchmark's JSON
+    est_png, truth_svg, robot_json = tmp_path / "e.png", tmp_path / "t.svg", tmp_path / "r.json"
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth",
+                 str(tmp_path / "t.csv")]) == 0  # fmt: skip
+    truth_svg.write_bytes((tmp_path / "t.csv").read_bytes())
+    assert main(["estimate", str(meas), "--method", "ekf", "-o", str(tmp_path / "e.csv")]) == 0
+    est_png.write_bytes((tmp_path / "e.csv").read_bytes())
+    robot_json.write_bytes(robot.read_bytes())
     cases = [
         (["estimate", str(tendon / "force-29_raw.csv"), "--robot", "tendon-two-section",
           "--inputs", str(tensions), "-o", str(link)], tensions, "the tensions file --inputs"),
@@ -503,6 +513,11 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
         (["calibrate", "--from", str(rest), "--robot", str(robot), "--write-robot",
           str(robot)], robot, "the robot file --robot"),
         (["simulate", "paper3d", "--robot", str(robot), "-o", str(robot)], robot,
+         "the robot file --robot"),
+        (["plot", str(est_png)], est_png, "the estimate"),
+        (["plot", str(est_png), "--truth", str(truth_svg), "-o", str(truth_svg)], truth_svg,
+         "the truth --truth"),
+        (["benchmark", "--robot", str(robot_json), "--json", str(robot_json)], robot_json,
          "the robot file --robot"),
     ]  # fmt: skip
     for argv, kept, what in cases:

@@ -84,8 +84,9 @@ def run(args: argparse.Namespace) -> int:
     timed = args.horizons + ([] if args.robot else list(args.loss_horizons or []))
     check_horizons(timed, args.duration, ROBOT_DT if args.robot else DT)
     if args.json:  # before the run, not after minutes of it
-        from continuum_mhe.io.output_files import check_output_target
+        from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 
+        refuse_inputs(args.json, [("the robot file --robot", args.robot)])
         check_output_target(args.json, args.overwrite, "--json")
     for flag, given in (("--robot", args.robot), ("--acados", args.acados)):
         if given is not None and not given.strip():
@@ -104,8 +105,14 @@ def run(args: argparse.Namespace) -> int:
             )
         from continuum_mhe.io.robot_file import read_robot
 
+        robot = read_robot(args.robot)
+        if robot.tendons:
+            raise UserError(
+                f"{args.robot}: a tendon robot is not timed by benchmark: the fast MHE does "
+                "not take its model (estimate --method ekf, ukf or mhe --solver ipopt do)"
+            )
         robot_report = run_robot_benchmark(
-            read_robot(args.robot), args.horizons, args.duration, args.repeats, say=_say
+            robot, args.horizons, args.duration, args.repeats, say=_say
         )
         print_robot_report(robot_report)
         if args.json:
@@ -176,7 +183,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--robot",
         metavar="ROBOT.toml",
         help="instead: fast MHE against IPOPT on this constant-curvature robot with raw "
-        "IMUs (direct model); a tendon robot is not timed here (the fast MHE does not take "
+        "IMUs (direct model), on its simulated spatial motion sampled every "
+        f"{ROBOT_DT:g} s; a tendon robot is not timed here (the fast MHE does not take "
         "its model)",
     )
     p.add_argument(

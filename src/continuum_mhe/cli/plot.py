@@ -71,7 +71,7 @@ FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
 def _estimate(args: argparse.Namespace) -> int:
-    from continuum_mhe.io.output_files import check_output_target
+    from continuum_mhe.io.output_files import check_output_target, refuse_inputs
     from continuum_mhe.io.text_rows import held_for_rereading
 
     if args.output is None and (
@@ -83,6 +83,9 @@ def _estimate(args: argparse.Namespace) -> int:
         raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
     # the file save writes (its suffix is the format's name): checked and said as written
     output = output.with_suffix(output.suffix.lower())
+    refuse_inputs(output, [("the estimate", args.source), ("the truth --truth", args.truth),
+                           ("the tensions file --inputs", args.inputs),
+                           ("the robot file --robot", args.robot)])  # fmt: skip
     check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
     with held_for_rereading(args.source, args.truth):  # the estimate is read twice
         return _figure(args, output)
@@ -90,9 +93,11 @@ def _estimate(args: argparse.Namespace) -> int:
 
 def _figure(args: argparse.Namespace, output: Path) -> int:
     """The figure of the estimate ``args.source`` to ``output`` (see :func:`_estimate`)."""
+    from continuum_mhe.cli.config import recorded_option
     from continuum_mhe.cli.robot_options import (
         DEFAULT_LENGTH,
         recorded_mounting,
+        recorded_robot,
         warn_other_recorded_robot,
     )
     from continuum_mhe.cli.truth_checks import refuse_an_estimate_as_truth, truth_beside
@@ -122,6 +127,9 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
             truth = replace(truth, t=truth.t - args.truth_shift)
     lengths = None
     robot: Robot | None = None
+    # the paper formulation's x, y, z are states of their own, not the end of its arc:
+    # its rows give no section lengths (view and evaluate take the recorded robot's)
+    paper = recorded_option(args.source, "formulation") == "paper"
     if args.robot:
         robot = read_robot(args.robot)
         n = section_count(est.names)
@@ -131,7 +139,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
                 f"{robot.n_sections}; give the robot file it was made with"
             )
         lengths = robot.lengths
-        misfit = lengths_misfit(est, lengths)
+        misfit = None if paper else lengths_misfit(est, lengths)
         if misfit:  # drawn on the robot file's sections, off the estimate's points
             print(
                 f"{PROG}: warning: {args.source}: {misfit}; its backbone is drawn on "
@@ -141,6 +149,9 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
             )
         else:
             warn_other_recorded_robot(args.source, args.robot, robot)
+    elif paper and not has_tip_force(est.names):
+        recorded = recorded_robot(args.source, "drawn on that robot")
+        lengths = recorded.lengths if recorded is not None else (DEFAULT_LENGTH,)
     # a tendon robot's sections are not arcs: its rows give no lengths
     own = lengths_from_estimate(est) if lengths is None and not has_tip_force(est.names) else None
     if own is not None and max(own) > MAX_SECTION_LENGTH:  # positions in mm, or cm

@@ -122,13 +122,7 @@ def estimate_robot(
     line = ""
     recorded_way = recorded_mounting(path)
     if args.robot:
-        line = other_recorded_robot(path, args.robot, robot)
-        if not line and recorded_way is not None and recorded_way != robot.mounting:
-            line = (
-                f"{path} was estimated with mounting {recorded_way} (its options line), but "
-                f"{args.robot} says {robot.mounting}: the robot file's is used, which turns "
-                "the estimate's base over"
-            )
+        line = other_robot_file(path, args.robot, robot)
     elif getattr(args, "mounting", None) is None:
         # --length alone: the estimate's own mounting, as its options line records it
         if recorded_way in MOUNTINGS and recorded_way != robot.mounting:
@@ -179,10 +173,26 @@ def _geometry(robot: Robot) -> tuple[object, ...]:
 
 
 def warn_other_recorded_robot(path: str, given: str, robot: Robot) -> None:
-    """:func:`other_recorded_robot`'s warning, printed (a line on stderr)."""
-    line = other_recorded_robot(path, given, robot)
+    """:func:`other_robot_file`'s warning, printed (a line on stderr)."""
+    line = other_robot_file(path, given, robot)
     if line:
         print(f"{PROG}: warning: {line}", file=sys.stderr)
+
+
+def other_robot_file(path: str, given: str, robot: Robot) -> str:
+    """A warning where the ``--robot`` ``given`` (``robot``, as read) is not the robot the
+    estimate ``path`` was made on, as its options line records it: other sections or IMUs
+    (:func:`other_recorded_robot`), or the other mounting, which turns the estimate's
+    base over; ``""`` where neither."""
+    line = other_recorded_robot(path, given, robot)
+    recorded_way = recorded_mounting(path)
+    if not line and recorded_way is not None and recorded_way != robot.mounting:
+        line = (
+            f"{path} was estimated with mounting {recorded_way} (its options line), but "
+            f"{given} says {robot.mounting}: the robot file's is used, which turns "
+            "the estimate's base over"
+        )
+    return line
 
 
 def other_recorded_robot(path: str, given: str, robot: Robot) -> str:

@@ -14,7 +14,6 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.evaluation.estimate_tables import (
-    BACKBONE_MISFIT,
     POINTS_PER_SECTION,
     BackboneOf,
     TrackedPoint,
@@ -31,7 +30,7 @@ from continuum_mhe.evaluation.estimate_tables import (
 )
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, hang, plt
-from continuum_mhe.io.state_tables import StateTable
+from continuum_mhe.io.state_tables import StateTable, model_backbone_misfit
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points
 from continuum_mhe.results import Status
@@ -320,16 +319,11 @@ def _backbones(
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
     how = "" if backbone is not None or curve else ", section ends joined"
-    if off > BACKBONE_MISFIT * max(reach, 1e-9):
+    misfit = model_backbone_misfit(off, reach)
+    if misfit:
         # the file holds the tip force, not the estimator's state: the model re-solved at
         # it need not be the estimate's shape (tensions or robot of another recording)
         how += f"\nmodel's tip up to {off * 1e3:.0f} mm from the estimate's"
-        warnings.warn(
-            f"the mechanics model's backbone at the estimate's tip force and the tensions "
-            f"ends up to {off * 1e3:.0f} mm from the estimated tip in the rows drawn: are "
-            "--robot and --inputs those of the estimate?",
-            FigureWarning,
-            stacklevel=2,
-        )
+        warnings.warn(misfit, FigureWarning, stacklevel=2)
     ax.set_title("backbone" + (" (truth dashed)" if truth is not None else "") + how)
     ax.legend(loc="upper left", fontsize="small")

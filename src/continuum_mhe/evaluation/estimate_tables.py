@@ -13,7 +13,12 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray, typical_step
 from continuum_mhe.errors import UserError
 from continuum_mhe.evaluation.metrics import INTERPOLATE_GAP, IndexArray, match_rows
-from continuum_mhe.io.state_tables import SECTION_FIELDS, StateTable, tip_section
+from continuum_mhe.io.state_tables import (
+    BACKBONE_MISFIT,
+    SECTION_FIELDS,
+    StateTable,
+    tip_section,
+)
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.model.robot import Robot
@@ -192,11 +197,6 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
 class UnsolvedBackbone(UserError):
     """A row whose loads the mechanics model holds no equilibrium under: its backbone
     cannot be drawn from the model (the drawing joins its section ends instead)."""
-
-
-#: The mechanics model's backbone drawn from a row's tip force and tensions ending more
-#: than this share of the robot's length from the row's tip is said (a warning).
-BACKBONE_MISFIT = 0.05
 
 
 def broken(t: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -418,3 +418,22 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
         ) from None
     values = np.column_stack([table.column(c) for c in cols])
     return table.t, values, table.status
+
+
+#: The mechanics model's backbone drawn from a row's tip force and tensions ending more
+#: than this share of the robot's length from the row's tip is said (a warning).
+BACKBONE_MISFIT = 0.05
+
+
+def model_backbone_misfit(off: float, reach: float) -> str:
+    """What to say where the mechanics model's backbone at the rows' tip forces and
+    tensions ends up to ``off`` (m) from their estimated tips, more than
+    :data:`BACKBONE_MISFIT` of the robot's ``reach`` (m): a robot file or tensions other
+    than the estimate's; ``""`` where within it."""
+    if not off > BACKBONE_MISFIT * max(reach, 1e-9):
+        return ""
+    return (
+        "the mechanics model's backbone at the estimate's tip force and the tensions ends "
+        f"up to {off * 1e3:.0f} mm from the estimated tip in the rows drawn: are --robot "
+        "and --inputs those of the estimate?"
+    )

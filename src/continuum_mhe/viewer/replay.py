@@ -12,7 +12,12 @@ import numpy as np
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
 from continuum_mhe.io.position_units import position_unit_problem
-from continuum_mhe.io.state_tables import check_estimate_fits, read_state_table, robot_misfit
+from continuum_mhe.io.state_tables import (
+    check_estimate_fits,
+    model_backbone_misfit,
+    read_state_table,
+    robot_misfit,
+)
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.descriptions import OutputSpec, imu_twist_names, pcc_outputs
 from continuum_mhe.model.robot import Robot
@@ -125,6 +130,9 @@ def replay(
     }[sink.kind]
     if sink.kind == "save":  # written out first: a full disk is said instead
         view.close()
+    misfit = model_backbone_misfit(view.model_tip_off, robot.length)
+    if misfit:  # as plot says it
+        print(f"continuum-mhe: warning: {misfit}", file=sys.stderr)
     joined = view.joined_through_ends["estimate"]
     if joined:  # as plot draws them: not the mechanics model's backbone
         drawn_as = (

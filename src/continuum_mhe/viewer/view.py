@@ -184,6 +184,10 @@ class BackboneView:
         #: whose loads the mechanics model holds no equilibrium under: their backbones
         #: drawn through their section ends, as ``plot`` draws them, without IMU frames
         self.joined_through_ends = {"estimate": 0, "truth": 0}
+        #: a tendon robot's replay: the largest distance (m) between the end of the
+        #: mechanics model's backbone at a row's tip force and that row's own tip (a
+        #: robot file or tensions other than the estimate's draw a backbone that misses)
+        self.model_tip_off = 0.0
         #: the angles a shape is drawn from (a truth's backbone needs them): the bends,
         #: and a tendon robot's twists; not an output beyond the shape (``imu_twist``)
         n_sec = robot.n_sections
@@ -453,6 +457,10 @@ class BackboneView:
         if not has.any():
             return
         geom, tips = self._row_shapes(t[has], values[has], [o.name for o in self.outputs])
+        if self.tendon is not None and geom is not None:
+            off = np.linalg.norm(geom.tip - tips, axis=1)
+            if np.isfinite(off).any():
+                self.model_tip_off = max(self.model_tip_off, float(np.nanmax(off)))
         joined = (has & np.concatenate([[False], has[:-1]]))[has]
         forces = None if self._force_columns is None else values[has][:, self._force_columns]
         self._send_shapes("estimate", t[has], geom, tips, joined, forces)
