@@ -1770,6 +1770,20 @@ def test_a_sparser_motion_capture_is_scored_at_the_rows_nearest_its_samples(
     assert at is not None and np.isfinite(at.values).all() and len(at.t) == len(near)
 
 
+@pytest.mark.parametrize("hz", [1.0, 2.5])
+def test_a_truth_far_sparser_on_the_estimates_times_is_scored_on_its_rows(
+    mocap_run, capsys, hz: float
+) -> None:
+    """Snapshots at 1 and 2.5 Hz against 100 Hz estimates (40 and 100 times as sparse),
+    on the estimate's own times across the whole run: scored at those rows, neither
+    refused as times that do not match (11 rows) nor said to cover part of the run."""
+    folder, truth, est = mocap_run
+    snaps = _capture(truth, folder / f"snap{hz:g}.csv", hz)
+    got, err = _evaluate_json(capsys, str(est), str(snaps))
+    assert got["n"] == len(snaps.read_text().splitlines()) - 1, err
+    assert "warning" not in err, err
+
+
 def test_a_capture_of_part_of_the_run_is_scored_with_a_warning(mocap_run, capsys) -> None:
     """A 1.5 s capture inside the 10 s run (15 % of its rows): scored on those rows with
     a warning, not refused as times that do not match (a truth of other times is)."""
@@ -1932,3 +1946,15 @@ def test_the_srmse_sums_the_columns_in_m_and_rad_alone() -> None:
     assert m.rmse["tension_gain_1"] == pytest.approx(0.5)
     assert m.srmse == pytest.approx(0.001)
     assert srmse_columns(names) == ["x", "y", "z"]
+
+
+def test_a_theta_max_below_its_least_is_named_as_the_option(tmp_path, capsys) -> None:
+    """``--theta-max 0.001`` (below the least bend bound a robot file takes, 0.01 rad):
+    one line naming the option and the range it has, as every numeric option's."""
+    rows = _good_rows(10)
+    meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(est), "--theta-max", "0.001"]) == 2
+    assert capsys.readouterr().err == (
+        "continuum-mhe: error: --theta-max 0.001 is outside its valid range [0.01, 3.14159) rad\n"
+    )
+    assert not est.exists()

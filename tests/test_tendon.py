@@ -352,6 +352,33 @@ def test_the_shooting_agrees_with_an_independent_energy_minimisation() -> None:
         assert np.linalg.norm(poses[Station(k, 1.0)][1] - limit[:, k]) < 5e-5
 
 
+def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) -> None:
+    """One tendon on a section of four disks (5 cm apart), 1.5 N: routed continuously,
+    the generator's rod bends by ``tension * radius * length / EI`` (to 0.1 %); drawn
+    straight from disk to disk, the chords run nearer the bend's centre, a longer lever,
+    and it bends further (by more than 1 %). The generator's ``--route disks`` writes
+    such a recording and says so in its info."""
+    import json
+
+    from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
+    from continuum_mhe.simulation.cosserat_tendon import main as generate
+
+    length = 0.2
+    robot = Robot((Section(length, 3.0, 4),), (ImuPlacement(0, 1.0),), "z-up", BACKBONE,
+                  (Tendon(0, 0.0, 0.01),))  # fmt: skip
+    ei = BACKBONE.youngs_modulus * math.pi * BACKBONE.radius**4 / 4
+    bends = {}
+    for route in ("continuous", "disks"):
+        _, frames = energy_equilibrium(robot, np.array([1.5]), np.zeros(3), route=route)
+        tangent = frames[:9, -1].reshape(3, 3, order="F")[:, 2]
+        bends[route] = math.acos(min(1.0, abs(float(tangent[2]))))
+    assert bends["continuous"] == pytest.approx(1.5 * 0.01 * length / ei, rel=1e-3)
+    assert bends["disks"] > 1.01 * bends["continuous"]
+    out = tmp_path / "rec"
+    assert generate(["--route", "disks", "--duration", "0.1", "-o", str(out)]) == 0
+    assert json.loads((out / "unloaded_info.json").read_text())["route"] == "disks"
+
+
 def test_the_model_floor_on_a_bend_past_120_degrees() -> None:
     """The largest bend of the ``unloaded`` recording (121 and 102 degrees, tendons of
     up to 12 N, the backbone's weight): the shooting agrees with the discrete rod
@@ -1153,11 +1180,13 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
          "the recording 0.1 s: if t_ms is in microseconds, give milliseconds; if it is in "
          "milliseconds, cut the file"),
         ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
-         "line 3: column tension_1 is nan (--skip-bad, skip_bad=True in Python, leaves the "
-         "row out and interpolates across it)"),
+         "line 3: column tension_1 is nan (estimate --skip-bad (skip_bad=True in Python) "
+         "leaves the row out and interpolates across it; live, plot and view need the row "
+         "fixed or removed)"),
         ([[0.0, 1.0], [0.05, ""], [0.1, 1.5]], ["t", "tension_1"],
-         "line 3: column tension_1 is empty (--skip-bad, skip_bad=True in Python, leaves "
-         "the row out and interpolates across it)"),
+         "line 3: column tension_1 is empty (estimate --skip-bad (skip_bad=True in Python) "
+         "leaves the row out and interpolates across it; live, plot and view need the row "
+         "fixed or removed)"),
     ],
 )  # fmt: skip
 def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
@@ -3666,3 +3695,39 @@ def test_a_tensions_file_ending_a_rounding_short_of_the_recording_covers_it() ->
     assert not table.covers(1.5 + 2e-6)
     with pytest.raises(InputError, match="the tensions must cover the recording"):
         table.at(1.5 + 2e-6)
+
+
+def test_evaluate_judges_the_tip_force_unit_over_the_rows_compared(tmp_path: Path) -> None:
+    """An estimate of a recording's first rows (an interrupted run: small forces) is
+    scored against the whole truth in N, not refused as a truth in mN because the
+    truth's later rows carry larger forces."""
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+    head = tmp_path / "head.csv"
+    head.write_text("".join((data / "force-29_raw.csv").read_text().splitlines(True)[:13]))
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(head), "--robot", "tendon-two-section",
+            "--inputs", str(data / "force-29_tensions.csv"), "-o", str(est)]  # fmt: skip
+    assert main(argv) == 0
+    assert main(["evaluate", str(est), str(data / "force-29_truth.csv")]) == 0
+
+
+def test_simulate_rest_of_a_one_section_tendon_robot_puts_its_section_end_at_the_tip(
+    tmp_path: Path,
+) -> None:
+    """A one-section tendon robot at rest: the truth's section end (``x_1, y_1, z_1``) is
+    its tip, the straight backbone's length above the base, not the base."""
+    robot = tmp_path / "one.toml"
+    robot.write_text(
+        'mounting = "z-up"\n[backbone]\nyoungs_modulus = 54e9\nshear_modulus = 20.77e9\n'
+        "radius = 0.0007\n[[section]]\nlength = 0.25\ndisks = 9\n"
+        + "".join(f"[[tendon]]\nsection = 1\nangle = {a}\nradius = 0.01\n" for a in (0, 120, 240))
+        + "[[imu]]\nsection = 1\n"
+    )
+    meas, truth = tmp_path / "m.csv", tmp_path / "t.csv"
+    argv = ["simulate", "rest", "--robot", str(robot), "-o", str(meas), "--truth", str(truth),
+            "--duration", "1"]  # fmt: skip
+    assert main(argv) == 0
+    table = read_state_table(truth)
+    for end, tip in (("x_1", "x"), ("y_1", "y"), ("z_1", "z")):
+        assert np.array_equal(table.column(end), table.column(tip))
+    assert np.allclose(table.column("z_1"), 0.25)

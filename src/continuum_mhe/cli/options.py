@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from continuum_mhe.errors import InputError
-from continuum_mhe.model.robot import theta_max_hint
+from continuum_mhe.model.robot import MIN_THETA_MAX, theta_max_hint
 from continuum_mhe.settings import (
     MAX_HORIZON,
 )
@@ -75,7 +75,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "length": OptionRange(
         0.005, 5.0, "m", above="millimetres or centimetres? --length is in metres, e.g. 0.2"
     ),
-    "theta_max": OptionRange(0.0, math.pi, "rad", lo_open=True, hi_open=True, hint=theta_max_hint),
+    "theta_max": OptionRange(MIN_THETA_MAX, math.pi, "rad", hi_open=True, hint=theta_max_hint),
     "noise_deg": OptionRange(
         0.0, 90.0, "deg", above="--noise-deg is in degrees",
         # the estimators' own check refuses 0 (model_options): say so for a negative too

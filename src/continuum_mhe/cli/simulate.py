@@ -107,9 +107,13 @@ def run(args: argparse.Namespace) -> int:
     if tensions is not None:  # the tendon robot's outputs: no twist, no tip force
         outputs = tendon_outputs(n_sections)
         pcc_names = [o.name for o in rec.outputs]
+        # one section: the constant-curvature outputs are theta, phi and the tip, and
+        # section 1's end is the tip
+        alias = {"theta_1": "theta", "phi_1": "phi", "x_1": "x", "y_1": "y", "z_1": "z"}
+        named = [o.name if o.name in pcc_names else alias.get(o.name, o.name) for o in outputs]
         true_values = np.column_stack(
-            [rec.truth[:, pcc_names.index(o.name)] if o.name in pcc_names
-             else np.zeros(len(rec.t)) for o in outputs]
+            [rec.truth[:, pcc_names.index(n)] if n in pcc_names
+             else np.zeros(len(rec.t)) for n in named]
         )  # fmt: skip
     try:
         if args.truth:

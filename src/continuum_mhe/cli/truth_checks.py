@@ -14,6 +14,7 @@ import numpy as np
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.estimate_tables import lengths_misfit, truth_at_rows, truth_problem
 from continuum_mhe.evaluation.metrics import (
+    INTERPOLATE_STEP,
     SHIFT_MAX_S,
     FrameRotation,
     aligned_truth,
@@ -21,7 +22,6 @@ from continuum_mhe.evaluation.metrics import (
     best_time_shift,
     length_misfit,
     match_rows,
-    truth_sparser,
 )
 from continuum_mhe.io.position_units import tip_direction_problem
 from continuum_mhe.io.state_tables import StateTable
@@ -271,13 +271,16 @@ TRUTH_SPANNED = 0.9
 
 def comparable_rows(t_est: np.ndarray, t_truth: np.ndarray) -> int:
     """How many of the estimate's rows at ``t_est`` a truth at ``t_truth`` could be
-    compared at: each of them, or, for a truth sparser than the estimate
-    (:func:`~continuum_mhe.evaluation.metrics.truth_sparser`: compared at the row
-    nearest each of its samples), the samples at its median step over the estimate's
-    times."""
-    if not truth_sparser(t_est, t_truth):
+    compared at: each of them, or, for a truth whose median step exceeds
+    :data:`~continuum_mhe.evaluation.metrics.INTERPOLATE_STEP` times the estimate's
+    (compared at the row nearest each of its samples, or, sparser than
+    :data:`~continuum_mhe.evaluation.metrics.SPARSE_STEP_MAX` times, at the rows that
+    share its times), the samples at its median step over the estimate's times."""
+    if len(t_est) < 2 or len(t_truth) < 2:
         return len(t_est)
     step = float(np.median(np.diff(t_truth)))
+    if step <= INTERPOLATE_STEP * float(np.median(np.diff(t_est))):
+        return len(t_est)
     return int(round(float(t_est[-1] - t_est[0]) / step)) + 1
 
 

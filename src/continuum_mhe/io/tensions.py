@@ -667,7 +667,10 @@ def read_tensions(
                 f"order), got {','.join(written)}"
             )
         problems = RowProblems()
-        hint = "--skip-bad, skip_bad=True in Python, leaves the row out and interpolates across it"
+        hint = (
+            "estimate --skip-bad (skip_bad=True in Python) leaves the row out and "
+            "interpolates across it; live, plot and view need the row fixed or removed"
+        )
         data = read_samples(
             rows, ["t", *names], skip_bad=skip_bad, problems=problems, skip_hint=hint
         )

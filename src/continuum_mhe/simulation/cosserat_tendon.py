@@ -193,8 +193,8 @@ def check_generated_robot(robot: Robot) -> None:
     for k, section in enumerate(robot.sections):
         if section.disks < 1:
             raise UserError(
-                f"section {k + 1} has no spacer disks: the generator routes each tendon "
-                "straight from disk to disk; give the section's disks (disks = 10 in "
+                f"section {k + 1} has no spacer disks: the generator's rod has four "
+                "segments per disk; give the section's disks (disks = 10 in "
                 "tendon-two-section; the estimators' model takes the tendons as continuous "
                 "and does not need them)"
             )
@@ -230,12 +230,15 @@ def write_tendon_recording(
     segments_per_disk: int = SEGMENTS_PER_DISK,
     trajectory: TendonTrajectory | None = None,
     robot_name: str = "tendon-two-section",
+    route: str = "continuous",
 ) -> dict[str, object]:
     """Simulate, sample and write the files (see the module docstring); returns the
     info. ``imu``: the IMUs' errors (``seed`` draws them); ``segments_per_disk``: the
     discrete rod's resolution (:func:`quasi_static_trajectory`); ``trajectory``: that
     trajectory, already computed (the same motion with the errors of another seed);
-    ``robot_name``: the robot as the info names it. A robot other than two sections
+    ``robot_name``: the robot as the info names it; ``route``: the tendons' path
+    (:func:`_energy_solver`: ``"continuous"``, the estimators' model's, or ``"disks"``,
+    straight from disk to disk). A robot other than two sections
     with an IMU at each end (:func:`check_generated_robot`) is a
     :class:`~continuum_mhe.errors.UserError`; an equilibrium not found, an
     :class:`EquilibriumError`. The folder ``out`` is made once the rod is simulated, in
@@ -253,7 +256,7 @@ def write_tendon_recording(
     check_generated_robot(robot)
     check_new_folder(out, overwrite=True, names=())
     traj = trajectory or quasi_static_trajectory(
-        robot, scenario, duration, settings, segments_per_disk=segments_per_disk
+        robot, scenario, duration, settings, segments_per_disk=segments_per_disk, route=route
     )
     sec = traj.sections
     t, f, w, idx = imu_samples(sec, imu, seed)
@@ -316,6 +319,7 @@ def write_tendon_recording(
         "twist_max_deg": [float(np.degrees(np.abs(psi[:, k]).max())) for k in range(2)],
         "force_max_n": float(np.linalg.norm(traj.force, axis=1).max()),
         "tension_max_n": float(traj.tensions.max()),
+        "route": route,
     }
     (out / f"{name}_info.json").write_text(json.dumps(info, indent=2) + "\n")
     return info
@@ -353,6 +357,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--name", help="the files' prefix, the scenario's name if not given")
     p.add_argument(
+        "--route",
+        choices=("continuous", "disks"),
+        default="continuous",
+        help="the tendons' path: continuous along the backbone at their radius (the "
+        "estimators' model), or straight from disk to disk, as a real disk-routed robot's "
+        "(the model's error then shows in the estimates)",
+    )
+    p.add_argument(
         "--seed", type=int, default=0, help="draws the IMUs' errors and noise, an integer >= 0"
     )
     p.add_argument(
@@ -383,7 +395,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             info = write_tendon_recording(
                 a.output, name, robot, a.scenario, a.duration, TendonRodSettings(), a.seed,
-                robot_name=a.robot,
+                robot_name=a.robot, route=a.route,
             )  # fmt: skip
         except UserError as exc:
             print(f"{p.prog}: error: {exc}", file=sys.stderr)
@@ -513,9 +525,11 @@ def quasi_static_trajectory(
     settings: TendonRodSettings | None = None,
     record_dt: float = RECORD_DT,
     segments_per_disk: int = SEGMENTS_PER_DISK,
+    route: str = "continuous",
 ) -> TendonTrajectory:
-    """The robot's equilibria (:func:`energy_equilibrium`) every ``record_dt`` s, warm
-    started; velocities and angular velocities by central differences. An
+    """The robot's equilibria (:func:`energy_equilibrium`, its tendons on ``route``) every
+    ``record_dt`` s, warm started; velocities and angular velocities by central
+    differences. An
     :class:`EquilibriumError` names the time of an equilibrium not found."""
     s = settings or TendonRodSettings()
     disks = [sec.disks for sec in robot.sections]
@@ -530,7 +544,7 @@ def quasi_static_trajectory(
     w = None
     for i in range(n_rec):
         try:
-            w, fr = energy_equilibrium(robot, tensions[i], force[i], w, segments_per_disk)
+            w, fr = energy_equilibrium(robot, tensions[i], force[i], w, segments_per_disk, route)
         except EquilibriumError as exc:
             raise EquilibriumError(f"{exc} at t = {t[i]:.2f} s") from None
         nodes[i, :, 1:] = fr[9:]
