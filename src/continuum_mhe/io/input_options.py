@@ -685,7 +685,17 @@ def _check_base_mounting(
         else ""
     )
     if angle > MOUNTING_FLIPPED and not unread:
-        raise MountingError(f"{where}: the robot {pose}? {fix}{alone}")
+        # no IMU reads upright to tell, and the sections can bend this far: a start
+        # curled past 135 degrees reads the same as the other mounting
+        curled = (
+            f"; or a start bent {math.degrees(angle):.0f} degrees, within the sections' "
+            f"theta_max ({math.degrees(reach):.0f} degrees)? the other mounting would then "
+            "put every estimate far off: start the recording where the robot is nearer "
+            "straight (continue_run(..., check_mounting_start=False) skips this check)"
+            if not upright and angle <= reach and not robot.has_mechanics
+            else ""
+        )
+        raise MountingError(f"{where}: the robot {pose}? {fix}{alone}{curled}")
     bound = ""
     if angle > reach + MOUNTING_MARGIN and not robot.has_mechanics:
         raise_it = robot_fix("theta_max", robot_file, python=python)

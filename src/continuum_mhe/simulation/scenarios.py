@@ -185,7 +185,12 @@ def simulate_robot(
     noise of ``noise_deg`` degrees standard deviation (None: :data:`NOISE_DEG`, and
     :data:`REST_NOISE_DEG` for ``rest``; ``noise_model``: how it enters, see the module
     docstring), drawn from ``seed``. A scenario for one section with a
-    tip IMU on a one-section robot is :func:`simulate`'s.
+    tip IMU on a one-section robot is :func:`simulate`'s. The one-section scenarios
+    (``paper3d``, ``planar-overbend``, ``straight``) are fixed motions that ignore the
+    section's ``theta_max`` (``paper3d`` bends to 1.44 rad, ``planar-overbend`` to
+    1.99): on a robot with a smaller bound the truth passes it, and the estimates there
+    are ``at-bound`` (``continuum-mhe simulate`` says so in a note); the multi-section
+    scenarios scale each section's bend to within its ``theta_max``.
 
     Raises:
         UserError: for a tendon robot but ``rest`` (straight and still, its tendons
