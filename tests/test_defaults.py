@@ -223,6 +223,12 @@ def test_the_inconsistency_line_counts_and_names_what_to_check() -> None:
     assert inconsistent_notice(4, 5, f) is None
     line = inconsistent_notice(26, 100, f)
     assert line is not None and line.startswith("26 of 100 estimates (26 %) are inconsistent")
+    # a run the model does not fit: its ok rows are suspect too (a swapped or turned IMU
+    # fits a planar motion's readings on many rows, ok and far off)
+    assert line.endswith("Until the cause is found its ok rows are not to be trusted either: "
+                         "a wrong robot file can fit some readings exactly, and an ok row "
+                         "between inconsistent ones can be far off within a narrow standard "
+                         "deviation")  # fmt: skip
     assert "--own-acceleration" not in line  # tilt readings: no own acceleration to model
     raw = make_formulation("direct")
     line = inconsistent_notice(5, 6, raw)

@@ -492,7 +492,10 @@ def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> 
         "for much of the run; check "
         + "; ".join(checks)
         + f"; or the robot does what the model cannot follow ({twist}, a load that bends "
-        f"a section off constant curvature){fast}"
+        f"a section off constant curvature){fast}. Until the cause is found its ok rows "
+        "are not to be trusted either: a wrong robot file can fit some readings exactly, "
+        "and an ok row between inconsistent ones can be far off within a narrow standard "
+        "deviation"
     )
 
 
