@@ -1955,6 +1955,7 @@ def test_a_theta_max_below_its_least_is_named_as_the_option(tmp_path, capsys) ->
     meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--theta-max", "0.001"]) == 2
     assert capsys.readouterr().err == (
-        "continuum-mhe: error: --theta-max 0.001 is outside its valid range [0.01, 3.14159) rad\n"
+        "continuum-mhe: error: --theta-max 0.001 is outside its valid range [0.01, 3.14159) "
+        "rad: a section that bends no further is no bending section; give its largest bend\n"
     )
     assert not est.exists()

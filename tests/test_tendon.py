@@ -379,6 +379,67 @@ def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) 
     assert json.loads((out / "unloaded_info.json").read_text())["route"] == "disks"
 
 
+@pytest.mark.parametrize(
+    ("disks", "tensions", "within_mm", "continuous_off_mm"),
+    [(4, (6.0, 1.8), 0.3, 15.0), (5, (12.0, 3.6), 0.5, 40.0)],
+)
+def test_the_disk_routed_model_agrees_with_the_discrete_rod_drawn_so(
+    disks: int, tensions: tuple[float, float], within_mm: float, continuous_off_mm: float
+) -> None:
+    """A 0.2 m section of 4 and of 5 disks (5 and 4 cm apart) bent by two tendons 115
+    degrees apart, to about 40 and 150 degrees: the model with ``tendon_route =
+    "disks"`` ends within 0.3 and 0.5 mm of the generator's discrete rod with its
+    tendons drawn straight from disk to disk (extrapolated to zero segment length from 8
+    and 16 segments per disk), where the continuous tendons' model is over 15 and 40 mm
+    off."""
+    from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
+
+    robot = Robot((Section(0.2, 3.0, disks),), (ImuPlacement(0, 1.0),), "z-up", BACKBONE,
+                  (Tendon(0, 0.0, 0.01), Tendon(0, 2.0, 0.01)))  # fmt: skip
+    tau = np.array(tensions)
+    ends = {}
+    for per in (8, 16):
+        _, frames = energy_equilibrium(
+            robot, tau, np.zeros(3), route="disks", segments_per_disk=per
+        )
+        ends[per] = frames[9:, -1]
+    rod = ends[16] + (ends[16] - ends[8]) / 3
+    tips = {}
+    for route in ("continuous", "disks"):
+        _, poses = TendonStatics(replace(robot, tendon_route=route)).solve(np.zeros(3), tau)
+        tips[route] = poses[Station(0, 1.0)][1]
+    assert np.linalg.norm(tips["disks"] - rod) < within_mm * 1e-3
+    assert np.linalg.norm(tips["continuous"] - rod) > continuous_off_mm * 1e-3
+
+
+def test_a_disk_routed_robot_file_round_trips_and_its_mistakes_are_one_line(tmp_path: Path) -> None:
+    """``tendon_route = "disks"`` is read and written back; another word, the key on a
+    robot without tendons, or a section its tendons pass without disks: refused naming
+    the file and the key."""
+    from continuum_mhe.io.robot_file import robot_toml
+
+    text = (DATA.parent / "robots" / "tendon_two_section.toml").read_text()
+    path = tmp_path / "r.toml"
+    path.write_text('tendon_route = "disks"\n' + text)
+    robot = read_robot(path)
+    assert robot.tendon_route == "disks"
+    again = tmp_path / "again.toml"
+    again.write_text(robot_toml(robot))
+    assert read_robot(again) == robot
+    bad = [
+        ('tendon_route = "chords"\n' + text, 'tendon_route: must be one of continuous, disks'),
+        ('tendon_route = "disks"\n' + text.replace("disks = 10", "disks = 0", 1),
+         'tendon_route = "disks": section 1, which tendons pass, gives no disks'),
+        ('tendon_route = "disks"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n',
+         'tendon_route = "disks" is for a robot with [[tendon]]s'),
+    ]  # fmt: skip
+    for body, message in bad:
+        path.write_text(body)
+        with pytest.raises(InputError, match=re.escape(message)) as info:
+            read_robot(path)
+        assert str(info.value).startswith(str(path)), info.value
+
+
 def test_the_model_floor_on_a_bend_past_120_degrees() -> None:
     """The largest bend of the ``unloaded`` recording (121 and 102 degrees, tendons of
     up to 12 N, the backbone's weight): the shooting agrees with the discrete rod

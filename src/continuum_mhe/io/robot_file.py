@@ -21,6 +21,8 @@ Format (every key but ``length`` is optional)::
 A tendon-driven robot adds its backbone's material, the spacer disks of each section
 and its tendons (:mod:`continuum_mhe.model.tendon`)::
 
+    tendon_route = "disks"     # optional: tendons straight from disk to disk (default
+                               # "continuous": along the backbone, Rucker and Webster)
     [backbone]
     youngs_modulus = 54e9      # Pa
     shear_modulus = 20.77e9    # Pa
@@ -72,6 +74,7 @@ from continuum_mhe.model.robot import (
     DEFAULT_THETA_MAX,
     GYRO_BIAS_LIKE_DEG,
     MAX_MOUNT_DEG,
+    TENDON_ROUTES,
     Backbone,
     ImuPlacement,
     Robot,
@@ -90,7 +93,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-_TOP_KEYS = {"mounting", "section", "imu", "backbone", "tendon"}
+_TOP_KEYS = {"mounting", "section", "imu", "backbone", "tendon", "tendon_route"}
 _SECTION_KEYS = {"length", "theta_max", "disks"}
 _IMU_KEYS = {"section", "at", "disk", "mount_rpy", "gyro_bias"}
 _BACKBONE_KEYS = {"youngs_modulus", "shear_modulus", "radius", "density"}
@@ -310,8 +313,13 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             f"{path}: {len(tendons)} [[tendon]] but no [backbone]: a tendon-driven robot needs "
             "its backbone's material (youngs_modulus, shear_modulus, radius)"
         )
+    route = doc.get("tendon_route", "continuous")
+    if route not in TENDON_ROUTES:
+        raise InputError(
+            f"{path}: tendon_route: must be one of {', '.join(TENDON_ROUTES)}, got {_shown(route)}"
+        )
     try:
-        robot = Robot(tuple(sections), tuple(imus), mounting, backbone, tuple(tendons))
+        robot = Robot(tuple(sections), tuple(imus), mounting, backbone, tuple(tendons), route)
     except UserError as exc:
         raise InputError(f"{path}: {exc}") from None
     slips_said(robot)  # said above with the file's lines
@@ -619,6 +627,8 @@ def _table_header(key: str) -> re.Pattern[str]:
 def robot_toml(robot: Robot) -> str:
     """The robot file text of ``robot`` (round-trips through :func:`read_robot`)."""
     lines = [f'mounting = "{robot.mounting}"']
+    if robot.tendon_route != "continuous":
+        lines.append(f'tendon_route = "{robot.tendon_route}"')
     bb = robot.backbone
     if bb is not None:
         lines += ["", "[backbone]", f"youngs_modulus = {bb.youngs_modulus!r}"]

@@ -20,6 +20,7 @@ import warnings
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 from continuum_mhe.errors import (
     FieldError,
@@ -53,9 +54,12 @@ DEFAULT_THETA_MAX = 3.0
 
 
 def theta_max_hint(value: float) -> str:
-    """The likely cause of a bending bound of pi or more, or ``""``: degrees
-    only where the value cannot be radians (over 2 pi: 90, 180); from pi to 2 pi a
-    radian value at or past the fold (3.1416 is pi rounded up)."""
+    """The likely cause of a bending bound of pi or more, or of one below
+    :data:`MIN_THETA_MAX` but positive, or ``""``: degrees only where the value cannot
+    be radians (over 2 pi: 90, 180); from pi to 2 pi a radian value at or past the fold
+    (3.1416 is pi rounded up)."""
+    if 0 < value < MIN_THETA_MAX:
+        return "a section that bends no further is no bending section; give its largest bend"
     if not math.isfinite(value) or value < math.pi:
         return ""
     if value > 2 * math.pi:
@@ -93,6 +97,10 @@ def mount_rpy_hint(rpy: Sequence[float], name: str = "mount_rpy") -> str:
 
 #: The smallest bending bound a section takes, rad (0.6 degrees): one below it holds
 #: every estimate on the bound, and no reading could tell the section's bend.
+#: A tendon's path between the spacer disks (:attr:`Robot.tendon_route`).
+TendonRoute = Literal["continuous", "disks"]
+TENDON_ROUTES: tuple[TendonRoute, ...] = ("continuous", "disks")
+
 MIN_THETA_MAX = 0.01
 
 
@@ -104,8 +112,6 @@ def check_theta_max(value: object) -> None:
         if MIN_THETA_MAX <= float(value) < math.pi:
             return
         hint = theta_max_hint(float(value))
-        if 0 < float(value) < MIN_THETA_MAX:
-            hint = "a section that bends no further is no bending section; give its largest bend"
     raise FieldError(
         "theta_max",
         f"theta_max must lie in [{MIN_THETA_MAX:g}, pi) rad, got {value!r}"
@@ -392,6 +398,10 @@ class Robot:
         mounting: base orientation, ``"z-up"`` (base z against gravity) or ``"z-down"``.
         backbone: the backbone's material (None: a kinematic, constant-curvature robot).
         tendons: the tendons, in the tensions' order (needs a backbone).
+        tendon_route: the tendons' path between the spacer disks: ``"continuous"``
+            (along the backbone at their radius, Rucker and Webster's model) or
+            ``"disks"`` (straight from disk to disk, as through a real robot's spacer
+            disks: each section's tendons then need its ``disks``).
     """
 
     sections: tuple[Section, ...]
@@ -399,6 +409,7 @@ class Robot:
     mounting: Mounting = "z-up"
     backbone: Backbone | None = None
     tendons: tuple[Tendon, ...] = ()
+    tendon_route: TendonRoute = "continuous"
 
     def __post_init__(self) -> None:
         for name, kind in (("sections", Section), ("imus", ImuPlacement)):
@@ -455,6 +466,26 @@ class Robot:
                     "the disks beside the backbone (radii in m; the tendon's is its "
                     "distance from the backbone's axis)"
                 )
+        if self.tendon_route not in TENDON_ROUTES:
+            raise FieldError(
+                "tendon_route",
+                f"tendon_route must be one of {', '.join(TENDON_ROUTES)}, got "
+                f"{self.tendon_route!r}",
+            )
+        if self.tendon_route == "disks":
+            if not self.tendons:
+                raise FieldError(
+                    "tendon_route", 'tendon_route = "disks" is for a robot with [[tendon]]s'
+                )
+            last = max(td.section for td in self.tendons)
+            for k, sec in enumerate(self.sections[: last + 1]):
+                if sec.disks < 1:
+                    raise FieldError(
+                        "tendon_route",
+                        f'tendon_route = "disks": section {k + 1}, which tendons pass, '
+                        "gives no disks (the tendons run straight between them: give the "
+                        "section's disks)",
+                    )
 
     @property
     def has_mechanics(self) -> bool:

@@ -30,6 +30,18 @@ tendon moments (a twisted backbone makes a tendon a helix): 2.4e-4 at 50 degrees
 twist over 0.4 m with tendons at 10 mm, so the closed form is used; the tendons'
 stiffening of the twist, ``sum tau |r_i|^2``, is kept.
 
+Tendons drawn straight from disk to disk (``Robot.tendon_route = "disks"``) run along
+the chords of a bent section: a chord between disks ``d`` apart lies off the continuous
+tendon's arc, towards the bend's centre, by ``kappa x (d - x) / 2`` at ``x`` into the
+span, ``kappa d^2 / 12`` on average. Its tension's moment about the backbone grows by
+that lever in the bend's own direction, ``-tau d^2 / 12 (u_x, u_y, 0)`` in the body
+frame, so each section bends as if its bending stiffness were ``EI - sum tau d^2 / 12``
+over the tendons it holds (the moment averaged over each span; the disks' point loads
+are internal to the total wrench as the anchors' are), less a first-order correction
+for each tendon's place across the bend (:meth:`TendonStatics._curvature`), checked
+against the recording generator's discrete rod with its tendons drawn so
+(:mod:`continuum_mhe.simulation.cosserat_tendon`, ``route="disks"``).
+
 Statics are solved by shooting: the rod ODE in ``(p, R, M)`` is integrated from the
 base on a fixed number of steps per section (:data:`STEPS_PER_SECTION`, plus a step
 boundary at every IMU), symbolically in CasADi SX, from the unknown base moment; the tip
@@ -135,11 +147,24 @@ def _move(
     return p + dp, ca.mtimes(R, rot), M - ca.cross(dp, n0) + h * sum(w * f[1] for w, f in weighted)
 
 
-def _tendon_sums(tensions: list[tuple[Sym, float, float]]) -> tuple[Sym, Sym, Sym]:
-    """``(sum tau y, sum tau x, sum tau |r|^2)`` of the tendons ``(tau, x, y)`` (N, m,
-    m) that a cross-section cuts: their moments and their stiffening of the twist."""
+def _tendon_sums(
+    tensions: list[tuple[Sym, float, float]], chord_share: float = 0.0
+) -> tuple[Sym, Sym, Sym, Sym]:
+    """``(sum tau y, sum tau x, sum tau |r|^2, chord_share sum tau)`` of the tendons
+    ``(tau, x, y)`` (N, m, m) that a cross-section cuts: their moments, their
+    stiffening of the twist, and (tendons from disk to disk, ``chord_share = d^2 / 12``
+    m^2 for disks ``d`` apart; 0: continuous tendons) their chords' softening of the
+    bending (N m^2; see the module docstring)."""
     return (sum(tau * y for tau, _, y in tensions), sum(tau * x for tau, x, _ in tensions),
-            sum(tau * (x**2 + y**2) for tau, x, y in tensions))  # fmt: skip
+            sum(tau * (x**2 + y**2) for tau, x, y in tensions),
+            (chord_share * sum(tau for tau, _, _ in tensions), chord_share)
+            if chord_share else 0.0)  # fmt: skip
+
+
+#: The least share of its bending stiffness a section keeps under its tendons' chords
+#: (``EI - sum tau d^2 / 12``, tendons from disk to disk): tensions that would take more
+#: are far beyond any robot's (12 EI / d^2, 300 N for the shipped robot).
+CHORD_STIFFNESS_FLOOR = 0.5
 
 
 @dataclass(frozen=True)
@@ -197,14 +222,34 @@ class TendonStatics:
         ``EI u_y = m_y + sum tau x``, ``(GJ + sum tau |r|^2) u_z = m_z``."""
         return self._curvature(m_body, _tendon_sums(tensions))
 
-    def _curvature(self, m_body: Sym, sums: tuple[Sym, Sym, Sym]) -> Sym:
+    def _curvature(self, m_body: Sym, sums: tuple[Sym, Sym, Sym, Sym]) -> Sym:
         """:meth:`curvature_sym` from the tendons' sums ``(sum tau y, sum tau x, sum tau
-        |r|^2)`` (:func:`_tendon_sums`)."""
+        |r|^2, chords)`` (:func:`_tendon_sums`; the chords' term lowers the bending
+        stiffness, to at most :data:`CHORD_STIFFNESS_FLOOR` of it)."""
         ei, gj = self.stiffness
-        return ca.vertcat((m_body[0] - sums[0]) / ei, (m_body[1] + sums[1]) / ei,
-                          m_body[2] / (gj + sums[2]))  # fmt: skip
+        chords = sums[3]
+        bx, by = m_body[0] - sums[0], m_body[1] + sums[1]
+        if isinstance(chords, float) and chords == 0.0:
+            return ca.vertcat(bx / ei, by / ei, m_body[2] / (gj + sums[2]))
+        floor = CHORD_STIFFNESS_FLOOR * ei
+        bend = ca.fmax(ei - chords[0], floor)
+        # a tendon nearer the bend's centre by r . n runs a shorter arc between the disks,
+        # (1 - kappa r . n) d, whose chord lies off it by kappa (1 - kappa r . n) d^2 / 12
+        # on average: to first order the chords' term falls by (u_y sum tau x - u_x sum
+        # tau y) d^2 / 12, at the curvature of the term without it
+        ux, uy = bx / bend, by / bend
+        bend = ca.fmax(ei - chords[0] + chords[1] * (uy * sums[1] - ux * sums[0]), floor)
+        return ca.vertcat(bx / bend, by / bend, m_body[2] / (gj + sums[2]))
 
-    def _field(self, y: _RodState, ds: float, sums: tuple[Sym, Sym, Sym]) -> tuple[Sym, Sym]:
+    def chord_share(self, section: int) -> float:
+        """``d^2 / 12`` (m^2) for section ``section``'s disks ``d`` apart where the
+        robot's tendons run from disk to disk, else 0 (continuous tendons)."""
+        sec = self.robot.sections[section]
+        if self.robot.tendon_route != "disks" or sec.disks < 1:
+            return 0.0
+        return (sec.length / sec.disks) ** 2 / 12
+
+    def _field(self, y: _RodState, ds: float, sums: tuple[Sym, Sym, Sym, Sym]) -> tuple[Sym, Sym]:
         """The rod equation ``ds`` (m) into a step as ``(u, g)``: the body curvature and
         twist rate (rad/m) that turn the frame (``R' = R hat(u)``, ``p' = R e3``), with
         the tendon sums ``sums`` of the section, and the weight's part of the moment's
@@ -220,7 +265,7 @@ class TendonStatics:
         return tuple(sorted(places, key=lambda s: (s.section, s.at)))
 
     def _step(
-        self, y: _RodState, s: float, h: float, force: Sym, sums: tuple[Sym, Sym, Sym]
+        self, y: _RodState, s: float, h: float, force: Sym, sums: tuple[Sym, Sym, Sym, Sym]
     ) -> _RodState:
         """One step of length ``h`` (m) from arc length ``s``: the commutator-free
         Lie-group method of order four (Celledoni, Marthinsen and Owren 2003, "CF4") on
@@ -265,7 +310,8 @@ class TendonStatics:
         stations = self.stations() if stations is None else stations
         for k, sec in enumerate(robot.sections):
             sums = _tendon_sums(
-                [(taus[i], *td.offset) for i, td in enumerate(robot.tendons) if td.section >= k]
+                [(taus[i], *td.offset) for i, td in enumerate(robot.tendons) if td.section >= k],
+                self.chord_share(k),
             )
             cuts = sorted(
                 {j / self.steps_per_section for j in range(1, self.steps_per_section + 1)}

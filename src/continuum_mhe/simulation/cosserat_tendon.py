@@ -62,7 +62,7 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, one_line_warnings
 from continuum_mhe.io.position_units import WRAPPED_BEND_DEG
 from continuum_mhe.model.imu import STANDARD_GRAVITY
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import TENDON_ROUTES, Robot
 from continuum_mhe.simulation.cosserat import ImuSettings
 from continuum_mhe.simulation.cosserat_sections import (
     DEFAULT_IMU,
@@ -358,11 +358,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--name", help="the files' prefix, the scenario's name if not given")
     p.add_argument(
         "--route",
-        choices=("continuous", "disks"),
-        default="continuous",
-        help="the tendons' path: continuous along the backbone at their radius (the "
-        "estimators' model), or straight from disk to disk, as a real disk-routed robot's "
-        "(the model's error then shows in the estimates)",
+        choices=TENDON_ROUTES,
+        default=argparse.SUPPRESS,
+        help="the tendons' path: continuous along the backbone at their radius, or "
+        "straight from disk to disk, as through a real robot's spacer disks (default: the "
+        "robot file's tendon_route, continuous where it gives none)",
     )
     p.add_argument(
         "--seed", type=int, default=0, help="draws the IMUs' errors and noise, an integer >= 0"
@@ -395,7 +395,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             info = write_tendon_recording(
                 a.output, name, robot, a.scenario, a.duration, TendonRodSettings(), a.seed,
-                robot_name=a.robot, route=a.route,
+                robot_name=a.robot, route=getattr(a, "route", robot.tendon_route),
             )  # fmt: skip
         except UserError as exc:
             print(f"{p.prog}: error: {exc}", file=sys.stderr)
