@@ -233,6 +233,9 @@ def test_the_inconsistency_line_counts_and_names_what_to_check() -> None:
     raw = make_formulation("direct")
     line = inconsistent_notice(5, 6, raw)
     assert line is not None and "--own-acceleration models it)" in line
+    # the gyros' biases are states (the raw default): a step in one is named
+    assert "a bias that steps (a change of temperature, a board's power cycled)" in line
+    assert "bias that steps" not in (inconsistent_notice(26, 100, f) or "")
     assert "quiet readings at 50 Hz or more, as simulate --imu raw writes them" in line
     # a robot faster than the motion model (a bending plane turning at 2 turns a second:
     # 96 % of the rows inconsistent, every one but 16 ok with --accel-psd 1000) is told

@@ -477,6 +477,12 @@ def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> 
             "fast motion, or quiet readings at 50 Hz or more, as simulate --imu raw writes "
             "them: --own-acceleration models it)"
         )
+    if isinstance(formulation, DirectFormulation) and formulation.estimate_gyro_bias:
+        checks.append(
+            "the gyros' biases, which the model lets drift slowly: a bias that steps (a "
+            "change of temperature, a board's power cycled) disagrees with the readings "
+            "for seconds to minutes after"
+        )
     fast = ""
     if bend_accel_psd_applies(formulation):  # --accel-psd sets its motion model
         fast = (
