@@ -356,8 +356,8 @@ def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) 
     """One tendon on a section of four disks (5 cm apart), 1.5 N: routed continuously,
     the generator's rod bends by ``tension * radius * length / EI`` (to 0.1 %); drawn
     straight from disk to disk, the chords run nearer the bend's centre, a longer lever,
-    and it bends further (by more than 1 %). The generator's ``--route disks`` writes
-    such a recording and says so in its info."""
+    and it bends further (by more than 1 %). The generator draws a robot file's
+    ``tendon_route`` by default, ``--route`` another, and its info says which."""
     import json
 
     from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
@@ -374,9 +374,14 @@ def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) 
         bends[route] = math.acos(min(1.0, abs(float(tangent[2]))))
     assert bends["continuous"] == pytest.approx(1.5 * 0.01 * length / ei, rel=1e-3)
     assert bends["disks"] > 1.01 * bends["continuous"]
-    out = tmp_path / "rec"
-    assert generate(["--route", "disks", "--duration", "0.1", "-o", str(out)]) == 0
-    assert json.loads((out / "unloaded_info.json").read_text())["route"] == "disks"
+    text = (DATA.parent / "robots" / "tendon_two_section.toml").read_text()
+    robot_file = tmp_path / "r.toml"  # two disks a section: a quick rod
+    robot_file.write_text('tendon_route = "disks"\n' + text.replace("disks = 10", "disks = 2"))
+    for extra, route in (([], "disks"), (["--route", "continuous"], "continuous")):
+        out = tmp_path / f"rec-{route}"
+        argv = ["--robot", str(robot_file), "--duration", "0.1", "-o", str(out), *extra]
+        assert generate(argv) == 0
+        assert json.loads((out / "unloaded_info.json").read_text())["route"] == route
 
 
 @pytest.mark.parametrize(
