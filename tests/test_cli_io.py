@@ -1782,6 +1782,14 @@ def test_a_truth_far_sparser_on_the_estimates_times_is_scored_on_its_rows(
     got, err = _evaluate_json(capsys, str(est), str(snaps))
     assert got["n"] == len(snaps.read_text().splitlines()) - 1, err
     assert "warning" not in err, err
+    # a capture at the estimate's rate with t in milliseconds spans 1000 times the run:
+    # refused, not scored on the rows whose t it happens to reach
+    lines = _capture(truth, folder / "c100.csv", 100.0).read_text().splitlines()
+    ms = folder / f"snap{hz:g}_ms.csv"
+    rows = [r.split(",", 1) for r in lines[1:]]
+    ms.write_text("\n".join([lines[0]] + [f"{float(a) * 1e3!r},{b}" for a, b in rows]) + "\n")
+    assert main(["evaluate", str(est), str(ms)]) == 2
+    assert "milliseconds" in capsys.readouterr().err
 
 
 def test_a_capture_of_part_of_the_run_is_scored_with_a_warning(mocap_run, capsys) -> None:

@@ -385,23 +385,25 @@ def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) 
 
 
 @pytest.mark.parametrize(
-    ("disks", "tensions", "within_mm", "continuous_off_mm"),
-    [(4, (6.0, 1.8), 0.3, 15.0), (5, (12.0, 3.6), 0.5, 40.0)],
-)
+    ("disks", "tendons", "within_mm", "continuous_off_mm"),
+    [(4, ((0.0, 8.0), (120.0, 6.0), (240.0, 6.0)), 0.2, 30.0),
+     (5, ((0.0, 12.0), (115.0, 3.6)), 2.5, 40.0)],
+)  # fmt: skip
 def test_the_disk_routed_model_agrees_with_the_discrete_rod_drawn_so(
-    disks: int, tensions: tuple[float, float], within_mm: float, continuous_off_mm: float
-) -> None:
-    """A 0.2 m section of 4 and of 5 disks (5 and 4 cm apart) bent by two tendons 115
-    degrees apart, to about 40 and 150 degrees: the model with ``tendon_route =
-    "disks"`` ends within 0.3 and 0.5 mm of the generator's discrete rod with its
-    tendons drawn straight from disk to disk (extrapolated to zero segment length from 8
-    and 16 segments per disk), where the continuous tendons' model is over 15 and 40 mm
-    off."""
+    disks: int, tendons: tuple[tuple[float, float], ...], within_mm: float,
+    continuous_off_mm: float,
+) -> None:  # fmt: skip
+    """A 0.2 m section with tendons drawn straight from disk to disk, against the
+    generator's discrete rod drawn so (extrapolated to zero segment length from 8 and 16
+    segments per disk): 4 disks (5 cm apart) and three pretensioned tendons, 20 N in all
+    (0.41 of the section's bending stiffness in the chords' term), bent by 41 degrees,
+    within 0.2 mm where the continuous tendons' model is over 30 mm off; 5 disks and two
+    tendons bent by 154 degrees, within 2.5 mm where it is over 40 mm off."""
     from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
 
     robot = Robot((Section(0.2, 3.0, disks),), (ImuPlacement(0, 1.0),), "z-up", BACKBONE,
-                  (Tendon(0, 0.0, 0.01), Tendon(0, 2.0, 0.01)))  # fmt: skip
-    tau = np.array(tensions)
+                  tuple(Tendon(0, math.radians(a), 0.01) for a, _ in tendons))  # fmt: skip
+    tau = np.array([t for _, t in tendons])
     ends = {}
     for per in (8, 16):
         _, frames = energy_equilibrium(
@@ -3797,3 +3799,35 @@ def test_simulate_rest_of_a_one_section_tendon_robot_puts_its_section_end_at_the
     for end, tip in (("x_1", "x"), ("y_1", "y"), ("z_1", "z")):
         assert np.array_equal(table.column(end), table.column(tip))
     assert np.allclose(table.column("z_1"), 0.25)
+
+
+def test_tensions_near_the_span_buckling_load_of_a_disk_routed_robot_are_said() -> None:
+    """Disks 5 cm apart on the shipped backbone: the backbone between two of them
+    buckles at ``pi^2 EI / d^2`` (40.2 N); tensions of 30 N through the section (0.75 of
+    it) are said, 20 N (0.50) are not, nor 30 N on tendons routed continuously."""
+    from continuum_mhe.io.tensions import span_buckling_problem
+
+    robot = Robot((Section(0.2, 3.0, 4),), (ImuPlacement(0, 1.0),), "z-up", BACKBONE,
+                  (Tendon(0, 0.0, 0.01), Tendon(0, math.pi, 0.01)), "disks")  # fmt: skip
+    t = np.array([0.0, 1.0])
+    buckling = math.pi**2 * BACKBONE.youngs_modulus * math.pi * BACKBONE.radius**4 / 4 / 0.05**2
+    assert buckling == pytest.approx(40.2, abs=0.05)
+    line = span_buckling_problem(robot, t, np.array([[1.0, 1.0], [20.0, 10.0]]), "ten.csv")
+    assert line.startswith("ten.csv: at t = 1 s the tensions through section 1, 30 N in all, "
+                           "are 0.75 of the load that buckles its backbone"), line  # fmt: skip
+    assert span_buckling_problem(robot, t, np.array([[1.0, 1.0], [10.0, 10.0]]), "x") == ""
+    continuous = replace(robot, tendon_route="continuous")
+    assert span_buckling_problem(continuous, t, np.array([[1.0, 1.0], [20.0, 10.0]]), "x") == ""
+
+
+def test_simulate_rest_of_a_disk_routed_robot_is_its_robot_without_tendons(tmp_path: Path) -> None:
+    """``simulate rest`` of a robot whose tendons run from disk to disk writes the
+    straight, still robot (its tendons slack), as for any tendon robot."""
+    text = (DATA.parent / "robots" / "tendon_two_section.toml").read_text()
+    robot = tmp_path / "r.toml"
+    robot.write_text('tendon_route = "disks"\n' + text)
+    meas = tmp_path / "rest.csv"
+    assert (
+        main(["simulate", "rest", "--robot", str(robot), "-o", str(meas), "--duration", "1"]) == 0
+    )
+    assert meas.exists()

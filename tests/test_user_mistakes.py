@@ -3851,6 +3851,12 @@ def test_plot_of_a_paper_formulation_estimate_draws_the_recorded_robot(
                      *extra]) == 0  # fmt: skip
         err = capsys.readouterr().err
         assert "warning" not in err, (extra, err)
+    # a robot file of another length: its states give no lengths, its options line does
+    robot.write_text(robot.read_text().replace("length = 0.2", "length = 0.3"))
+    assert main(["plot", str(est), "-o", str(fig), "--overwrite", "--robot", str(robot)]) == 0
+    assert "it was estimated with --length 0.2 (its options line), not the given robot's 0.3 m" in (
+        capsys.readouterr().err
+    )
 
 
 def test_plot_warns_of_a_robot_file_of_another_mounting(

@@ -4,6 +4,7 @@ or the reproduction's figures rendered again from a folder's saved data."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
 from dataclasses import replace
@@ -140,6 +141,18 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
             )
         lengths = robot.lengths
         misfit = None if paper else lengths_misfit(est, lengths)
+        recorded_length = recorded_option(args.source, "length")
+        if (
+            paper
+            and recorded_option(args.source, "robot") is None
+            and isinstance(recorded_length, (int, float))
+            and not math.isclose(float(recorded_length), robot.length, rel_tol=1e-6)
+        ):
+            # its states give no lengths: the options line's --length is the robot's
+            misfit = (
+                f"it was estimated with --length {recorded_length:g} (its options line), "
+                f"not the given robot's {robot.length:g} m"
+            )
         if misfit:  # drawn on the robot file's sections, off the estimate's points
             print(
                 f"{PROG}: warning: {args.source}: {misfit}; its backbone is drawn on "

@@ -78,7 +78,9 @@ def run(args: argparse.Namespace) -> int:
                 "for a tendon robot; give another"
             )
         n_tendons, n_sections = robot.n_tendons, robot.n_sections
-        robot = replace(robot, tendons=(), backbone=None)  # its sections' geometry reads it
+        robot = replace(
+            robot, tendons=(), backbone=None, tendon_route="continuous"
+        )  # its sections' geometry reads it
     try:
         rec = simulate_robot(
             args.scenario,

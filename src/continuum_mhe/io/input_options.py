@@ -691,7 +691,8 @@ def _check_base_mounting(
             f"; or a start bent {math.degrees(angle):.0f} degrees, within the sections' "
             f"theta_max ({math.degrees(reach):.0f} degrees)? the other mounting would then "
             "put every estimate far off: start the recording where the robot is nearer "
-            "straight (continue_run(..., check_mounting_start=False) skips this check)"
+            "straight (in Python, continue_run(..., check_mounting_start=False) skips this "
+            "check)"
             if not upright and angle <= reach and not robot.has_mechanics
             else ""
         )

@@ -126,6 +126,41 @@ def slower_log_said(what: str, t: FloatArray, values: FloatArray, taken: str, fi
     )
 
 
+#: The share of the load that buckles a disk-routed section's backbone between two of its
+#: disks (``pi^2 EI / d^2``) beyond which its tensions are said: the model's span, a
+#: beam-column, bends ever more steeply towards that load.
+SPAN_BUCKLING_SHARE = 0.6
+
+
+def span_buckling_problem(robot: Robot, t: FloatArray, rows: FloatArray, name: str) -> str:
+    """What to say where the tensions ``rows`` (N, at ``t`` s) through a section of a
+    robot whose tendons run from disk to disk (``tendon_route = "disks"``) exceed
+    :data:`SPAN_BUCKLING_SHARE` of the load that buckles its backbone between two
+    disks, else ``""``."""
+    if robot.tendon_route != "disks" or robot.backbone is None or not len(t):
+        return ""
+    ei = robot.backbone.bending_stiffness
+    values = np.clip(np.nan_to_num(np.atleast_2d(np.asarray(rows, dtype=float))), 0.0, None)
+    for k, sec in enumerate(robot.sections):
+        through = [j for j, td in enumerate(robot.tendons) if td.section >= k]
+        if not through or sec.disks < 1:
+            continue
+        d = sec.length / sec.disks
+        buckling = math.pi**2 * ei / d**2
+        total = values[:, through].sum(axis=1)
+        i = int(np.argmax(total))
+        if total[i] > SPAN_BUCKLING_SHARE * buckling:
+            return (
+                f"{name}: at t = {time_text(float(t[i]))} s the tensions through section "
+                f"{k + 1}, {total[i]:.3g} N in all, are {total[i] / buckling:.2f} of the "
+                f"load that buckles its backbone between two disks {d * 1e3:.3g} mm apart "
+                f'(pi^2 EI / d^2 = {buckling:.3g} N; tendon_route = "disks"): the model '
+                "bends it ever more steeply towards that load, and the estimates there are "
+                "less sure than their standard deviations say"
+            )
+    return ""
+
+
 def tension_scale_problem(
     robot: Robot,
     t: FloatArray,
@@ -391,10 +426,15 @@ class Tensions:
         """An :class:`InputError` where the tensions would bend a section of ``robot``
         through more than :data:`MAX_TENDON_TURNS` full turns on their own
         (:func:`tension_scale_problem`: tensions in mN, or a modulus far too low), as
-        the estimate takes them: a glitch replaced (and said) is not judged."""
+        the estimate takes them: a glitch replaced (and said) is not judged; a
+        :class:`TensionsWarning` where they near the load that buckles a disk-routed
+        section between its disks (:func:`span_buckling_problem`)."""
         problem = tension_scale_problem(robot, self.t, self.values, self.name, self.lines)
         if problem is not None:
             raise InputError(problem)
+        near = span_buckling_problem(robot, self.t, self.values, self.name)
+        if near:
+            warnings.warn(near, TensionsWarning, stacklevel=2)
 
     def warn_suspect(self, first: float | None = None, last: float | None = None) -> None:
         """A :class:`TensionsWarning` for what the file's rows say of its sensors or

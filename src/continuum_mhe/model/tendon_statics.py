@@ -37,7 +37,10 @@ span, ``kappa d^2 / 12`` on average. Its tension's moment about the backbone gro
 that lever in the bend's own direction, ``-tau d^2 / 12 (u_x, u_y, 0)`` in the body
 frame, so each section bends as if its bending stiffness were ``EI - sum tau d^2 / 12``
 over the tendons it holds (the moment averaged over each span; the disks' point loads
-are internal to the total wrench as the anchors' are), less a first-order correction
+are internal to the total wrench as the anchors' are). That is the first order of the
+span as a beam-column under the tensions' compression ``P = sum tau``, whose mean
+curvature under end moments is ``M / (EI x / tan x)``, ``x = (d / 2) sqrt(P / EI)``,
+which the model takes (a span buckles at ``x = pi / 2``), with a first-order correction
 for each tendon's place across the bend (:meth:`TendonStatics._curvature`), checked
 against the recording generator's discrete rod with its tendons drawn so
 (:mod:`continuum_mhe.simulation.cosserat_tendon`, ``route="disks"``).
@@ -162,9 +165,10 @@ def _tendon_sums(
 
 
 #: The least share of its bending stiffness a section keeps under its tendons' chords
-#: (``EI - sum tau d^2 / 12``, tendons from disk to disk): tensions that would take more
-#: are far beyond any robot's (12 EI / d^2, 300 N for the shipped robot).
-CHORD_STIFFNESS_FLOOR = 0.5
+#: (tendons from disk to disk: ``EI x / tan x``, ``x = (d / 2) sqrt(sum tau / EI)``),
+#: reached at 0.96 of the load that buckles the backbone between two disks,
+#: ``pi^2 EI / d^2`` (254 N for the shipped robot, 40 N for disks 5 cm apart).
+CHORD_STIFFNESS_FLOOR = 0.1
 
 
 @dataclass(frozen=True)
@@ -232,13 +236,21 @@ class TendonStatics:
         if isinstance(chords, float) and chords == 0.0:
             return ca.vertcat(bx / ei, by / ei, m_body[2] / (gj + sums[2]))
         floor = CHORD_STIFFNESS_FLOOR * ei
-        bend = ca.fmax(ei - chords[0], floor)
+
+        # the span between two disks is a beam-column under the tensions' compression P:
+        # its mean curvature under end moments is (M / EI) tan(x) / x, x = (d / 2)
+        # sqrt(P / EI) (to first order EI - P d^2 / 12); it buckles at x = pi / 2
+        def column(share: Sym) -> Sym:  # EI x / tan x for share = P d^2 / 12
+            x = ca.sqrt(ca.fmax(3.0 * share / ei, 1e-12))
+            return ca.fmax(ei * x / ca.tan(ca.fmin(x, 1.5)), floor)
+
+        bend = column(chords[0])
         # a tendon nearer the bend's centre by r . n runs a shorter arc between the disks,
         # (1 - kappa r . n) d, whose chord lies off it by kappa (1 - kappa r . n) d^2 / 12
-        # on average: to first order the chords' term falls by (u_y sum tau x - u_x sum
-        # tau y) d^2 / 12, at the curvature of the term without it
+        # on average: it counts as a tension tau (1 - kappa r . n), kappa r . n = u_y x
+        # - u_x y at the curvature without it
         ux, uy = bx / bend, by / bend
-        bend = ca.fmax(ei - chords[0] + chords[1] * (uy * sums[1] - ux * sums[0]), floor)
+        bend = column(chords[0] - chords[1] * (uy * sums[1] - ux * sums[0]))
         return ca.vertcat(bx / bend, by / bend, m_body[2] / (gj + sums[2]))
 
     def chord_share(self, section: int) -> float:

@@ -82,7 +82,8 @@ def raw_readings(
         raise UserError(
             "raw readings are simulated for constant-curvature robots only (a tendon "
             "robot straight and still, simulate_robot('rest', ...), reads as its robot "
-            "without tendons: dataclasses.replace(robot, tendons=(), backbone=None))"
+            "without tendons: dataclasses.replace(robot, tendons=(), backbone=None, "
+            'tendon_route="continuous"))'
         )
     if not (is_integer(seed) and seed >= 0):
         raise UserError(f"seed must be a non-negative integer, got {seed!r}")

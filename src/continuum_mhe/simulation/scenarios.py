@@ -202,7 +202,7 @@ def simulate_robot(
 
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     if robot.tendons and scenario == "rest":  # straight and still: its tendons slack
-        robot = replace(robot, tendons=(), backbone=None)
+        robot = replace(robot, tendons=(), backbone=None, tendon_route="continuous")
     if robot.tendons:
         raise UserError(
             f"a tendon robot ({robot.describe()}): the scenarios but rest (straight and "
