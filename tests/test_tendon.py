@@ -430,6 +430,7 @@ def test_a_disk_routed_robot_file_round_trips_and_its_mistakes_are_one_line(tmp_
     path.write_text('tendon_route = "disks"\n' + text)
     robot = read_robot(path)
     assert robot.tendon_route == "disks"
+    assert robot.describe().endswith(", 6 tendons from disk to disk")  # in every summary
     again = tmp_path / "again.toml"
     again.write_text(robot_toml(robot))
     assert read_robot(again) == robot

@@ -549,6 +549,8 @@ class Robot:
         text = f"{n} section{'s' if n > 1 else ''} ({secs}), IMUs at {imus}, {self.mounting}"
         if self.tendons:
             text += f", {len(self.tendons)} tendons"
+            if self.tendon_route == "disks":
+                text += " from disk to disk"
         return text
 
 
