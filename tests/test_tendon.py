@@ -377,6 +377,9 @@ def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) 
     text = (DATA.parent / "robots" / "tendon_two_section.toml").read_text()
     robot_file = tmp_path / "r.toml"  # two disks a section: a quick rod
     robot_file.write_text('tendon_route = "disks"\n' + text.replace("disks = 10", "disks = 2"))
+    assert generate(["--robot", str(robot_file), "--segments-per-disk", "0", "-o",
+                     str(tmp_path / "none")]) == 2  # fmt: skip
+    assert not (tmp_path / "none").exists()
     for extra, route in (([], "disks"), (["--route", "continuous"], "continuous")):
         out = tmp_path / f"rec-{route}"
         argv = ["--robot", str(robot_file), "--duration", "0.1", "-o", str(out), *extra]
@@ -3234,7 +3237,10 @@ def test_drifted_rows_with_tilt_imus_say_that_tilt_does_not_follow_a_twisting_ro
     assert main(argv) == 0
     said = [ln for ln in capsys.readouterr().err.splitlines() if "estimates drifted" in ln]
     assert len(said) == 1
-    assert "the robot file: the IMUs' places, the backbone); or the tip force" in said[0]
+    # the shipped robot has spacer disks and continuous tendons: their path is named too
+    assert ("the robot file: the IMUs' places, the backbone, the tendons' path (tendon_route "
+            '= "disks" where they run straight between spacer disks)); or the tip force'
+            in said[0])  # fmt: skip
     assert said[0].endswith(
         "presses on something); with tilt IMUs a loaded robot that twists is not followed "
         "with the right inputs either (raw IMUs are: docs/tendon.md, Limits)"

@@ -524,6 +524,14 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
         if formulation.robot.tendons
         else ""
     )
+    robot = formulation.robot
+    route = (
+        ', the tendons\' path (tendon_route = "disks" where they run straight between spacer disks)'
+        if robot.tendons
+        and robot.tendon_route == "continuous"
+        and any(sec.disks for sec in robot.sections)
+        else ""
+    )
     buckling = getattr(formulation, "buckling_load", None)
     push = (
         f"; or the tip force pushed along the backbone harder than "
@@ -538,7 +546,7 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
         f"{drifted} of {n} estimates drifted: the IMUs' error states left their prior or "
         "changed faster than their model allows, where the model follows the readings "
         f"only with IMU errors these IMUs are not taken to have (check {tensions}the robot "
-        f"file: the IMUs' places, the backbone){push}{tilt}"
+        f"file: the IMUs' places, the backbone{route}){push}{tilt}"
     )
 
 

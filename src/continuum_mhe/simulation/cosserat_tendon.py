@@ -365,6 +365,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         "robot file's tendon_route, continuous where it gives none)",
     )
     p.add_argument(
+        "--segments-per-disk",
+        type=int,
+        default=SEGMENTS_PER_DISK,
+        help="the discrete rod's segments between two disks, 1 to 32: more resolve tendons "
+        "drawn from disk to disk on widely spaced disks (each doubling takes about eight "
+        "times as long)",
+    )
+    p.add_argument(
         "--seed", type=int, default=0, help="draws the IMUs' errors and noise, an integer >= 0"
     )
     p.add_argument(
@@ -382,6 +390,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 a.duration, a.seed, max(RECORD_DT, DEFAULT_IMU.sample_dt), MAX_DURATION_S
             )
             check_file_prefix(name)
+            if not 1 <= a.segments_per_disk <= 32:
+                raise UserError(
+                    f"--segments-per-disk {a.segments_per_disk} is outside its valid range [1, 32]"
+                )
             check_new_folder(a.output, overwrite=True, names=())
             robot = read_robot(a.robot)  # its errors name the file
         except UserError as exc:
@@ -396,6 +408,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             info = write_tendon_recording(
                 a.output, name, robot, a.scenario, a.duration, TendonRodSettings(), a.seed,
                 robot_name=a.robot, route=getattr(a, "route", robot.tendon_route),
+                segments_per_disk=a.segments_per_disk,
             )  # fmt: skip
         except UserError as exc:
             print(f"{p.prog}: error: {exc}", file=sys.stderr)
