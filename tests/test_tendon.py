@@ -449,6 +449,12 @@ def test_a_disk_routed_robot_file_round_trips_and_its_mistakes_are_one_line(tmp_
         with pytest.raises(InputError, match=re.escape(message)) as info:
             read_robot(path)
         assert str(info.value).startswith(str(path)), info.value
+    # written after a table's header, TOML puts it in that table: said as a top-level key
+    path.write_text(text + '\ntendon_route = "disks"\n')
+    with pytest.raises(InputError, match=re.escape(
+            "unknown key 'tendon_route' (a top-level key: write it before the file's "
+            "first [table])")):  # fmt: skip
+        read_robot(path)
 
 
 def test_the_model_floor_on_a_bend_past_120_degrees() -> None:

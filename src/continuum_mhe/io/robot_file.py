@@ -182,6 +182,9 @@ def _unknown(path: Path, where: str, table: dict[str, Any], allowed: set[str]) -
     if extra:
         near = difflib.get_close_matches(extra[0], sorted(allowed), n=1, cutoff=0.75)
         typo = f" ({near[0]}?)" if near else ""
+        if where != "top level" and extra[0] in {"mounting", "tendon_route"}:
+            # TOML puts a key after a table's header into that table
+            typo = " (a top-level key: write it before the file's first [table])"
         raise InputError(
             f"{path}: {where}: unknown key {_shown(extra[0])}{typo} "
             f"(allowed: {', '.join(sorted(allowed))})"
