@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -78,9 +77,7 @@ def run(args: argparse.Namespace) -> int:
                 "for a tendon robot; give another"
             )
         n_tendons, n_sections = robot.n_tendons, robot.n_sections
-        robot = replace(
-            robot, tendons=(), backbone=None, tendon_route="continuous"
-        )  # its sections' geometry reads it
+        robot = robot.without_tendons()  # its sections' geometry reads it
     try:
         rec = simulate_robot(
             args.scenario,

@@ -19,7 +19,7 @@ import sys
 import warnings
 import weakref
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 from continuum_mhe.errors import (
@@ -95,12 +95,12 @@ def mount_rpy_hint(rpy: Sequence[float], name: str = "mount_rpy") -> str:
     return f"radians? {name} is in degrees ([{degrees}] if these are radians)"
 
 
-#: The smallest bending bound a section takes, rad (0.6 degrees): one below it holds
-#: every estimate on the bound, and no reading could tell the section's bend.
 #: A tendon's path between the spacer disks (:attr:`Robot.tendon_route`).
 TendonRoute = Literal["continuous", "disks"]
 TENDON_ROUTES: tuple[TendonRoute, ...] = ("continuous", "disks")
 
+#: The smallest bending bound a section takes, rad (0.6 degrees): one below it holds
+#: every estimate on the bound, and no reading could tell the section's bend.
 MIN_THETA_MAX = 0.01
 
 
@@ -496,6 +496,11 @@ class Robot:
     def n_tendons(self) -> int:
         """The number of tendons (the tensions' columns, in the robot file's order)."""
         return len(self.tendons)
+
+    def without_tendons(self) -> Robot:
+        """The same sections, IMUs and mounting as a constant-curvature robot: no
+        backbone material, no tendons (a tendon robot straight and still reads so)."""
+        return replace(self, tendons=(), backbone=None, tendon_route="continuous")
 
     @classmethod
     def single(

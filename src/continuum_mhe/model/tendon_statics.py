@@ -60,6 +60,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -150,18 +151,29 @@ def _move(
     return p + dp, ca.mtimes(R, rot), M - ca.cross(dp, n0) + h * sum(w * f[1] for w, f in weighted)
 
 
-def _tendon_sums(
-    tensions: list[tuple[Sym, float, float]], chord_share: float = 0.0
-) -> tuple[Sym, Sym, Sym, Sym]:
-    """``(sum tau y, sum tau x, sum tau |r|^2, chord_share sum tau)`` of the tendons
-    ``(tau, x, y)`` (N, m, m) that a cross-section cuts: their moments, their
-    stiffening of the twist, and (tendons from disk to disk, ``chord_share = d^2 / 12``
-    m^2 for disks ``d`` apart; 0: continuous tendons) their chords' softening of the
-    bending (N m^2; see the module docstring)."""
-    return (sum(tau * y for tau, _, y in tensions), sum(tau * x for tau, x, _ in tensions),
-            sum(tau * (x**2 + y**2) for tau, x, y in tensions),
-            (chord_share * sum(tau for tau, _, _ in tensions), chord_share)
-            if chord_share else 0.0)  # fmt: skip
+class _TendonSums(NamedTuple):
+    """What the tendons that a cross-section cuts do to it (:func:`_tendon_sums`)."""
+
+    #: ``sum tau y``, N m: their moment's body ``-x`` part
+    tau_y: Sym
+    #: ``sum tau x``, N m: their moment's body ``y`` part
+    tau_x: Sym
+    #: ``sum tau |r|^2``, N m^2: their stiffening of the twist
+    tau_r2: Sym
+    #: ``sum tau``, N: their pull, the compression of a span between two disks
+    tau: Sym
+    #: ``d^2 / 12``, m^2, for disks ``d`` apart where the tendons run from disk to disk;
+    #: 0 for continuous tendons (see the module docstring)
+    chord_share: float
+
+
+def _tendon_sums(tensions: list[tuple[Sym, float, float]], chord_share: float = 0.0) -> _TendonSums:
+    """The sums of the tendons ``(tau, x, y)`` (N, m, m) that a cross-section cuts, with
+    the ``chord_share`` of its section's disks (0: continuous tendons)."""
+    return _TendonSums(sum(tau * y for tau, _, y in tensions),
+                       sum(tau * x for tau, x, _ in tensions),
+                       sum(tau * (x**2 + y**2) for tau, x, y in tensions),
+                       sum(tau for tau, _, _ in tensions), chord_share)  # fmt: skip
 
 
 #: The least share of its bending stiffness a section keeps under its tendons' chords
@@ -226,15 +238,15 @@ class TendonStatics:
         ``EI u_y = m_y + sum tau x``, ``(GJ + sum tau |r|^2) u_z = m_z``."""
         return self._curvature(m_body, _tendon_sums(tensions))
 
-    def _curvature(self, m_body: Sym, sums: tuple[Sym, Sym, Sym, Sym]) -> Sym:
-        """:meth:`curvature_sym` from the tendons' sums ``(sum tau y, sum tau x, sum tau
-        |r|^2, chords)`` (:func:`_tendon_sums`; the chords' term lowers the bending
-        stiffness, to at most :data:`CHORD_STIFFNESS_FLOOR` of it)."""
+    def _curvature(self, m_body: Sym, sums: _TendonSums) -> Sym:
+        """:meth:`curvature_sym` from the tendons' sums (:func:`_tendon_sums`; tendons
+        from disk to disk lower the bending stiffness, to at most
+        :data:`CHORD_STIFFNESS_FLOOR` of it)."""
         ei, gj = self.stiffness
-        chords = sums[3]
-        bx, by = m_body[0] - sums[0], m_body[1] + sums[1]
-        if isinstance(chords, float) and chords == 0.0:
-            return ca.vertcat(bx / ei, by / ei, m_body[2] / (gj + sums[2]))
+        bx, by = m_body[0] - sums.tau_y, m_body[1] + sums.tau_x
+        twist = m_body[2] / (gj + sums.tau_r2)
+        if sums.chord_share == 0.0:
+            return ca.vertcat(bx / ei, by / ei, twist)
         floor = CHORD_STIFFNESS_FLOOR * ei
 
         # the span between two disks is a beam-column under the tensions' compression P:
@@ -244,14 +256,16 @@ class TendonStatics:
             x = ca.sqrt(ca.fmax(3.0 * share / ei, 1e-12))
             return ca.fmax(ei * x / ca.tan(ca.fmin(x, 1.5)), floor)
 
-        bend = column(chords[0])
+        share = sums.chord_share
+        chords = share * sums.tau
+        bend = column(chords)
         # a tendon nearer the bend's centre by r . n runs a shorter arc between the disks,
         # (1 - kappa r . n) d, whose chord lies off it by kappa (1 - kappa r . n) d^2 / 12
         # on average: it counts as a tension tau (1 - kappa r . n), kappa r . n = u_y x
         # - u_x y at the curvature without it
         ux, uy = bx / bend, by / bend
-        bend = column(chords[0] - chords[1] * (uy * sums[1] - ux * sums[0]))
-        return ca.vertcat(bx / bend, by / bend, m_body[2] / (gj + sums[2]))
+        bend = column(chords - share * (uy * sums.tau_x - ux * sums.tau_y))
+        return ca.vertcat(bx / bend, by / bend, twist)
 
     def chord_share(self, section: int) -> float:
         """``d^2 / 12`` (m^2) for section ``section``'s disks ``d`` apart where the
@@ -261,7 +275,7 @@ class TendonStatics:
             return 0.0
         return (sec.length / sec.disks) ** 2 / 12
 
-    def _field(self, y: _RodState, ds: float, sums: tuple[Sym, Sym, Sym, Sym]) -> tuple[Sym, Sym]:
+    def _field(self, y: _RodState, ds: float, sums: _TendonSums) -> tuple[Sym, Sym]:
         """The rod equation ``ds`` (m) into a step as ``(u, g)``: the body curvature and
         twist rate (rad/m) that turn the frame (``R' = R hat(u)``, ``p' = R e3``), with
         the tendon sums ``sums`` of the section, and the weight's part of the moment's
@@ -276,9 +290,7 @@ class TendonStatics:
         places |= {Station(i.section, i.at) for i in self.robot.imus}
         return tuple(sorted(places, key=lambda s: (s.section, s.at)))
 
-    def _step(
-        self, y: _RodState, s: float, h: float, force: Sym, sums: tuple[Sym, Sym, Sym, Sym]
-    ) -> _RodState:
+    def _step(self, y: _RodState, s: float, h: float, force: Sym, sums: _TendonSums) -> _RodState:
         """One step of length ``h`` (m) from arc length ``s``: the commutator-free
         Lie-group method of order four (Celledoni, Marthinsen and Owren 2003, "CF4") on
         the frame ``(R, p)`` in SE(3) and the moment ``M`` in R^3. Each of its five

@@ -82,8 +82,7 @@ def raw_readings(
         raise UserError(
             "raw readings are simulated for constant-curvature robots only (a tendon "
             "robot straight and still, simulate_robot('rest', ...), reads as its robot "
-            "without tendons: dataclasses.replace(robot, tendons=(), backbone=None, "
-            'tendon_route="continuous"))'
+            "without tendons: robot.without_tendons())"
         )
     if not (is_integer(seed) and seed >= 0):
         raise UserError(f"seed must be a non-negative integer, got {seed!r}")

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -202,7 +202,7 @@ def simulate_robot(
 
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     if robot.tendons and scenario == "rest":  # straight and still: its tendons slack
-        robot = replace(robot, tendons=(), backbone=None, tendon_route="continuous")
+        robot = robot.without_tendons()
     if robot.tendons:
         raise UserError(
             f"a tendon robot ({robot.describe()}): the scenarios but rest (straight and "
