@@ -198,6 +198,7 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   std::fill(imu_last_valid_.begin(), imu_last_valid_.end(), -INFINITY);
   std::fill(late_pending_.begin(), late_pending_.end(), 0);
   returned_.clear();
+  forced_before_ = false;
   hold_ = 0.0;
   end_chain();
   forced_t_.clear();
@@ -218,6 +219,7 @@ void SensorHealth::restart(bool keep_sensors) {
   gate_has_ = false;
   rejecting_since_.reset();
   wide_t_ = -INFINITY;
+  wide_row_t_ = -INFINITY;
   jumped_t_ = -INFINITY;
   unconfirmed_ = 0;
   started_ = false;
@@ -625,6 +627,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (std::isinf(z_in[j])) return INPUT_INFINITE;
   for (int i : s_.tilt_rows)
     if (std::fabs(z_in[i]) > s_.degrees_like) return INPUT_DEGREES;  // NaN compares false
+  const double since_last = t - last_t_;  // s, inf at the first sample
   last_t_ = t;
   const auto start = std::chrono::steady_clock::now();
   out = SampleResult();
@@ -830,9 +833,23 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // before another confirmed it says that the readings may contradict the model from
     // the start (an IMU upside down, columns swapped): a wrong shape can then agree
     // with a few readings in a row, so confirm_samples of them must agree before it is
-    // trusted. (A restart the readings forced keeps start_samples.)
+    // trusted. (A restart the readings forced takes start_samples; one forced at the
+    // sample right after another takes confirm_samples, or as many as the unobserved
+    // window holds where fewer, at least start_samples: a restart that the very next
+    // reading fails says that the readings contradict each other, one of them wrong
+    // (a reading half a turn off), and a restart from the next reading alone may land
+    // on another shape that those readings share, which readings close in time agree
+    // with as well.)
     if (forced) {
-      unconfirmed_ = confirm_after_ = s_.start_samples;
+      int confirm = s_.start_samples;
+      if (forced_before_) {
+        // confirm_samples, or the readings the unobserved window holds where fewer
+        const double within = std::floor(unobserved_window() / since_last);
+        const int held = within < s_.confirm_samples ? static_cast<int>(within)
+                                                      : s_.confirm_samples;
+        confirm = std::max(s_.start_samples, held);
+      }
+      unconfirmed_ = confirm_after_ = confirm;
     } else if (first) {
       confirm_after_ = s_.confirm_samples;
       unconfirmed_ = disagree ? confirm_after_ : 1;
@@ -846,6 +863,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       if (compared && any) unconfirmed_ = disagree ? confirm_after_ : unconfirmed_ - 1;
       if (unconfirmed_ > 0 && trusted(status)) status = ST_UNCERTAIN;
     }
+    forced_before_ = forced;
     const double scale = consistency_.noise_scale();
     factor = scale > 1.0 ? std::sqrt(scale) : 1.0;
     // a row whose readings this estimate cannot explain (inconsistent, or another
@@ -867,13 +885,17 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       for (int i = 0; i < ny; ++i) ystd[i] *= factor;
     // the bends no reading pins (before the statuses that a wide tip makes uncertain)
     if (!s_.free_pairs.empty()) widen_by_free_bends(x, y, ystd);
+    // whether this row's tip standard deviation, its own or the one written, is beyond
+    // the uncertain fraction (below)
+    bool wide_row = false;
     if (!s_.tip_rows.empty() && s_.checks_start) {
       // a tip standard deviation beyond the fraction: the estimate may be any of
       // shapes far apart. When it shrinks again the estimate stays uncertain for the
       // unobserved window: a filter linearised on one of those shapes narrows around
       // it whether or not it is the robot's, so only readings that go on agreeing
       // with it confirm it
-      if (tip_std(ystd) > s_.uncertain_fraction * s_.length) wide_t_ = t;
+      wide_row = tip_std(ystd) > s_.uncertain_fraction * s_.length;
+      if (wide_row) wide_t_ = t;
       if (status == ST_OK && t - wide_t_ < unobserved_window()) status = ST_UNCERTAIN;
     }
     // an estimate on a bending bound that the MHE held it to: the checks judged it with
@@ -919,9 +941,20 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       // where the readings barely pin the shape, their constant errors alone may put
       // the tip far off: the standard deviation written (these errors in it) beyond
       // the fraction makes the row uncertain as the estimate's own does
-      if (status == ST_OK && !s_.tip_rows.empty() &&
-          tip_std(ystd) > s_.uncertain_fraction * s_.length)
-        status = ST_UNCERTAIN;
+      if (!s_.tip_rows.empty() && tip_std(ystd) > s_.uncertain_fraction * s_.length) {
+        wide_row = true;
+        if (status == ST_OK) status = ST_UNCERTAIN;
+      }
+      // the first row with a reading after a wide one, where it comes the unobserved
+      // window or more later (a low rate): the estimate narrowed onto that one
+      // reading, which may be a wrong one (half a turn off) that the wide prediction
+      // does not rule out; not trusted
+      if (wide_row) {
+        wide_row_t_ = t;
+      } else if (imu_read && std::isfinite(wide_row_t_)) {
+        if (status == ST_OK && t - wide_row_t_ >= unobserved_window()) status = ST_UNCERTAIN;
+        wide_row_t_ = -INFINITY;
+      }
     }
     // no distribution within an output's range has a larger standard deviation than
     // half its width: beyond it (a covariance widened to the shift that fits readings

@@ -343,6 +343,11 @@ class SensorHealth {
   // the last sample whose tip standard deviation exceeded the uncertain fraction (the
   // estimate's belief spanned shapes far apart); -inf since the (re)start when none
   double wide_t_ = -INFINITY;
+  // the last row whose tip standard deviation, its own or the one written, was beyond
+  // the uncertain fraction, until a row with an IMU reading follows it (-inf: none)
+  double wide_row_t_ = -INFINITY;
+  // the sample before this one forced a restart (the consistency check's)
+  bool forced_before_ = false;
   // the last reading beyond one sample's limit that the estimate moved onto
   double jumped_t_ = -INFINITY;
   // how many more samples' readings must agree with the estimate of a start before it
@@ -351,7 +356,9 @@ class SensorHealth {
   // (or after a gap), confirm_after_ once a reading disagreed with either; 0 otherwise
   int unconfirmed_ = 0;
   // what a disagreeing reading sets unconfirmed_ to while it is positive: start_samples
-  // after a forced restart, confirm_samples after the first estimate of a recording
+  // after a forced restart, confirm_samples after the first estimate of a recording, and
+  // after a restart forced at the sample right after another confirm_samples or the
+  // readings the unobserved window holds, whichever is fewer (at least start_samples)
   int confirm_after_ = 0;
   // an estimate has been made since the last (re)start: the next one is a start from
   // one reading (the first, or the first after a gap), which a later reading confirms
