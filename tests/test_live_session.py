@@ -1416,3 +1416,40 @@ def test_a_live_mhe_builds_its_ipopt_fallback_once_its_window_is_full(monkeypatc
     s2.finish()
     assert not any(t.is_alive() for t in s2.estimator.inference._nlp_builds.values())
     assert not any(t.daemon for t in s2.estimator.inference._nlp_builds.values())
+
+
+def test_live_skips_readings_at_a_declared_gyro_range_and_names_them() -> None:
+    """A one-IMU board whose gyro is declared (``gyro_range``) to clip at 0.8 of the
+    motion's largest rate: the lines whose rates reach it are that IMU's dropouts, as
+    ``estimate`` takes them from a file, and the summary names how many and from when."""
+    from dataclasses import replace
+
+    from live_helpers import raw_line
+
+    from continuum_mhe.io.inputs import imu_converters
+    from continuum_mhe.model.direct import DirectFormulation, raw_imu_readings
+    from continuum_mhe.simulation.scenarios import simulate
+
+    rec = simulate("paper3d", duration=4.0, dt=0.02, noise_deg=0.0)
+    acc, gyr = raw_imu_readings(rec.t, rec.truth[:, 3], rec.truth[:, 4], 0.2)
+    full_scale = 0.8 * float(np.abs(gyr).max())  # a gyro whose range the motion passes
+    gyr = np.clip(gyr, -full_scale, full_scale)
+    at_scale = (np.abs(gyr) >= 0.99 * full_scale).any(axis=1)
+    assert 0 < at_scale.sum() < len(gyr)
+    single = Robot.single()
+    robot = replace(single, imus=(replace(single.imus[0], gyro_range=full_scale),))
+    out = io.StringIO()
+    s = LiveSession(
+        LiveSettings(port="/dev/ttyIMU", fmt="raw"),
+        make_estimator("ekf", DirectFormulation(robot=robot)),
+        imu_converters(RawImuSettings(imu_model="direct"), robot),
+        out,
+        say=[].append,
+    )
+    _handle(s, [raw_line(20 * i, acc[i][None], gyr[i][None]) for i in range(len(gyr))])
+    first = float(rec.t[np.argmax(at_scale)])
+    assert f"{int(at_scale.sum())} reading(s) clipped, from t = {first:g} s" in s.summary()
+    header, *lines = out.getvalue().splitlines()
+    status = [ln.split(",")[header.split(",").index("status")] for ln in lines]
+    assert len(status) == len(gyr) and "ok" in status
+    assert all(st == "dropout" for st, hit in zip(status, at_scale) if hit)

@@ -287,9 +287,11 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
 
 def imu_settings_for(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:
     """The conversion settings of one IMU: the robot file's mounting where it gives one,
-    else ``--mount-rpy``; the robot file's gyro bias."""
+    else ``--mount-rpy``; the robot file's gyro bias and full scales."""
     if any(place.mount_rpy):
         raw = replace(raw, mount_rpy=place.mount_rpy)
+    if place.accel_range is not None or place.gyro_range is not None:
+        raw = replace(raw, accel_range=place.accel_range, gyro_range=place.gyro_range)
     return replace(raw, gyro_bias=place.gyro_bias) if any(place.gyro_bias) else raw
 
 

@@ -71,9 +71,9 @@ from continuum_mhe.io.raw_imu import (
     impossible_readings,
     raw_blocks,
     raw_layout,
-    raw_to_measurements,
     read_raw_imus,
     sample_kind,
+    warn_clipped,
 )
 from continuum_mhe.io.raw_units import (
     ACCEL_READING_MAX,
@@ -344,12 +344,14 @@ def raw_measurements(
     if settings.imu_model is None:
         settings = replace(settings, imu_model="direct" if gyro is not None else "tilt")
     converters = imu_converters(settings, robot)
-    return np.hstack(
+    z = np.hstack(
         [
             c.convert_many(t, acc[:, i], None if gyro is None else gyro[:, i])
             for i, c in enumerate(converters)
         ]
     )
+    warn_clipped("raw_measurements", converters)
+    return z
 
 
 def _check_reading_range(name: str, values: FloatArray, limit: float, unit: str) -> None:
@@ -770,6 +772,8 @@ def _table_stream(
                 [conv.convert_many(t, acc, gyr) for conv, (acc, gyr) in zip(convs, blocks)]
             )
 
+        finish = partial(warn_clipped, name, convs)  # the clipped readings, said once
+
     else:
         kind = "tilt-csv"
         if n_imus > 1 and options.raw.imu_model == "direct":  # before the column checks
@@ -944,6 +948,7 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
     blocks = []
     # the messages skip_bad read as dropouts (their time, what was bad), said in the summary
     dropouts: list[tuple[float, str]] = []
+    converters: list[RawImuConverter] = []  # their clipped readings said once, below
     for log, place in zip(logs, robot.imus):
         if options.use_orientation:
             blocks.append(
@@ -953,7 +958,9 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
             raw = imu_settings_for(options.raw, place)  # as a table's (and live's)
             _refuse_a_missing_value(p, t, log, options.skip_bad, dropouts)
             acc, gyr = _readings_in_range(p, t, log, options.skip_bad, dropouts)
-            blocks.append(_convert_log(p, t, acc, gyr, raw, log.topic))
+            converters.append(RawImuConverter(raw))
+            blocks.append(_convert_log(p, t, acc, gyr, converters[-1], log.topic))
+    warn_clipped(str(p), converters)
     clock = " and ".join(sorted({log.clock for log in logs}))
     notes += tuple(
         (
@@ -1102,12 +1109,13 @@ def _convert_log(
     t: FloatArray,
     acc: FloatArray,
     gyr: FloatArray | None,
-    raw: RawImuSettings,
+    converter: RawImuConverter,
     topic: str,
 ) -> FloatArray:
+    raw = converter.settings
     if raw.needs_gyro and gyr is None:
         raise InputError(f"{path}: {_gyro_user(raw)} needs gyro columns gx, gy, gz")
     # the gyro's units where it is used (the accelerometer's: _readings_in_range)
     if gyr is not None:
         check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro, t, acc)
-    return raw_to_measurements(t, acc, gyr, raw)
+    return converter.convert_many(t, acc, gyr)

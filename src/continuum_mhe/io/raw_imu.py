@@ -34,7 +34,12 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, finite_reals
-from continuum_mhe.io.csv_files import UnitWarning, check_time_units, read_sample_rows
+from continuum_mhe.io.csv_files import (
+    DropoutWarning,
+    UnitWarning,
+    check_time_units,
+    read_sample_rows,
+)
 from continuum_mhe.io.imu_columns import READER_FIX, ROBOT_FIX, ImuColumns, imu_suffixes
 from continuum_mhe.io.raw_units import (
     ACCEL_READING_MAX,
@@ -48,8 +53,8 @@ from continuum_mhe.io.raw_units import (
 from continuum_mhe.io.sample_rows import RowProblems
 from continuum_mhe.io.text_rows import TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
-from continuum_mhe.model.imu import tilt_from_accelerometer
-from continuum_mhe.model.robot import mount_rpy_hint
+from continuum_mhe.model.imu import STANDARD_GRAVITY, tilt_from_accelerometer
+from continuum_mhe.model.robot import full_scale_problem, mount_rpy_hint
 
 ImuModel = Literal["tilt", "direct"]
 IMU_MODELS: tuple[ImuModel, ...] = ("tilt", "direct")
@@ -79,12 +84,17 @@ class RawImuSettings:
         gyro_bias: the gyro's bias at rest ``(gx, gy, gz)`` in rad/s, sensor frame
             (``continuum-mhe calibrate`` measures it), subtracted from every reading
             before the mounting; an estimated bias then starts from it.
+        accel_range: the accelerometer's full scale, m/s^2, or None (not known): a
+            reading with an axis at it or beyond is clipped (:class:`ClipWatch`).
+        gyro_range: the gyro's full scale, rad/s, or None: the same for its rates.
     """
 
     imu_model: ImuModel | None = None
     attitude: Attitude = "accel"
     mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel_range: float | None = None
+    gyro_range: float | None = None
 
     def __post_init__(self) -> None:
         if self.imu_model is not None and self.imu_model not in IMU_MODELS:
@@ -101,6 +111,12 @@ class RawImuSettings:
         bias = finite_reals("gyro_bias", self.gyro_bias, 3, "three finite rates in rad/s")
         object.__setattr__(self, "mount_rpy", rpy)
         object.__setattr__(self, "gyro_bias", bias)
+        for key in ("accel_range", "gyro_range"):
+            value = getattr(self, key)
+            if value is not None:
+                if problem := full_scale_problem(key, value):
+                    raise UserError(problem)
+                object.__setattr__(self, key, float(value))
 
     @property
     def needs_gyro(self) -> bool:
@@ -143,9 +159,153 @@ def gravity_from_quaternion(q: FloatArray) -> FloatArray:
     return np.array([2 * (x * z - w * y), 2 * (w * x + y * z), 1 - 2 * (x * x + y * y)])
 
 
+#: A raw reading within this fraction of a declared full scale is at it: a driver's
+#: scaling (+32767 of 32768 counts, 9.81 for 9.80665) and an offset it subtracts after
+#: the sensor clipped leave a clipped reading just inside the range.
+CLIP_TOLERANCE = 0.01
+#: The automatic rule (no full scale declared): an axis that reads the same value in
+#: this many consecutive readings ...
+FLAT_TOP_READINGS = 3
+#: ... beyond 1.5 g (m/s^2; no robot at rest or moving slowly reads it) or beyond 2 rad/s
+#: (below every common gyro range, +-125 deg/s and up) ...
+FLAT_TOP_ACCEL = 1.5 * STANDARD_GRAVITY
+FLAT_TOP_GYRO = 2.0
+#: ... while no axis of that sensor has read more (within :data:`CLIP_TOLERANCE`) is at
+#: its full scale, which the rule then takes as that sensor's for the rest of the run.
+_SENSORS = ("accelerometer", "gyro")
+
+
+class ClipWatch:
+    """The clipped raw readings of one IMU, sample by sample (:meth:`see`): a reading
+    with an accelerometer or gyro axis at (within :data:`CLIP_TOLERANCE`) or beyond its
+    declared full scale (``accel_range`` m/s^2, ``gyro_range`` rad/s), or, where none is
+    declared, at a flat top: the same value on one axis in :data:`FLAT_TOP_READINGS`
+    consecutive readings beyond :data:`FLAT_TOP_ACCEL` (:data:`FLAT_TOP_GYRO`) while
+    no axis of that sensor read more; the flat top's value is then that sensor's full
+    scale for the rest of the run (the first readings of the first flat top are taken).
+    Counts what it found (:meth:`notice`)."""
+
+    def __init__(self, accel_range: float | None, gyro_range: float | None) -> None:
+        self.declared = (accel_range, gyro_range)
+        #: the full scale each sensor's flat tops showed (None: none seen)
+        self.learned: list[float | None] = [None, None]
+        #: readings clipped, per sensor (a reading of both counts in each), and in all
+        self.counts = [0, 0]
+        self.clipped = 0
+        self.first_t: float | None = None
+        self._peak = [0.0, 0.0]  # the largest magnitude each sensor read so far
+        self.reset()
+
+    def reset(self) -> None:
+        """A gap: a flat top does not run across it (what was learned is kept)."""
+        self._history = np.full((FLAT_TOP_READINGS - 1, 6), np.nan)
+
+    def see(self, t: FloatArray, acc: FloatArray, gyr: FloatArray | None) -> NDArray[np.bool_]:
+        """Whether each of the readings ``acc`` (n, 3), ``gyr`` (n, 3) or None (raw, as
+        read, at times ``t`` (n,) s) that follow those seen is clipped."""
+        n = len(t)
+        values = np.full((n, 6), np.nan)
+        values[:, :3] = np.asarray(acc, dtype=float).reshape(n, 3)
+        if gyr is not None:
+            values[:, 3:] = np.asarray(gyr, dtype=float).reshape(n, 3)
+        size = np.abs(values)
+        clipped = np.zeros(n, dtype=bool)
+        ext = np.vstack([self._history, values])
+        self._history = ext[len(ext) - (FLAT_TOP_READINGS - 1) :].copy()
+        rows_at = np.arange(n)
+        for k, cols in enumerate((slice(0, 3), slice(3, 6))):
+            mag = size[:, cols]
+            largest = np.fmax.reduce(mag, axis=1)  # NaN where the sensor gave none
+            scale, since = self.declared[k], 0
+            if scale is None:
+                if self.learned[k] is None:
+                    since = self._find_flat_top(k, ext[:, cols], mag, largest)
+                scale = self.learned[k]
+                if n:
+                    self._peak[k] = float(np.fmax(self._peak[k], np.fmax.reduce(largest)))
+            if scale is None:
+                continue
+            with np.errstate(invalid="ignore"):
+                hit = (rows_at >= since) & (largest >= (1 - CLIP_TOLERANCE) * scale)
+            if hit.any():
+                self.counts[k] += int(hit.sum())
+                clipped |= hit
+        if clipped.any():
+            self.clipped += int(clipped.sum())
+            if self.first_t is None:
+                self.first_t = float(np.asarray(t, dtype=float)[int(np.argmax(clipped))])
+        return clipped
+
+    def _find_flat_top(self, k: int, ext: FloatArray, mag: FloatArray, largest: FloatArray) -> int:
+        """The first reading of the new readings (``ext`` (FLAT_TOP_READINGS - 1 + n, 3),
+        the sensor ``k``'s axes after the readings before; ``mag`` (n, 3) their
+        magnitudes, ``largest`` (n,) each reading's largest) that ends a flat top, whose
+        value it learns as the sensor's full scale; ``n`` (none) where none does."""
+        n = len(mag)
+        flat_limit = (FLAT_TOP_ACCEL, FLAT_TOP_GYRO)[k]
+        peak = np.fmax.accumulate(np.concatenate([[self._peak[k]], largest]))[1:]
+        same = np.ones((n, 3), dtype=bool)
+        for j in range(FLAT_TOP_READINGS - 1):
+            same &= ext[j : j + n] == ext[FLAT_TOP_READINGS - 1 :]
+        with np.errstate(invalid="ignore"):
+            flat = same & (mag > flat_limit) & (mag >= (1 - CLIP_TOLERANCE) * peak[:, None])
+        rows = np.flatnonzero(flat.any(axis=1))
+        if not len(rows):
+            return n
+        i = int(rows[0])
+        self.learned[k] = float(mag[i][flat[i]].max())
+        return i
+
+    def notice(self) -> str | None:
+        """What was clipped, as a clause for a warning (without the IMU), or None."""
+        if not self.clipped:
+            return None
+        sensors = []
+        for k, unit in enumerate(("m/s^2", "rad/s")):
+            if not self.counts[k]:
+                continue
+            declared, learned = self.declared[k], self.learned[k]
+            how = (
+                f"its {('accel', 'gyro')[k]}_range, {declared:g} {unit}"
+                if declared is not None
+                else f"a flat top at {learned:.4g} {unit}, taken as its full scale"
+            )
+            sensors.append(f"{self.counts[k]} at its {_SENSORS[k]}'s full scale ({how})")
+        return (
+            f"{self.clipped} reading(s) clipped, from t = {self.first_t:g} s: "
+            f"{' and '.join(sensors)}"
+        )
+
+
+def clip_notice(converters: Sequence[RawImuConverter]) -> str | None:
+    """The readings the ``converters`` (one per IMU) skipped as clipped
+    (:class:`ClipWatch`), as one line, or None where none was."""
+    said = [
+        (f"IMU {i}: " if len(converters) > 1 else "") + note
+        for i, conv in enumerate(converters, start=1)
+        if (note := conv.clips.notice())
+    ]
+    if not said:
+        return None
+    return (
+        "; ".join(said) + ": skipped (each that IMU's dropout for the sample): a knock or a "
+        "motion beyond the sensor's range, whose reading says nothing of the shape; a "
+        "wider range in the IMU's configuration keeps them (accel_range and gyro_range in "
+        "the robot file's [[imu]] declare the range)"
+    )
+
+
+def warn_clipped(name: str, converters: Sequence[RawImuConverter]) -> None:
+    """One :class:`~continuum_mhe.io.csv_files.DropoutWarning` naming ``name`` with
+    :func:`clip_notice`, where a reading was clipped."""
+    if note := clip_notice(converters):
+        warnings.warn(f"{name}: {note}", DropoutWarning, stacklevel=3)
+
+
 class RawImuConverter:
     """Stateful conversion of raw samples, one at a time (the attitude filters keep a
-    quaternion). Call :meth:`reset` after a gap in time."""
+    quaternion). Call :meth:`reset` after a gap in time. A clipped reading
+    (:class:`ClipWatch`, in :attr:`clips`) is a dropout (NaN)."""
 
     def __init__(self, settings: RawImuSettings) -> None:
         self.settings = settings
@@ -156,6 +316,7 @@ class RawImuConverter:
             from ahrs.filters import Madgwick, Mahony
 
             self._filter = Madgwick() if settings.attitude == "madgwick" else Mahony()
+        self.clips = ClipWatch(settings.accel_range, settings.gyro_range)
         self.reset()
 
     @property
@@ -165,12 +326,21 @@ class RawImuConverter:
     def reset(self) -> None:
         self._q: FloatArray | None = None
         self._t: float | None = None
+        self.clips.reset()
 
     def convert(self, t: float, acc: FloatArray, gyr: FloatArray | None) -> FloatArray:
-        """Measurement (nz,) for one sample; NaN (a dropout) if the sample is unusable.
+        """Measurement (nz,) for one sample; NaN (a dropout) if the sample is unusable
+        or clipped.
 
         ``acc`` specific force (3,) in any unit, ``gyr`` (3,) rad/s or None.
         """
+        acc = np.asarray(acc, dtype=float)
+        gyr_row = None if gyr is None else np.asarray(gyr, dtype=float).reshape(1, 3)
+        if self.clips.see(np.array([t], dtype=float), acc.reshape(1, 3), gyr_row)[0]:
+            return np.full(self.nz, np.nan)
+        return self._convert(t, acc, gyr)
+
+    def _convert(self, t: float, acc: FloatArray, gyr: FloatArray | None) -> FloatArray:
         acc = self._mount @ np.asarray(acc, dtype=float)
         gyro = None if gyr is None else self._mount @ (np.asarray(gyr, dtype=float) - self._bias)
         if self.settings.imu_model == "direct":
@@ -202,9 +372,14 @@ class RawImuConverter:
         one pass over the arrays where the conversion keeps no state (the direct model,
         tilt from the accelerometer), sample by sample through an attitude filter."""
         n = len(t)
+        clipped = self.clips.see(t, acc, gyr)
         if self._filter is not None:
+            nan = np.full(self.nz, np.nan)
             rows = [
-                self.convert(float(t[i]), acc[i], None if gyr is None else gyr[i]) for i in range(n)
+                nan
+                if clipped[i]
+                else self._convert(float(t[i]), acc[i], None if gyr is None else gyr[i])
+                for i in range(n)
             ]
             return np.array(rows, dtype=float).reshape(n, self.nz)
         acc = np.asarray(acc, dtype=float).reshape(n, 3) @ self._mount.T
@@ -212,11 +387,13 @@ class RawImuConverter:
             if gyr is None:
                 raise UserError("the direct IMU model needs gyro readings (gx, gy, gz)")
             gyro = (np.asarray(gyr, dtype=float).reshape(n, 3) - self._bias) @ self._mount.T
-            return direct_measurements(acc, gyro).reshape(n, 6)
+            z = direct_measurements(acc, gyro).reshape(n, 6)
+            z[clipped] = np.nan
+            return z
         usable = np.all(np.isfinite(acc), axis=1) & (np.linalg.norm(acc, axis=1) > 0)
         with np.errstate(invalid="ignore"):
             tilt = tilt_from_accelerometer(acc).reshape(n, 2)
-        tilt[~usable] = np.nan
+        tilt[~usable | clipped] = np.nan
         return tilt
 
 

@@ -15,6 +15,9 @@ Format (every key but ``length`` is optional)::
                                # (rotates raw readings; tilt input is used as it is)
     gyro_bias = [0, 0, 0]      # gyro bias at rest, rad/s, sensor frame, default 0
                                # (subtracted from raw gyro readings)
+    accel_range = 19.61        # accelerometer full scale, m/s^2 (+-2 g), optional
+    gyro_range = 4.363         # gyro full scale, rad/s (+-250 deg/s), optional
+                               # (a raw reading at either is clipped: skipped)
     [[imu]]
     section = 2
 
@@ -81,6 +84,7 @@ from continuum_mhe.model.robot import (
     Section,
     Tendon,
     at_in_metres,
+    full_scale_problem,
     long_section_hint,
     misplaced_imus,
     mount_rpy_hint,
@@ -95,7 +99,7 @@ else:  # pragma: no cover - Python 3.10
 
 _TOP_KEYS = {"mounting", "section", "imu", "backbone", "tendon", "tendon_route"}
 _SECTION_KEYS = {"length", "theta_max", "disks"}
-_IMU_KEYS = {"section", "at", "disk", "mount_rpy", "gyro_bias"}
+_IMU_KEYS = {"section", "at", "disk", "mount_rpy", "gyro_bias", "accel_range", "gyro_range"}
 _BACKBONE_KEYS = {"youngs_modulus", "shear_modulus", "radius", "density"}
 _TENDON_KEYS = {"section", "angle", "radius"}
 MM = 1e-3  # m
@@ -299,9 +303,17 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
                 UnitWarning,
                 stacklevel=3,
             )
+        ranges = {}
+        for key in ("accel_range", "gyro_range"):
+            if key in table:
+                if problem := full_scale_problem(key, table[key]):
+                    raise InputError(f"{path}: {where}: {problem}")
+                ranges[key] = float(table[key])
         try:
             imus.append(
-                ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2]), (gb[0], gb[1], gb[2]))
+                ImuPlacement(
+                    sec - 1, at, (mount[0], mount[1], mount[2]), (gb[0], gb[1], gb[2]), **ranges
+                )
             )
         except ValueError as exc:
             raise InputError(f"{path}: {where}: {exc}") from None
@@ -651,6 +663,9 @@ def robot_toml(robot: Robot) -> str:
             lines.append(f"mount_rpy = {list(imu.mount_rpy)!r}")
         if any(imu.gyro_bias):
             lines.append(f"gyro_bias = {list(imu.gyro_bias)!r}")
+        for key in ("accel_range", "gyro_range"):
+            if (value := getattr(imu, key)) is not None:
+                lines.append(f"{key} = {value!r}")
     return "\n".join(lines) + "\n"
 
 

@@ -33,7 +33,7 @@ from continuum_mhe.estimators.run_notices import (
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row, format_number
 from continuum_mhe.io.input_options import MountingError
-from continuum_mhe.io.raw_imu import RawImuConverter
+from continuum_mhe.io.raw_imu import RawImuConverter, clip_notice
 from continuum_mhe.io.raw_units import (
     UNIT_CHECK_SAMPLES,
     UNIT_CHECK_SPAN_S,
@@ -1216,6 +1216,8 @@ class LiveSession:
             msg += "; warning: " + force_note
         if wide_note := self.wide.notice(c.estimates):
             msg += "; note: " + wide_note
+        if clip_note := clip_notice(self.converters or ()):  # as estimate's warning
+            msg += "; warning: " + clip_note
         for clause in recovery_clauses(
             self.estimator.diagnostics, self.estimator.recovery, c.estimates
         ):  # as estimate's summary says them

@@ -180,12 +180,20 @@ class ImuPlacement:
             built, where no such conversion took them.
         gyro_bias: the gyro's bias at rest ``(gx, gy, gz)``, rad/s, sensor frame
             (subtracted from raw gyro readings).
+        accel_range: the accelerometer's full scale, m/s^2 (19.61 for +-2 g), or None
+            (not known): a raw reading with an axis at it (within
+            :data:`~continuum_mhe.io.raw_imu.CLIP_TOLERANCE`) or beyond is clipped, and
+            skipped (that IMU's dropout for the sample, counted and said once).
+        gyro_range: the gyro's full scale, rad/s (4.363 for +-250 deg/s), or None: the
+            same for its rates.
     """
 
     section: int
     at: float = 1.0
     mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel_range: float | None = None
+    gyro_range: float | None = None
 
     def __post_init__(self) -> None:
         if (
@@ -199,6 +207,12 @@ class ImuPlacement:
         object.__setattr__(self, "mount_rpy", tuple(self.mount_rpy))  # hashable
         gyro_bias = finite_reals("IMU gyro_bias", self.gyro_bias, 3, "three finite rates in rad/s")
         object.__setattr__(self, "gyro_bias", gyro_bias)
+        for key in ("accel_range", "gyro_range"):
+            value = getattr(self, key)
+            if value is not None:
+                if problem := full_scale_problem(key, value):
+                    raise UserError(f"IMU {problem}")
+                object.__setattr__(self, key, float(value))
         object.__setattr__(self, "section", section_index("IMU section", self.section))
         if not (is_real(self.at) and 0 < self.at <= 1):
             raise UserError(
@@ -562,6 +576,39 @@ class Robot:
 class RobotWarning(UserWarning):
     """A robot that is valid but likely a slip (IMUs out of base order, two at one
     place, a place or a mounting in another unit), as a robot file's are said."""
+
+
+#: The full scales an IMU's ``accel_range`` (m/s^2) and ``gyro_range`` (rad/s) may
+#: declare: a MEMS accelerometer's smallest is +-2 g (below 1.5 g a still IMU would read
+#: at it: the range given in g?), a high-g one's largest near 4,000 m/s^2; a MEMS gyro's
+#: from +-15.6 deg/s (0.27 rad/s) to +-4,000 deg/s (70 rad/s; beyond 100: deg/s?).
+ACCEL_RANGE_LIMITS = (14.7, 1e4)
+GYRO_RANGE_LIMITS = (0.1, 100.0)
+
+
+def full_scale_problem(key: str, value: object) -> str | None:
+    """What is wrong with an IMU's declared full scale ``key`` (``accel_range`` in
+    m/s^2, ``gyro_range`` in rad/s) of ``value``, as a line naming it, or None."""
+    accel = key == "accel_range"
+    low, high = ACCEL_RANGE_LIMITS if accel else GYRO_RANGE_LIMITS
+    unit = "m/s^2" if accel else "rad/s"
+    example = "19.61 for +-2 g" if accel else "4.363 for +-250 deg/s"
+    if not is_real(value) or not math.isfinite(value):
+        return f"{key} must be a number in {unit} ({example}), got {value!r}"
+    v = float(value)
+    if low <= v <= high:
+        return None
+    hint = (
+        "in g? give m/s^2"
+        if accel and 0 < v < low
+        else "deg/s? give rad/s"
+        if not accel and v > high
+        else "outside any MEMS sensor's"
+    )
+    return (
+        f"{key} = {v:g} is the sensor's full scale in {unit}, from {low:g} to {high:g}: "
+        f"{hint} ({example})"
+    )
 
 
 #: A gyro bias at rest beyond this, rad/s (about 11 deg/s; a MEMS gyro's is a few deg/s
