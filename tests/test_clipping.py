@@ -130,10 +130,106 @@ def test_the_flat_top_rule_fires_on_no_shipped_recording_and_steps_as_in_blocks(
             assert not ClipWatch(None, None).see(d[:, 0], acc, gyr).any(), path.name
     header, d = _table(ROD / "spatial-tendon_raw.csv", slice(None))
     acc = d[:, [header.index(f"a{a}_2") for a in "xyz"]]
-    gyr = np.clip(1.2 * d[:, [header.index(f"g{a}_2") for a in "xyz"]], -3.0, 3.0)  # rad/s
+    gyr = np.clip(1.5 * d[:, [header.index(f"g{a}_2") for a in "xyz"]], -4.363, 4.363)  # 250 deg/s
     whole = ClipWatch(None, None).see(d[:, 0], acc, gyr)
     one = ClipWatch(None, None)
     steps = [
         bool(one.see(d[i : i + 1, 0], acc[i : i + 1], gyr[i : i + 1])[0]) for i in range(len(d))
     ]
     assert whole.sum() > 10 and np.array_equal(whole, steps)
+
+
+def test_a_gyro_the_tilt_model_leaves_out_is_not_watched(tmp_path: Path) -> None:
+    """``--imu-model tilt`` reads the accelerometers alone: with the gyros clipped at a
+    declared ``gyro_range`` the estimate is the unclipped recording's (each clipped gyro
+    had dropped its IMU's good accelerometer reading: 300 of IMU 1's 601)."""
+    header, d = _gyro_clipped(slice(None), 0.5)
+    clipped = _write(tmp_path / "clipped.csv", header, d)
+    plain = _write(tmp_path / "plain.csv", *_table(ROD / "planar-s_raw.csv", slice(None)))
+    text = (DATA / "robots" / "two_section.toml").read_text()
+    robot = tmp_path / "robot.toml"
+    robot.write_text(text.replace("[[imu]]", "[[imu]]\ngyro_range = 0.5"))
+    outs = []
+    for meas, robot_file in ((plain, "two-section"), (clipped, str(robot))):
+        outs.append(tmp_path / f"{meas.stem}.est.csv")
+        argv = ["estimate", str(meas), "--robot", robot_file, "--imu-model", "tilt"]
+        assert main([*argv, "--method", "ekf", "-o", str(outs[-1])]) == 0
+    from continuum_mhe.io.state_tables import read_state_table
+
+    first, second = (read_state_table(o) for o in outs)
+    assert list(first.status) == list(second.status)
+    np.testing.assert_array_equal(first.values, second.values)
+
+
+def test_readings_rounded_to_two_decimals_make_no_flat_top() -> None:
+    """``spatial-tendon``'s raw readings as a logger writing two decimals keeps them:
+    IMU 2's gyro repeats 3.11 rad/s three times in a row at its peak, above all it read
+    before, which no gyro has as its range (178 deg/s): not taken as a full scale (it
+    was, and 23 of its readings were skipped, some of them reading 3.36 rad/s)."""
+    from continuum_mhe.io.raw_imu import ClipWatch
+
+    header, d = _table(ROD / "spatial-tendon_raw.csv", slice(None))
+    d = np.round(d, 2)
+    for k in (1, 2):
+        acc = d[:, [header.index(f"a{a}_{k}") for a in "xyz"]]
+        gyr = d[:, [header.index(f"g{a}_{k}") for a in "xyz"]]
+        watch = ClipWatch(None, None)
+        assert not watch.see(d[:, 0], acc, gyr).any() and watch.learned == [None, None]
+
+
+def test_readings_beyond_a_declared_range_are_kept_and_named() -> None:
+    """A gyro declared to clip at 0.5 rad/s that reads 1.24: no sensor reads past its
+    range, so the declaration is wrong; those readings are kept (they had been skipped
+    as clipped) and the notice names them, with the largest."""
+    from continuum_mhe.io.raw_imu import ClipWatch, RawImuConverter, RawImuSettings, clip_notice
+
+    header, d = _table(ROD / "planar-s_raw.csv", slice(None))
+    acc = d[:, [header.index(f"a{a}_1") for a in "xyz"]]
+    gyr = d[:, [header.index(f"g{a}_1") for a in "xyz"]]
+    largest = np.abs(gyr).max(axis=1)
+    assert largest.max() > 1.05 * 0.5
+    watch = ClipWatch(None, 0.5)
+    clipped = watch.see(d[:, 0], acc, gyr)
+    assert np.array_equal(clipped, (largest >= 0.495) & (largest <= 0.525))
+    assert watch.beyond[1] == int((largest > 0.525).sum()) > 0
+    conv = RawImuConverter(RawImuSettings(imu_model="direct", gyro_range=0.5))
+    conv.convert_many(d[:, 0], acc, gyr)
+    note = clip_notice([conv])
+    assert note is not None
+    assert f"{watch.beyond[1]} gyro reading(s) up to {largest.max():.4g} rad/s beyond" in note
+
+
+def test_a_flat_top_runs_across_a_converter_reset_as_across_a_file_gap() -> None:
+    """``live`` resets its converters at a gap, ``estimate`` reads on: the flat-top rule
+    sees the same readings in both (a reset had cleared its run, so that ``live`` found
+    1 clipped reading where ``estimate`` found 3)."""
+    from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings
+
+    n = 12
+    acc = np.tile([0.0, 0.0, STANDARD_GRAVITY], (n, 1))
+    acc[4:9, 0] = TWO_G  # a knock clipped at 2 g, five readings
+    t = np.arange(n) * 0.02
+    t[6:] += 2.0  # a gap after the first two clipped readings
+    gyr = np.zeros((n, 3))
+    stepped = RawImuConverter(RawImuSettings(imu_model="direct"))
+    rows = []
+    for i in range(n):
+        if i == 6:
+            stepped.reset()
+        rows.append(stepped.convert(float(t[i]), acc[i], gyr[i]))
+    whole = RawImuConverter(RawImuSettings(imu_model="direct")).convert_many(t, acc, gyr)
+    np.testing.assert_array_equal(np.isnan(np.array(rows)), np.isnan(whole))
+    assert stepped.clips.clipped == 3
+
+
+def test_an_accel_range_in_g_of_a_common_scale_is_refused(tmp_path: Path) -> None:
+    """``accel_range = 16`` (a +-16 g accelerometer's range written in g) lies within the
+    m/s^2 limits, where it would skip every reading beyond 1.6 g: refused as g."""
+    text = (DATA / "robots" / "two_section.toml").read_text()
+    path = tmp_path / "robot.toml"
+    for value in ("16", "24", "32"):
+        path.write_text(text.replace("[[imu]]", f"[[imu]]\naccel_range = {value}"))
+        with pytest.raises(InputError, match=r"in g\? give m/s\^2"):
+            read_robot(path)
+    path.write_text(text.replace("[[imu]]", "[[imu]]\naccel_range = 156.9"))
+    assert read_robot(path).imus[0].accel_range == 156.9

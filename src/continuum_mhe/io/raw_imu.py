@@ -163,6 +163,10 @@ def gravity_from_quaternion(q: FloatArray) -> FloatArray:
 #: scaling (+32767 of 32768 counts, 9.81 for 9.80665) and an offset it subtracts after
 #: the sensor clipped leave a clipped reading just inside the range.
 CLIP_TOLERANCE = 0.01
+#: A reading beyond this multiple of a full scale is no clipped one: no sensor reads
+#: past its range, so the range declared (or the flat top taken for it) is not the
+#: sensor's. Such readings are kept, and counted (:attr:`ClipWatch.beyond`).
+BEYOND_SCALE = 1.05
 #: The automatic rule (no full scale declared): an axis that reads the same value in
 #: this many consecutive readings ...
 FLAT_TOP_READINGS = 3
@@ -173,6 +177,14 @@ FLAT_TOP_GYRO = 2.0
 #: ... while no axis of that sensor has read more (within :data:`CLIP_TOLERANCE`) is at
 #: its full scale, which the rule then takes as that sensor's for the rest of the run.
 _SENSORS = ("accelerometer", "gyro")
+#: ... and only where its value is within FULL_SCALE_MATCH of a common MEMS full scale
+#: (+-2 to 32 g; +-125 to 4000 deg/s): a smooth peak in readings rounded to a few
+#: decimals is a flat top at any value.
+_COMMON_SCALES = (
+    tuple(g * STANDARD_GRAVITY for g in (2, 4, 6, 8, 12, 16, 24, 32)),
+    tuple(math.radians(d) for d in (125, 245, 250, 500, 1000, 2000, 4000)),
+)
+FULL_SCALE_MATCH = 0.03
 
 
 class ClipWatch:
@@ -181,9 +193,12 @@ class ClipWatch:
     declared full scale (``accel_range`` m/s^2, ``gyro_range`` rad/s), or, where none is
     declared, at a flat top: the same value on one axis in :data:`FLAT_TOP_READINGS`
     consecutive readings beyond :data:`FLAT_TOP_ACCEL` (:data:`FLAT_TOP_GYRO`) while
-    no axis of that sensor read more; the flat top's value is then that sensor's full
-    scale for the rest of the run (the first readings of the first flat top are taken).
-    Counts what it found (:meth:`notice`)."""
+    no axis of that sensor read more, at a common MEMS full scale; the flat top's value
+    is then that sensor's full scale for the rest of the run (the first readings of the
+    first flat top are taken). A reading beyond :data:`BEYOND_SCALE` times the full
+    scale is kept and counted: the full scale is not the sensor's. Counts what it found
+    (:meth:`notice`). A flat top runs across a gap: the readings are watched as they
+    come, in ``estimate`` and ``live`` alike."""
 
     def __init__(self, accel_range: float | None, gyro_range: float | None) -> None:
         self.declared = (accel_range, gyro_range)
@@ -193,11 +208,11 @@ class ClipWatch:
         self.counts = [0, 0]
         self.clipped = 0
         self.first_t: float | None = None
+        #: readings beyond :data:`BEYOND_SCALE` times each sensor's full scale (kept),
+        #: and the largest of them
+        self.beyond = [0, 0]
+        self.beyond_max = [0.0, 0.0]
         self._peak = [0.0, 0.0]  # the largest magnitude each sensor read so far
-        self.reset()
-
-    def reset(self) -> None:
-        """A gap: a flat top does not run across it (what was learned is kept)."""
         self._history = np.full((FLAT_TOP_READINGS - 1, 6), np.nan)
 
     def see(self, t: FloatArray, acc: FloatArray, gyr: FloatArray | None) -> NDArray[np.bool_]:
@@ -226,10 +241,14 @@ class ClipWatch:
             if scale is None:
                 continue
             with np.errstate(invalid="ignore"):
-                hit = (rows_at >= since) & (largest >= (1 - CLIP_TOLERANCE) * scale)
+                beyond = (rows_at >= since) & (largest > BEYOND_SCALE * scale)
+                hit = (rows_at >= since) & (largest >= (1 - CLIP_TOLERANCE) * scale) & ~beyond
             if hit.any():
                 self.counts[k] += int(hit.sum())
                 clipped |= hit
+            if beyond.any():
+                self.beyond[k] += int(beyond.sum())
+                self.beyond_max[k] = max(self.beyond_max[k], float(np.max(largest[beyond])))
         if clipped.any():
             self.clipped += int(clipped.sum())
             if self.first_t is None:
@@ -249,6 +268,10 @@ class ClipWatch:
             same &= ext[j : j + n] == ext[FLAT_TOP_READINGS - 1 :]
         with np.errstate(invalid="ignore"):
             flat = same & (mag > flat_limit) & (mag >= (1 - CLIP_TOLERANCE) * peak[:, None])
+            common = np.zeros_like(flat)
+            for scale in _COMMON_SCALES[k]:
+                common |= np.abs(mag - scale) <= FULL_SCALE_MATCH * scale
+            flat &= common
         rows = np.flatnonzero(flat.any(axis=1))
         if not len(rows):
             return n
@@ -256,43 +279,65 @@ class ClipWatch:
         self.learned[k] = float(mag[i][flat[i]].max())
         return i
 
+    def _how(self, k: int) -> str:
+        """Which full scale sensor ``k`` (0 accelerometer, 1 gyro) is judged by."""
+        unit = ("m/s^2", "rad/s")[k]
+        if (declared := self.declared[k]) is not None:
+            return f"its {('accel', 'gyro')[k]}_range, {declared:g} {unit}"
+        return f"a flat top at {self.learned[k]:.4g} {unit}, taken as its full scale"
+
     def notice(self) -> str | None:
         """What was clipped, as a clause for a warning (without the IMU), or None."""
         if not self.clipped:
             return None
-        sensors = []
-        for k, unit in enumerate(("m/s^2", "rad/s")):
-            if not self.counts[k]:
-                continue
-            declared, learned = self.declared[k], self.learned[k]
-            how = (
-                f"its {('accel', 'gyro')[k]}_range, {declared:g} {unit}"
-                if declared is not None
-                else f"a flat top at {learned:.4g} {unit}, taken as its full scale"
-            )
-            sensors.append(f"{self.counts[k]} at its {_SENSORS[k]}'s full scale ({how})")
+        sensors = [
+            f"{self.counts[k]} at its {_SENSORS[k]}'s full scale ({self._how(k)})"
+            for k in (0, 1)
+            if self.counts[k]
+        ]
         return (
             f"{self.clipped} reading(s) clipped, from t = {self.first_t:g} s: "
             f"{' and '.join(sensors)}"
         )
 
+    def beyond_notice(self) -> str | None:
+        """What read beyond a full scale, as a clause (without the IMU), or None."""
+        said = [
+            f"{self.beyond[k]} {_SENSORS[k]} reading(s) up to {self.beyond_max[k]:.4g} "
+            f"{('m/s^2', 'rad/s')[k]} beyond {self._how(k)}"
+            for k in (0, 1)
+            if self.beyond[k]
+        ]
+        return " and ".join(said) or None
+
 
 def clip_notice(converters: Sequence[RawImuConverter]) -> str | None:
-    """The readings the ``converters`` (one per IMU) skipped as clipped
-    (:class:`ClipWatch`), as one line, or None where none was."""
-    said = [
-        (f"IMU {i}: " if len(converters) > 1 else "") + note
-        for i, conv in enumerate(converters, start=1)
-        if (note := conv.clips.notice())
-    ]
-    if not said:
-        return None
-    return (
-        "; ".join(said) + ": skipped (each that IMU's dropout for the sample): a knock or a "
-        "motion beyond the sensor's range, whose reading says nothing of the shape; a "
-        "wider range in the IMU's configuration keeps them (accel_range and gyro_range in "
-        "the robot file's [[imu]] declare the range)"
-    )
+    """The readings the ``converters`` (one per IMU) skipped as clipped, and those that
+    read beyond a full scale (:class:`ClipWatch`), as one line, or None where none was."""
+
+    def each(notes: list[str | None]) -> list[str]:
+        return [
+            (f"IMU {i}: " if len(converters) > 1 else "") + note
+            for i, note in enumerate(notes, start=1)
+            if note
+        ]
+
+    clipped = each([conv.clips.notice() for conv in converters])
+    beyond = each([conv.clips.beyond_notice() for conv in converters])
+    said = []
+    if clipped:
+        said.append(
+            "; ".join(clipped) + ": skipped (each that IMU's dropout for the sample): a knock "
+            "or a motion beyond the sensor's range, whose reading says nothing of the shape; "
+            "a wider range in the IMU's configuration keeps them (accel_range and gyro_range "
+            "in the robot file's [[imu]] declare the range)"
+        )
+    if beyond:
+        said.append(
+            "; ".join(beyond) + ": kept: no sensor reads past its full scale, so that is not "
+            "the sensor's (check accel_range and gyro_range in the robot file's [[imu]])"
+        )
+    return "; ".join(said) or None
 
 
 def warn_clipped(name: str, converters: Sequence[RawImuConverter]) -> None:
@@ -316,7 +361,12 @@ class RawImuConverter:
             from ahrs.filters import Madgwick, Mahony
 
             self._filter = Madgwick() if settings.attitude == "madgwick" else Mahony()
-        self.clips = ClipWatch(settings.accel_range, settings.gyro_range)
+        # a gyro the conversion does not use (tilt from the accelerometer) is not watched:
+        # its clipped rates would drop good accelerometer readings
+        self._gyro_used = settings.needs_gyro
+        self.clips = ClipWatch(
+            settings.accel_range, settings.gyro_range if self._gyro_used else None
+        )
         self.reset()
 
     @property
@@ -326,7 +376,6 @@ class RawImuConverter:
     def reset(self) -> None:
         self._q: FloatArray | None = None
         self._t: float | None = None
-        self.clips.reset()
 
     def convert(self, t: float, acc: FloatArray, gyr: FloatArray | None) -> FloatArray:
         """Measurement (nz,) for one sample; NaN (a dropout) if the sample is unusable
@@ -335,7 +384,11 @@ class RawImuConverter:
         ``acc`` specific force (3,) in any unit, ``gyr`` (3,) rad/s or None.
         """
         acc = np.asarray(acc, dtype=float)
-        gyr_row = None if gyr is None else np.asarray(gyr, dtype=float).reshape(1, 3)
+        gyr_row = (
+            None
+            if gyr is None or not self._gyro_used
+            else np.asarray(gyr, dtype=float).reshape(1, 3)
+        )
         if self.clips.see(np.array([t], dtype=float), acc.reshape(1, 3), gyr_row)[0]:
             return np.full(self.nz, np.nan)
         return self._convert(t, acc, gyr)
@@ -372,7 +425,7 @@ class RawImuConverter:
         one pass over the arrays where the conversion keeps no state (the direct model,
         tilt from the accelerometer), sample by sample through an attitude filter."""
         n = len(t)
-        clipped = self.clips.see(t, acc, gyr)
+        clipped = self.clips.see(t, acc, gyr if self._gyro_used else None)
         if self._filter is not None:
             nan = np.full(self.nz, np.nan)
             rows = [

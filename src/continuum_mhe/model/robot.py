@@ -583,6 +583,9 @@ class RobotWarning(UserWarning):
 #: at it: the range given in g?), a high-g one's largest near 4,000 m/s^2; a MEMS gyro's
 #: from +-15.6 deg/s (0.27 rad/s) to +-4,000 deg/s (70 rad/s; beyond 100: deg/s?).
 ACCEL_RANGE_LIMITS = (14.7, 1e4)
+#: MEMS accelerometers' full scales in g that lie within :data:`ACCEL_RANGE_LIMITS`
+#: read as m/s^2 (+-1.6 to 3.3 g is no sensor's range): refused as given in g
+ACCEL_RANGES_IN_G = (16.0, 24.0, 32.0)
 GYRO_RANGE_LIMITS = (0.1, 100.0)
 
 
@@ -596,11 +599,13 @@ def full_scale_problem(key: str, value: object) -> str | None:
     if not is_real(value) or not math.isfinite(value):
         return f"{key} must be a number in {unit} ({example}), got {value!r}"
     v = float(value)
-    if low <= v <= high:
+    # +-16, 24 and 32 g written in g fall inside the range in m/s^2, where no sensor's is
+    in_g = accel and (0 < v < low or any(abs(v - g) <= 0.01 * g for g in ACCEL_RANGES_IN_G))
+    if low <= v <= high and not in_g:
         return None
     hint = (
         "in g? give m/s^2"
-        if accel and 0 < v < low
+        if in_g
         else "deg/s? give rad/s"
         if not accel and v > high
         else "outside any MEMS sensor's"
