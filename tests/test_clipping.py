@@ -102,6 +102,7 @@ def test_declared_ranges_make_clipped_readings_dropouts_and_round_trip(
     path.write_text(text.replace("[[imu]]", "[[imu]]\naccel_range = 19.6133\ngyro_range = 0.5"))
     robot = read_robot(path)
     assert robot.imus[1].gyro_range == 0.5 and robot.imus[0].accel_range == 19.6133
+    assert "IMUs at 1@1 (+-19.6133 m/s^2, +-0.5 rad/s), 2@1 (+-19.6133" in robot.describe()
     path.write_text(robot_toml(robot))
     assert read_robot(path) == robot
     header, d = _gyro_clipped(slice(0, 601), 0.5)

@@ -561,9 +561,20 @@ class Robot:
         )
 
     def describe(self) -> str:
-        """One line, e.g. ``2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up``."""
+        """One line, e.g. ``2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up``; an
+        IMU's declared full scales follow its place (``1@1 (+-19.61 m/s^2, +-4.363
+        rad/s)``)."""
         secs = ", ".join(f"{s.length:g} m" for s in self.sections)
-        imus = ", ".join(f"{i.section + 1}@{i.at:g}" for i in self.imus)
+
+        def place(i: ImuPlacement) -> str:
+            scales = [
+                f"+-{value:g} {unit}"
+                for value, unit in ((i.accel_range, "m/s^2"), (i.gyro_range, "rad/s"))
+                if value is not None
+            ]
+            return f"{i.section + 1}@{i.at:g}" + (f" ({', '.join(scales)})" if scales else "")
+
+        imus = ", ".join(place(i) for i in self.imus)
         n = len(self.sections)
         text = f"{n} section{'s' if n > 1 else ''} ({secs}), IMUs at {imus}, {self.mounting}"
         if self.tendons:
