@@ -705,3 +705,30 @@ def test_the_samples_the_streams_end_releases_do_not_count_in_the_latency(runs: 
     estimator's, and the latency does not count them (which would make its largest the
     session's length)."""
     assert runs.line_session.latency.n == N - 2
+
+
+def test_tensions_on_the_line_near_a_span_buckling_load_are_said(tmp_path: Path) -> None:
+    """A disk-routed robot with one disk a section (its backbone buckles between two
+    disks at 2.5 N): tensions on the line beyond 0.6 of that are said in the summary, as
+    a tensions file's are when it is read (they were not)."""
+    from dataclasses import replace
+
+    _, _, with_tensions, _ = _first_samples(tmp_path)
+    robot = read_robot(shipped_robots()[ROBOT])
+    robot = replace(
+        robot,
+        sections=tuple(replace(sec, disks=1) for sec in robot.sections),
+        tendon_route="disks",
+    )
+    base = make_formulation("bend", robot, NoiseSettings())
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
+    est = make_estimator("ekf", serial.formulation, MHESettings())
+    scaled = []
+    for line in with_tensions:
+        fields = line.split(",")
+        scaled.append(",".join([*fields[:-6], *(f"{3 * float(v):g}" for v in fields[-6:])]))
+    session, _, _ = _live(serial, est, scaled)
+    assert "/dev/ttyTEN: the tensions on the line: at t = " in session.summary()
+    assert "of the load that buckles its backbone between two disks 200 mm apart" in (
+        session.summary()
+    )

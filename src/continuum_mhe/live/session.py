@@ -40,7 +40,13 @@ from continuum_mhe.io.raw_units import (
     check_accel_units,
     check_gyro_units,
 )
-from continuum_mhe.io.tensions import Tensions, TensionsAt, TensionStream, tension_scale_problem
+from continuum_mhe.io.tensions import (
+    Tensions,
+    TensionsAt,
+    TensionStream,
+    span_buckling_problem,
+    tension_scale_problem,
+)
 from continuum_mhe.live.counts import DeviceMessages, LatencyHistogram, LiveCounts
 from continuum_mhe.model.descriptions import TIP_COLUMNS
 from continuum_mhe.model.tendon import TendonFormulation
@@ -237,6 +243,9 @@ class LiveSession:
         self._file_tensions = f.robot.n_tendons if tensions is not None else 0
         #: tendon tensions on every line, after the IMUs' values
         self.n_tensions = f.robot.n_tendons if self.tendon is not None and tensions is None else 0
+        #: where tensions on the line first neared the load that buckles a disk-routed
+        #: section between its disks (:func:`span_buckling_problem`), for the summary
+        self._span_buckling = ""
         self._tension_stream = (
             TensionStream(f"{settings.port}: the tensions on the line", self.n_tensions)
             if self.n_tensions
@@ -821,6 +830,13 @@ class LiveSession:
             if problem is not None:
                 self.fatal = problem
                 return None  # neither recorded nor estimated: the session stops
+            if not self._span_buckling:  # the first, as a file's check says it
+                self._span_buckling = span_buckling_problem(
+                    self.tendon.robot,
+                    np.array([t]),
+                    np.asarray(s.tensions, dtype=float)[None, :],
+                    f"{self.settings.port}: the tensions on the line",
+                )
         c.samples += 1
         if self.converters is None:  # tilt: where a run of degrees would continue from
             self._last_tilt = np.array(s.values[: 2 * self.n_imus], dtype=float)
@@ -1218,6 +1234,8 @@ class LiveSession:
             msg += "; note: " + wide_note
         if clip_note := clip_notice(self.converters or ()):  # as estimate's warning
             msg += "; warning: " + clip_note
+        if self._span_buckling:  # as a tensions file's warning
+            msg += "; warning: " + self._span_buckling
         for clause in recovery_clauses(
             self.estimator.diagnostics, self.estimator.recovery, c.estimates
         ):  # as estimate's summary says them
