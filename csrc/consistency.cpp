@@ -179,7 +179,7 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   for (int i = 0; i < nz; ++i)
     if (s_.judged[i] != 0.0 && mask[i] != 0.0) rows_.push_back(i);
   const int dof = static_cast<int>(rows_.size());
-  nis_ = fit_ = fit_nis_ = shift_ = 0.0;
+  nis_ = fit_ = fit_nis_ = shift_ = jump_ = 0.0;
   dof_ = dof;
   shift_ready_ = false;
   if (dof > max_dof_) {  // more readings than any sample before: learn their level anew
@@ -207,6 +207,7 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
         if (!persists_ && dof == max_dof_)
           quiet_scale_ += (nis_ / dof - quiet_scale_) / s_.quiet_memory;
       }
+      jump_ = predicted_jump(x);
       evaluate(residual_, x, u, dt, r_.data());  // r at this estimate
       // the innovation this estimate's residual implies, S R^-1 r (an exact update of a
       // linear model leaves r = R S^-1 nu), and its NIS: (R^-1 r)^T S (R^-1 r)
@@ -252,7 +253,12 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
     quiet_run_ = 0;
   }
   const bool unexplained = fit_nis_ > s_.limit[dof] && shift_ > s_.shift_limit[shift_dof_];
-  return worst > s_.limit[dof] || (high && high_) || persists_ || unexplained;
+  // an estimate that moved from the prediction farther than readings within the limit
+  // could move a linear update: a nonlinear update (an MHE's window, a UKF's sigma
+  // points) onto a shape its linearised prediction called near (a reading half a turn
+  // off, which the wide prediction of a low rate does not rule out)
+  const bool jumped = jump_ > s_.limit[dof];
+  return worst > s_.limit[dof] || (high && high_) || persists_ || unexplained || jumped;
 }
 
 double ConsistencyCheck::shift_inflation_at(const double* x, const double* P) {
@@ -329,6 +335,21 @@ void ConsistencyCheck::predict(const double* x0, const double* P0, double dt, co
   Pn_ += Qm;
   pred_key_.swap(key_);
   has_pred_ = true;
+}
+
+double ConsistencyCheck::predicted_jump(const double* x) const {
+  const int nx = s_.nx;
+  Eigen::VectorXd d(nx);
+  for (int i = 0; i < nx; ++i) d[i] = x[i] - fF_[i];  // fF_ holds f(x0) first
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (Pn_ + Pn_.transpose()));
+  const Eigen::VectorXd w = eig.eigenvalues();
+  const Eigen::VectorXd y = eig.eigenvectors().transpose() * d;
+  // directions the prediction holds below the rounding of its largest variance say nothing
+  const double floor = 1e-12 * std::max(w.maxCoeff(), 0.0);
+  double stat = 0.0;
+  for (int i = 0; i < nx; ++i)
+    if (w[i] > floor) stat += y[i] * y[i] / w[i];
+  return stat;
 }
 
 double ConsistencyCheck::predicted_nis(const double* x0, const double* P0, double dt,

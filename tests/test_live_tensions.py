@@ -710,7 +710,7 @@ def test_the_samples_the_streams_end_releases_do_not_count_in_the_latency(runs: 
 def test_tensions_on_the_line_near_a_span_buckling_load_are_said(tmp_path: Path) -> None:
     """A disk-routed robot with one disk a section (its backbone buckles between two
     disks at 2.5 N): tensions on the line beyond 0.6 of that are said in the summary, as
-    a tensions file's are when it is read (they were not)."""
+    a tensions file's are when it is read."""
     from dataclasses import replace
 
     _, _, with_tensions, _ = _first_samples(tmp_path)
