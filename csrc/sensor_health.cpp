@@ -627,7 +627,6 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (std::isinf(z_in[j])) return INPUT_INFINITE;
   for (int i : s_.tilt_rows)
     if (std::fabs(z_in[i]) > s_.degrees_like) return INPUT_DEGREES;  // NaN compares false
-  const double since_last = t - last_t_;  // s, inf at the first sample
   last_t_ = t;
   const auto start = std::chrono::steady_clock::now();
   out = SampleResult();
@@ -844,7 +843,8 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       int confirm = s_.start_samples;
       if (forced_before_) {
         // confirm_samples, or the readings the unobserved window holds where fewer
-        const double within = std::floor(unobserved_window() / since_last);
+        // (a step of 0.2 s read as 0.2000001: the window holds 5, not 4)
+        const double within = std::floor(unobserved_window() / (t - forced_before_t_) + 1e-9);
         const int held = within < s_.confirm_samples ? static_cast<int>(within)
                                                       : s_.confirm_samples;
         confirm = std::max(s_.start_samples, held);
@@ -863,7 +863,14 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       if (compared && any) unconfirmed_ = disagree ? confirm_after_ : unconfirmed_ - 1;
       if (unconfirmed_ > 0 && trusted(status)) status = ST_UNCERTAIN;
     }
-    forced_before_ = forced;
+    // the last sample with an IMU reading forced a restart: a sample without one (a
+    // dropout, a tension-only line) between the two does not part them
+    if (forced) {
+      forced_before_ = true;
+      forced_before_t_ = t;
+    } else if (imu_read) {
+      forced_before_ = false;
+    }
     const double scale = consistency_.noise_scale();
     factor = scale > 1.0 ? std::sqrt(scale) : 1.0;
     // a row whose readings this estimate cannot explain (inconsistent, or another

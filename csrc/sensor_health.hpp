@@ -346,8 +346,10 @@ class SensorHealth {
   // the last row whose tip standard deviation, its own or the one written, was beyond
   // the uncertain fraction, until a row with an IMU reading follows it (-inf: none)
   double wide_row_t_ = -INFINITY;
-  // the sample before this one forced a restart (the consistency check's)
+  // the last sample with an IMU reading (or a restart) forced a restart (the consistency
+  // check's), at forced_before_t_
   bool forced_before_ = false;
+  double forced_before_t_ = -INFINITY;
   // the last reading beyond one sample's limit that the estimate moved onto
   double jumped_t_ = -INFINITY;
   // how many more samples' readings must agree with the estimate of a start before it

@@ -234,3 +234,27 @@ def test_an_accel_range_in_g_of_a_common_scale_is_refused(tmp_path: Path) -> Non
             read_robot(path)
     path.write_text(text.replace("[[imu]]", "[[imu]]\naccel_range = 156.9"))
     assert read_robot(path).imus[0].accel_range == 156.9
+
+
+def test_a_flat_top_that_a_later_reading_passes_is_no_longer_taken() -> None:
+    """Three readings at 2 g in a row are taken as a flat top at the full scale; a later
+    reading of 30 m/s^2 shows that 2 g was no full scale: from it on the readings are
+    kept (a 19.7 m/s^2 one after it was skipped as clipped), and the notice says that the
+    flat top was taken until then."""
+    from continuum_mhe.io.raw_imu import ClipWatch, RawImuConverter, RawImuSettings, clip_notice
+
+    n = 12
+    acc = np.tile([0.0, 0.0, STANDARD_GRAVITY], (n, 1))
+    acc[3:6, 0] = TWO_G
+    acc[8, 0], acc[10, 0] = 30.0, 19.7
+    t = np.arange(n) * 0.02
+    watch = ClipWatch(None, None)
+    clipped = watch.see(t, acc, None)
+    assert list(np.flatnonzero(clipped)) == [5]  # the flat top's third reading alone
+    assert watch.learned[0] is None and watch.refuted[0] == pytest.approx(TWO_G)
+    one = ClipWatch(None, None)
+    assert [bool(one.see(t[i : i + 1], acc[i : i + 1], None)[0]) for i in range(n)] == list(clipped)
+    conv = RawImuConverter(RawImuSettings(imu_model="tilt"))
+    conv.convert_many(t, acc, None)
+    note = clip_notice([conv])
+    assert note is not None and "taken as its full scale until then" in note

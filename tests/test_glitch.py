@@ -489,3 +489,19 @@ def test_two_restarts_in_a_row_after_an_upside_down_reading_leave_no_far_row_ok(
     near = (t >= 8.0) & (t < 9.0)
     assert np.max(err[near]) > 0.1  # the restarts put the estimate far off
     assert not np.any((err > 0.05) & (s.status == "ok"))
+
+
+def test_two_restarts_in_a_row_apart_by_a_sample_without_readings_leave_no_far_row_ok() -> None:
+    """As above, with a sample that carries no reading (a dropout line) between the two
+    restarts: the second still follows the first with no reading between them, and is
+    confirmed by five readings (it took two, and the row at 8.06 s was ``ok`` 134 mm
+    off)."""
+    t, z, tip = _rod_tilt("spatial-tendon", 1)
+    z = _turn_upside_down(z, 400, 1)
+    t = np.insert(t, 401, 8.01)
+    z = np.insert(z, 401, np.nan, axis=0)
+    tip = np.insert(tip, 401, tip[400], axis=0)
+    f = make_formulation("bend", read_robot("two-section"))
+    s = make_estimator("ukf", f).run(t, z)
+    err = np.linalg.norm(np.asarray(s.output)[:, :3] - tip, axis=1)
+    assert not np.any((err > 0.05) & (s.status == "ok"))

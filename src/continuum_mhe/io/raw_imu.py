@@ -213,6 +213,9 @@ class ClipWatch:
         self.beyond = [0, 0]
         self.beyond_max = [0.0, 0.0]
         self._peak = [0.0, 0.0]  # the largest magnitude each sensor read so far
+        #: a flat top's value that a later reading beyond it showed to be no full scale
+        #: (no longer taken; none is learned again for that sensor)
+        self.refuted: list[float | None] = [None, None]
         self._history = np.full((FLAT_TOP_READINGS - 1, 6), np.nan)
 
     def see(self, t: FloatArray, acc: FloatArray, gyr: FloatArray | None) -> NDArray[np.bool_]:
@@ -233,7 +236,7 @@ class ClipWatch:
             largest = np.fmax.reduce(mag, axis=1)  # NaN where the sensor gave none
             scale, since = self.declared[k], 0
             if scale is None:
-                if self.learned[k] is None:
+                if self.learned[k] is None and self.refuted[k] is None:
                     since = self._find_flat_top(k, ext[:, cols], mag, largest)
                 scale = self.learned[k]
                 if n:
@@ -243,6 +246,13 @@ class ClipWatch:
             with np.errstate(invalid="ignore"):
                 beyond = (rows_at >= since) & (largest > BEYOND_SCALE * scale)
                 hit = (rows_at >= since) & (largest >= (1 - CLIP_TOLERANCE) * scale) & ~beyond
+            if self.declared[k] is None and beyond.any():
+                # a reading past the flat top taken as the full scale: it was none; the
+                # readings from this one on are kept (as they are sample by sample)
+                first = int(np.argmax(beyond))
+                hit &= rows_at < first
+                beyond &= rows_at == first
+                self.refuted[k], self.learned[k] = self.learned[k], None
             if hit.any():
                 self.counts[k] += int(hit.sum())
                 clipped |= hit
@@ -284,6 +294,8 @@ class ClipWatch:
         unit = ("m/s^2", "rad/s")[k]
         if (declared := self.declared[k]) is not None:
             return f"its {('accel', 'gyro')[k]}_range, {declared:g} {unit}"
+        if (refuted := self.refuted[k]) is not None:
+            return f"a flat top at {refuted:.4g} {unit}, taken as its full scale until then"
         return f"a flat top at {self.learned[k]:.4g} {unit}, taken as its full scale"
 
     def notice(self) -> str | None:
@@ -335,7 +347,8 @@ def clip_notice(converters: Sequence[RawImuConverter]) -> str | None:
     if beyond:
         said.append(
             "; ".join(beyond) + ": kept: no sensor reads past its full scale, so that is not "
-            "the sensor's (check accel_range and gyro_range in the robot file's [[imu]])"
+            "the sensor's (a declared one: check accel_range and gyro_range in the robot "
+            "file's [[imu]]; a flat top: the readings after it are kept)"
         )
     return "; ".join(said) or None
 
@@ -454,8 +467,12 @@ def raw_to_measurements(
     t: FloatArray, acc: FloatArray, gyr: FloatArray | None, settings: RawImuSettings
 ) -> FloatArray:
     """Measurements (n, nz) for a whole recording (``t`` s, ``acc`` (n, 3), ``gyr``
-    (n, 3) rad/s or None)."""
-    return RawImuConverter(settings).convert_many(t, acc, gyr)
+    (n, 3) rad/s or None); clipped readings (:class:`ClipWatch`) are dropouts (NaN),
+    said in one :class:`~continuum_mhe.io.csv_files.DropoutWarning`."""
+    converter = RawImuConverter(settings)
+    z = converter.convert_many(t, acc, gyr)
+    warn_clipped("raw_to_measurements", [converter])
+    return z
 
 
 @dataclass(frozen=True)
