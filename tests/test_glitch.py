@@ -494,8 +494,7 @@ def test_two_restarts_in_a_row_after_an_upside_down_reading_leave_no_far_row_ok(
 def test_two_restarts_in_a_row_apart_by_a_sample_without_readings_leave_no_far_row_ok() -> None:
     """As above, with a sample that carries no reading (a dropout line) between the two
     restarts: the second still follows the first with no reading between them, and is
-    confirmed by five readings (it took two, and the row at 8.06 s was ``ok`` 134 mm
-    off)."""
+    confirmed by five readings (with two, the row at 8.06 s is ``ok`` 134 mm off)."""
     t, z, tip = _rod_tilt("spatial-tendon", 1)
     z = _turn_upside_down(z, 400, 1)
     t = np.insert(t, 401, 8.01)
