@@ -41,6 +41,7 @@ auto counts_of(const PolicyDiagnostics& d) {
   return std::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.bad_starts,
                          d.reject_resets, d.bound_samples, d.bad_start_chains,
                          d.untrusted_start_samples, d.glitches, d.drift_resets, d.late_imu_starts,
+                         d.jump_resets,
                          d.first_freezes.size(), d.has_failure, d.max_noise_scale,
                          d.model_error);
 }
@@ -538,6 +539,13 @@ void cmhe::bind_sensor_health(nb::module_& m) {
       .def_ro("late_imu_starts", &PolicyDiagnostics::late_imu_starts,
               "Restarts at the first reading of an IMU that had not read since the last "
               "(re)start, beside every IMU that had.")
+      .def_ro("jump_resets", &PolicyDiagnostics::jump_resets,
+              "Restarts after a jump in t shorter than the gap reset whose readings "
+              "disagreed with the prediction across it.")
+      .def_ro("first_jump_t", &PolicyDiagnostics::first_jump_t,
+              "t (s) of the sample after the first such jump (NaN: none).")
+      .def_ro("first_jump_step", &PolicyDiagnostics::first_jump_step,
+              "The first such jump's length, s (NaN: none).")
       .def_prop_ro(
           "last_failure",
           [](const PolicyDiagnostics& d) {

@@ -24,6 +24,10 @@ namespace {
 bool longer(double span, double limit, double t) {
   return span > limit + 1e-6 + 8.0 * std::numeric_limits<double>::epsilon() * std::fabs(t);
 }
+// A step between valid samples more than this many times their average step is a jump
+// (a clock that stepped forward, a block of samples lost), and the average's weight
+constexpr double kJumpSteps = 5.0;
+constexpr double kStepWeight = 0.1;
 bool trusted(int status) {
   return status == ST_OK || status == ST_FALLBACK_IPOPT || status == ST_BRANCH_RESTART;
 }
@@ -187,6 +191,7 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   drift_since_ = NAN;
   drift_armed_ = true;
   last_t_ = last_valid_t_ = first_valid_t_ = -INFINITY;
+  step_avg_ = NAN;
   whole_missing_ = 0;
   other_missing_ = false;
   std::fill(has_freeze_value_.begin(), has_freeze_value_.end(), 0);
@@ -644,8 +649,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       other_missing_ = true;
   }
   bool gap_reset = false;
+  bool jump = false;  // a step many times the usual one, shorter than the gap reset
+  const double valid_step = t - last_valid_t_;
   if (!std::isnan(s_.gap_reset) && valid) {
-    gap_reset = -INFINITY < last_valid_t_ && longer(t - last_valid_t_, s_.gap_reset, t);
+    gap_reset = -INFINITY < last_valid_t_ && longer(valid_step, s_.gap_reset, t);
     // without the tensions the prediction leaves the robot within a fraction of a
     // second: their return is a gap sooner
     if (whole_missing_ > 0 && !other_missing_ && !std::isnan(s_.whole_gap_reset))
@@ -653,6 +660,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
                                 longer(t - last_valid_t_, s_.whole_gap_reset, t));
     whole_missing_ = 0;
     other_missing_ = false;
+    if (!gap_reset && -INFINITY < last_valid_t_) {
+      jump = std::isfinite(step_avg_) && longer(valid_step, kJumpSteps * step_avg_, t);
+      if (!jump)
+        step_avg_ = std::isfinite(step_avg_) ? step_avg_ + kStepWeight * (valid_step - step_avg_)
+                                             : valid_step;
+    }
     last_valid_t_ = t;
   }
   const bool back = note_imus(t);
@@ -670,10 +683,23 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // biases take up; start again with it, at the first sample every IMU reads
   const bool late_start = !gap_reset && !std::isnan(s_.gap_reset) && valid && started_ &&
                           imu_joins();
-  // a restart the data's timing called for (a gap, a late IMU), not the readings' values
-  const bool data_restart = gap_reset || late_start;
+  // the readings after a jump in t (a clock that stepped forward, samples lost) that the
+  // glitch test would skip: the prediction across the jump, not one reading, is what
+  // failed (by the stamps alone the robot may have moved for all that time), so they
+  // restart the estimate as after a gap, and the summary names the jump
+  const bool jump_reset = jump && !gap_reset && !late_start && gated > 0;
+  // a restart the data's timing called for (a gap, a late IMU, a jump whose readings
+  // disagree with the prediction across it), not the readings' values alone
+  const bool data_restart = gap_reset || late_start || jump_reset;
   if (data_restart) {  // restart from this sample instead of a blind prediction
-    ++(late_start ? diagnostics.late_imu_starts : diagnostics.gap_resets);
+    if (jump_reset) {
+      if (diagnostics.jump_resets++ == 0) {
+        diagnostics.first_jump_t = t;
+        diagnostics.first_jump_step = valid_step;
+      }
+    } else {
+      ++(late_start ? diagnostics.late_imu_starts : diagnostics.gap_resets);
+    }
     end_chain();
     restart(true);  // the sensors are those of the estimate before
   } else if (back && s_.checks_start) {

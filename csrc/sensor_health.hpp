@@ -232,7 +232,13 @@ struct PolicyDiagnostics {
           untrusted_start_samples = 0,  // estimates of a start the inference did not trust
           glitches = 0,  // IMU readings skipped as glitches (glitch_factor)
           drift_resets = 0,  // restarts after rows drifted for drift_reset
-          late_imu_starts = 0;  // restarts at the first reading of an IMU the start lacked
+          late_imu_starts = 0,  // restarts at the first reading of an IMU the start lacked
+          // restarts after a step shorter than the gap reset but many times the usual one
+          // (a clock that stepped forward, samples lost) whose readings the glitch test
+          // would have skipped
+          jump_resets = 0;
+  // the first such step: the time (s) of the sample after it, and its length (s)
+  double first_jump_t = NAN, first_jump_step = NAN;
   std::vector<std::pair<int, double>> first_freezes;  // (IMU, t), in order
   bool has_failure = false;
   std::string last_failure;
@@ -340,6 +346,8 @@ class SensorHealth {
   std::function<bool(const std::vector<int>&)> observable_;
   std::map<std::vector<int>, bool> observable_cache_;
   double last_t_ = -INFINITY, last_valid_t_ = -INFINITY, first_valid_t_ = -INFINITY;
+  // the average step between valid samples, the jumps left out (NaN before the second)
+  double step_avg_ = NAN;
   // the last sample whose tip standard deviation exceeded the uncertain fraction (the
   // estimate's belief spanned shapes far apart); -inf since the (re)start when none
   double wide_t_ = -INFINITY;

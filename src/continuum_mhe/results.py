@@ -258,6 +258,13 @@ class Diagnostics:
             the last (re)start, given beside every IMU that had (a log whose IMUs start
             apart): the start was made without its part of the shape. On with
             ``recovery.gap_reset``.
+        jump_resets: restarts at the sample after a jump in ``t`` shorter than
+            ``recovery.gap_reset`` but more than five times the average step before it (a
+            clock that stepped forward, a block of samples lost) whose readings the glitch
+            test (``recovery.glitch``) would have skipped: the prediction across the jump,
+            not one reading, failed. On with ``recovery.gap_reset``.
+        first_jump: the first such jump: (``t`` of the sample after it, its length), s;
+            None where there was none.
         last_failure: the last numerical failure's message, if any.
         bound_samples: estimates of status ``at-bound``: a section's bend on its
             ``theta_max`` (the MHE holds it there) or beyond it (a filter); such an
@@ -294,6 +301,8 @@ class Diagnostics:
     glitches: int = 0
     drift_resets: int = 0
     late_imu_starts: int = 0
+    jump_resets: int = 0
+    first_jump: tuple[float, float] | None = None
 
     def copy(self) -> Diagnostics:
         """An independent copy (later steps do not change it)."""

@@ -755,6 +755,20 @@ class PolicyDiagnostics:
         """
 
     @property
+    def jump_resets(self) -> int:
+        """
+        Restarts after a jump in t shorter than the gap reset whose readings disagreed with the prediction across it.
+        """
+
+    @property
+    def first_jump_t(self) -> float:
+        """t (s) of the sample after the first such jump (NaN: none)."""
+
+    @property
+    def first_jump_step(self) -> float:
+        """The first such jump's length, s (NaN: none)."""
+
+    @property
     def last_failure(self) -> str | None:
         """The last numerical failure's description, or None."""
 

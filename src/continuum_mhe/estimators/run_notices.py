@@ -576,7 +576,8 @@ def recovery_clauses(
     """The summary's clauses of what the sensor-health policy did over ``n`` estimates
     (``estimate``'s and ``live``'s), in order: the rows with a frozen IMU (``frozen_by_imu``:
     their count by IMU, where known), the glitches skipped, and the restarts after a
-    diverged estimate, a gap, an IMU's late first reading, a bad start and drifted rows;
+    diverged estimate, a gap, a jump in t, an IMU's late first reading, a bad start and
+    drifted rows;
     those that happened alone."""
     d, r = diagnostics, recovery
     clauses = []
@@ -598,6 +599,17 @@ def recovery_clauses(
         clauses.append(
             f"restarted after {d.gap_resets} gap(s) longer than {r.gap_reset:g} s without a "
             "valid reading (a gap in t, or IMUs silent or stuck on one value)"
+        )
+    if d.jump_resets:
+        first = ""
+        if d.first_jump is not None:
+            t, step = d.first_jump
+            first = f" (the first {step:.3g} s long, before t = {t:g} s)"
+        clauses.append(
+            f"restarted after {d.jump_resets} jump(s) in t shorter than {r.gap_reset:g} s"
+            f"{first} whose "
+            "readings disagreed with the prediction across it (a clock that stepped forward, "
+            "or samples lost)"
         )
     if d.late_imu_starts:
         clauses.append(

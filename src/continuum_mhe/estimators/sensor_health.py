@@ -499,6 +499,8 @@ class Estimator(Generic[InferenceT]):
         d.untrusted_start_samples = got.untrusted_start_samples
         d.glitches = got.glitches
         d.drift_resets, d.late_imu_starts = got.drift_resets, got.late_imu_starts
+        d.jump_resets = got.jump_resets
+        d.first_jump = (got.first_jump_t, got.first_jump_step) if got.jump_resets else None
         for k, t in got.first_freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t
         self.inference.sync_counts()
