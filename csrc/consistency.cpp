@@ -2,6 +2,7 @@
 
 #include <cstring>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -341,14 +342,16 @@ double ConsistencyCheck::predicted_jump(const double* x) const {
   const int nx = s_.nx;
   Eigen::VectorXd d(nx);
   for (int i = 0; i < nx; ++i) d[i] = x[i] - fF_[i];  // fF_ holds f(x0) first
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (Pn_ + Pn_.transpose()));
-  const Eigen::VectorXd w = eig.eigenvalues();
-  const Eigen::VectorXd y = eig.eigenvectors().transpose() * d;
-  // directions the prediction holds below the rounding of its largest variance say nothing
-  const double floor = 1e-12 * std::max(w.maxCoeff(), 0.0);
+  // P = T^T L D L^T T (pivoted): d^T P^+ d = sum y_i^2 / D_i with y = L^-1 T d, over the
+  // pivots above the rounding of the largest (directions the prediction holds below it
+  // say nothing)
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(0.5 * (Pn_ + Pn_.transpose()));
+  const Eigen::VectorXd D = ldlt.vectorD();
+  const Eigen::VectorXd y = ldlt.matrixL().solve(ldlt.transpositionsP() * d);
+  const double floor = 1e-12 * std::max(D.maxCoeff(), 0.0);
   double stat = 0.0;
   for (int i = 0; i < nx; ++i)
-    if (w[i] > floor) stat += y[i] * y[i] / w[i];
+    if (D[i] > floor) stat += y[i] * y[i] / D[i];
   return stat;
 }
 
