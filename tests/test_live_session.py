@@ -1453,3 +1453,36 @@ def test_live_skips_readings_at_a_declared_gyro_range_and_names_them() -> None:
     status = [ln.split(",")[header.split(",").index("status")] for ln in lines]
     assert len(status) == len(gyr) and "ok" in status
     assert all(st == "dropout" for st, hit in zip(status, at_scale) if hit)
+
+
+def test_live_names_a_forward_clock_jump_that_restarts_the_estimate() -> None:
+    """The shipped planar-s rod's raw lines (two IMUs, 50 Hz) whose device clock steps
+    0.9 s forward at 4 s: as ``estimate`` of the same file, the readings after the jump
+    restart the EKF (one ``reset``) and the summary names the jump, not a glitch."""
+    from pathlib import Path
+
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import serial_input
+    from continuum_mhe.io.robot_file import read_robot
+
+    rod = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    lines = []
+    for line in (rod / "planar-s_raw.csv").read_text().splitlines()[1:]:
+        t, rest = line.split(",", 1)
+        lines.append(
+            f"{round((float(t) + (0.9 if float(t) >= 4.0 - 1e-9 else 0.0)) * 1000)},{rest}"
+        )
+    base = make_formulation("bend", read_robot("two-section"), NoiseSettings())
+    serial = serial_input("/dev/ttyIMU", "raw", InputOptions(), base)
+    s = LiveSession(
+        LiveSettings(port="/dev/ttyIMU", fmt="raw"),
+        make_estimator("ekf", serial.formulation),
+        serial.converters,
+        io.StringIO(),
+        say=[].append,
+    )
+    _handle(s, lines)
+    s.finish()
+    summary = s.summary()
+    assert "restarted after 1 jump(s) in t shorter than 1 s (the first 0.92 s long" in summary
+    assert "glitch" not in summary and "reset: 1" in summary
