@@ -2,7 +2,6 @@
 
 #include <cstring>
 
-#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -338,20 +337,21 @@ void ConsistencyCheck::predict(const double* x0, const double* P0, double dt, co
   has_pred_ = true;
 }
 
-double ConsistencyCheck::predicted_jump(const double* x) const {
+double ConsistencyCheck::predicted_jump(const double* x) {
   const int nx = s_.nx;
-  Eigen::VectorXd d(nx);
-  for (int i = 0; i < nx; ++i) d[i] = x[i] - fF_[i];  // fF_ holds f(x0) first
-  // P = T^T L D L^T T (pivoted): d^T P^+ d = sum y_i^2 / D_i with y = L^-1 T d, over the
-  // pivots above the rounding of the largest (directions the prediction holds below it
-  // say nothing)
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(0.5 * (Pn_ + Pn_.transpose()));
-  const Eigen::VectorXd D = ldlt.vectorD();
-  const Eigen::VectorXd y = ldlt.matrixL().solve(ldlt.transpositionsP() * d);
+  jump_y_.resize(nx);
+  for (int i = 0; i < nx; ++i) jump_y_[i] = x[i] - fF_[i];  // fF_ holds f(x0) first
+  // Pn = T^T L D L^T T (pivoted, from its lower triangle): d^T Pn^+ d = sum y_i^2 / D_i
+  // with y = L^-1 T d, over the pivots above the rounding of the largest (directions the
+  // prediction holds below it say nothing)
+  jump_ldlt_.compute(Pn_);
+  jump_y_ = jump_ldlt_.transpositionsP() * jump_y_;
+  jump_ldlt_.matrixL().solveInPlace(jump_y_);
+  const auto D = jump_ldlt_.vectorD();
   const double floor = 1e-12 * std::max(D.maxCoeff(), 0.0);
   double stat = 0.0;
   for (int i = 0; i < nx; ++i)
-    if (D[i] > floor) stat += y[i] * y[i] / D[i];
+    if (D[i] > floor) stat += jump_y_[i] * jump_y_[i] / D[i];
   return stat;
 }
 

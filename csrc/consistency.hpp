@@ -142,10 +142,6 @@ class ConsistencyCheck {
   // the NIS of the innovation this sample's fit implies, ``(R^-1 r)^T S (R^-1 r)`` with
   // ``S`` the predicted innovation covariance (0 without a previous estimate)
   double fit_nis() const { return fit_nis_; }
-  // the estimate's move from the previous one's prediction in the predicted covariance,
-  // ``d^T Pn^+ d`` with ``d = x - f(x0)`` (0 without a previous estimate): a linear
-  // update by readings whose NIS is within the limit moves it at most as far
-  double jump() const { return jump_; }
   // the shift that fits the readings, in this estimate's covariance: ``d^T P^+ d`` with
   // ``d = (H^T R^-1 H)^+ H^T R^-1 r`` over the states the readings depend on; computed
   // only where the fit's NIS is beyond its limit and some shift_limit is finite (a
@@ -184,8 +180,10 @@ class ConsistencyCheck {
   void weighted_jacobian(RowMatrix& Hs, RowMatrix& wh);
   // shift() at this estimate ``x``, ``P`` over the judged readings (rows_)
   double shift_to_fit(const double* x, const double* P, const double* u, double dt);
-  // jump(): x against the prediction predict() left in fF_ and Pn_
-  double predicted_jump(const double* x) const;
+  // the estimate's move from the previous one's prediction in the predicted covariance,
+  // ``d^T Pn^+ d`` with ``d = x - f(x0)``, from what predict() left in fF_ and Pn_: a
+  // linear update by readings whose NIS is within the limit moves it at most as far
+  double predicted_jump(const double* x);
   // the prediction of ``x0``, ``P0`` over ``dt`` with ``u``, ``Q`` and the readings
   // ``z``, ``mask``: fF_ (x+, F), pred_Hr_ (H, r at x+) and Pn_ (F P0 F^T + Q); kept,
   // and not computed again for the same inputs bit for bit (the glitch test and the
@@ -223,6 +221,9 @@ class ConsistencyCheck {
   bool shift_ready_ = false;
   double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0, fit_nis_ = 0.0;
   double shift_ = 0.0, quiet_scale_ = 1.0, jump_ = 0.0;
+  // predicted_jump()'s factorisation and vectors (kept: no allocation a sample)
+  Eigen::LDLT<Eigen::MatrixXd> jump_ldlt_;
+  Eigen::VectorXd jump_y_;
   int avg_dof_ = 0, dof_ = 0, shift_dof_ = 0;
   int quiet_run_ = 0;  // samples in a row the average has been at the quiet level
   // the most readings judged at one sample so far: the quiet level learns only from

@@ -203,7 +203,7 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   std::fill(imu_last_valid_.begin(), imu_last_valid_.end(), -INFINITY);
   std::fill(late_pending_.begin(), late_pending_.end(), 0);
   returned_.clear();
-  forced_before_ = false;
+  forced_before_t_ = -INFINITY;
   hold_ = 0.0;
   end_chain();
   forced_t_.clear();
@@ -657,7 +657,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // second: their return is a gap sooner
     if (whole_missing_ > 0 && !other_missing_ && !std::isnan(s_.whole_gap_reset))
       gap_reset = gap_reset || (-INFINITY < last_valid_t_ &&
-                                longer(t - last_valid_t_, s_.whole_gap_reset, t));
+                                longer(valid_step, s_.whole_gap_reset, t));
     whole_missing_ = 0;
     other_missing_ = false;
     if (!gap_reset && -INFINITY < last_valid_t_) {
@@ -867,7 +867,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // with as well.)
     if (forced) {
       int confirm = s_.start_samples;
-      if (forced_before_) {
+      if (std::isfinite(forced_before_t_)) {
         // confirm_samples, or the readings the unobserved window holds where fewer
         // (a step of 0.2 s read as 0.2000001: the window holds 5, not 4)
         const double within = std::floor(unobserved_window() / (t - forced_before_t_) + 1e-9);
@@ -891,12 +891,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     }
     // the last sample with an IMU reading forced a restart: a sample without one (a
     // dropout, a tension-only line) between the two does not part them
-    if (forced) {
-      forced_before_ = true;
+    if (forced)
       forced_before_t_ = t;
-    } else if (imu_read) {
-      forced_before_ = false;
-    }
+    else if (imu_read)
+      forced_before_t_ = -INFINITY;
     const double scale = consistency_.noise_scale();
     factor = scale > 1.0 ? std::sqrt(scale) : 1.0;
     // a row whose readings this estimate cannot explain (inconsistent, or another

@@ -354,9 +354,8 @@ class SensorHealth {
   // the last row whose tip standard deviation, its own or the one written, was beyond
   // the uncertain fraction, until a row with an IMU reading follows it (-inf: none)
   double wide_row_t_ = -INFINITY;
-  // the last sample with an IMU reading (or a restart) forced a restart (the consistency
-  // check's), at forced_before_t_
-  bool forced_before_ = false;
+  // the time of the restart the last sample with an IMU reading forced (the consistency
+  // check's; the restart's own sample included), -inf where that sample forced none
   double forced_before_t_ = -INFINITY;
   // the last reading beyond one sample's limit that the estimate moved onto
   double jumped_t_ = -INFINITY;

@@ -174,17 +174,20 @@ FLAT_TOP_READINGS = 3
 #: (below every common gyro range, +-125 deg/s and up) ...
 FLAT_TOP_ACCEL = 1.5 * STANDARD_GRAVITY
 FLAT_TOP_GYRO = 2.0
-#: ... while no axis of that sensor has read more (within :data:`CLIP_TOLERANCE`) is at
-#: its full scale, which the rule then takes as that sensor's for the rest of the run.
-_SENSORS = ("accelerometer", "gyro")
-#: ... and only where its value is within FULL_SCALE_MATCH of a common MEMS full scale
-#: (+-2 to 32 g; +-125 to 4000 deg/s): a smooth peak in readings rounded to a few
-#: decimals is a flat top at any value.
+#: ... while no axis of that sensor has read more (within :data:`CLIP_TOLERANCE`), and
+#: at a value within FULL_SCALE_MATCH of a common MEMS full scale (+-2 to 32 g; +-125 to
+#: 4000 deg/s: a smooth peak in readings rounded to a few decimals is a flat top at any
+#: value), is at its full scale, which the rule then takes as that sensor's for the rest
+#: of the run.
 _COMMON_SCALES = (
     tuple(g * STANDARD_GRAVITY for g in (2, 4, 6, 8, 12, 16, 24, 32)),
     tuple(math.radians(d) for d in (125, 245, 250, 500, 1000, 2000, 4000)),
 )
 FULL_SCALE_MATCH = 0.03
+#: ClipWatch's two sensors (index 0 and 1): their names, keys' prefixes and units
+_SENSORS = ("accelerometer", "gyro")
+_KEYS = ("accel", "gyro")
+_UNITS = ("m/s^2", "rad/s")
 
 
 class ClipWatch:
@@ -291,9 +294,9 @@ class ClipWatch:
 
     def _how(self, k: int) -> str:
         """Which full scale sensor ``k`` (0 accelerometer, 1 gyro) is judged by."""
-        unit = ("m/s^2", "rad/s")[k]
+        unit = _UNITS[k]
         if (declared := self.declared[k]) is not None:
-            return f"its {('accel', 'gyro')[k]}_range, {declared:g} {unit}"
+            return f"its {_KEYS[k]}_range, {declared:g} {unit}"
         if (refuted := self.refuted[k]) is not None:
             return f"a flat top at {refuted:.4g} {unit}, taken as its full scale until then"
         return f"a flat top at {self.learned[k]:.4g} {unit}, taken as its full scale"
@@ -316,7 +319,7 @@ class ClipWatch:
         """What read beyond a full scale, as a clause (without the IMU), or None."""
         said = [
             f"{self.beyond[k]} {_SENSORS[k]} reading(s) up to {self.beyond_max[k]:.4g} "
-            f"{('m/s^2', 'rad/s')[k]} beyond {self._how(k)}"
+            f"{_UNITS[k]} beyond {self._how(k)}"
             for k in (0, 1)
             if self.beyond[k]
         ]
