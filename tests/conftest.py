@@ -36,6 +36,13 @@ def pytest_unconfigure() -> None:
 for _threads in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_threads, "1")
 
+# PyElastica's numba kernels (the rod generators' tests) compiled at LLVM's level 1, not
+# 3: in a fresh environment, whose numba cache is empty, the compile is most of those
+# tests' time and level 1 takes about two thirds of it; the simulations run as fast,
+# and the shipped rod recording is still regenerated to its CSV's digits
+# (test_rod_generators.py). Set before numba is imported; an explicit setting is kept.
+os.environ.setdefault("NUMBA_OPT", "1")
+
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from estimator_helpers import (  # noqa: E402
