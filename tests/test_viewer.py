@@ -1481,3 +1481,38 @@ def test_a_file_without_statuses_is_drawn_without_a_status(tmp_path: Path) -> No
     assert main(["view", str(est), "--save", str(rrd)]) == 0
     rows = read_rrd(rrd)
     assert len(rows["/world/estimate/tip"]) == 2 and "/status" not in rows
+
+
+def test_truth_shift_draws_the_truth_on_the_estimates_clock(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A truth whose clock runs 0.5 s ahead: without ``--truth-shift`` the view warns,
+    naming the shift; with ``--truth-shift 0.5`` each truth row is drawn 0.5 s earlier
+    (beside the estimate it belongs to) and nothing is said. The shift needs a truth."""
+    pytest.importorskip("rerun")
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--seed", "2"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    lines = truth.read_text().splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("t,"))
+    for i in range(head + 1, len(lines)):
+        t, rest = lines[i].split(",", 1)
+        lines[i] = f"{float(t) + 0.5!r},{rest}"
+    late = tmp_path / "late.csv"
+    late.write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    plain, shifted = tmp_path / "plain.rrd", tmp_path / "shifted.rrd"
+    assert main(["view", str(est), "--truth", str(late), "--save", str(plain)]) == 0
+    warned = [ln for ln in capsys.readouterr().err.splitlines() if "clocks offset" in ln]
+    assert len(warned) == 1 and warned[0].endswith("; --truth-shift 0.5 compares them so)")
+    assert main(["view", str(est), "--truth", str(late), "--truth-shift", "0.5",
+                 "--save", str(shifted)]) == 0  # fmt: skip
+    assert "warning" not in capsys.readouterr().err
+    tip = "/world/truth/tip"
+    at_plain = [t for t, _ in read_rrd(plain)[tip]]
+    at_shifted = [t for t, _ in read_rrd(shifted)[tip]]
+    assert len(at_plain) == len(at_shifted) > 100
+    assert [a - b for a, b in zip(at_plain, at_shifted)] == [500_000_000] * len(at_plain)
+    assert main(["view", str(est), "--truth-shift", "0.5", "--save", str(shifted)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--truth-shift needs --truth" in err

@@ -9,6 +9,7 @@ import io
 import os
 import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 from continuum_mhe.cli.input_options import add_tensions_option
@@ -25,6 +26,8 @@ from continuum_mhe.viewer import INSTALL_HINT, replay
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.truth_shift and not args.truth:
+        raise InputError("--truth-shift needs --truth TRUTH.csv: it shifts the truth's times")
     sink = viewer_sink_from_args(args)
     # the estimate is read twice, the tensions again where compared with the recorded ones
     with held_for_rereading(args.estimates, args.truth, args.inputs):
@@ -42,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
         sys.stderr.write(said.getvalue())
         replay(
             args.estimates, robot, sink, args.truth, args.trail, args.points,
-            args.inputs or _recorded_tensions(args.estimates, robot),
+            args.inputs or _recorded_tensions(args.estimates, robot), args.truth_shift,
         )  # fmt: skip
         _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0
@@ -140,7 +143,12 @@ def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
         raise InputError(f"{args.truth}: {unit}")  # before a length misfit it would cause
     if len(est.t) < 2:  # one row: nothing to compare times with
         return
-    for line in truth_beside(args.estimates, est, args.truth, truth, robot.lengths)[1]:
+    if args.truth_shift:  # the truth read at t + shift, as evaluate reads it
+        truth = replace(truth, t=truth.t - args.truth_shift)
+    beside = truth_beside(
+        args.estimates, est, args.truth, truth, robot.lengths, "--truth-shift", args.truth_shift
+    )
+    for line in beside[1]:
         print(f"{PROG}: warning: {line}", file=sys.stderr)
 
 
@@ -206,6 +214,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "estimates", metavar="EST.csv", help="estimate CSV (from estimate or live), or MCAP"
     )
     p.add_argument("--truth", metavar="TRUTH.csv", help="truth CSV, drawn in grey")
+    p.add_argument(
+        "--truth-shift",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="draw each estimate row beside the truth SECONDS later (a truth on a clock "
+        "offset from the estimate's, as evaluate --truth-shift compares them)",
+    )
     add_robot_option(p, replaces=("--length", "--mounting"))
     p.add_argument(
         "--length",

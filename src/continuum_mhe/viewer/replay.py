@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -49,11 +50,14 @@ def estimated_extras(names: Sequence[str], robot: Robot) -> tuple[OutputSpec, ..
 def replay(
     estimates: str, robot: Robot, sink: ViewerSink, truth: str | None = None,
     trail_s: float = 10.0, points_per_section: int = 16, tensions: str | None = None,
+    truth_shift: float = 0.0,
 ) -> int:  # fmt: skip
     """Write or show the view of an estimate CSV (and its truth). Returns the number of
     estimates drawn. A tendon robot's backbone (``robot.backbone``) is its mechanics
     model's at each row's tip force under the ``tensions`` file's tensions; without
-    that file, its tips alone are drawn (said in a note)."""
+    that file, its tips alone are drawn (said in a note). The truth's row at time ``t``
+    is drawn at ``t - truth_shift`` s (a truth on a clock that runs ``truth_shift``
+    ahead of the estimate's)."""
     tendon = None
     if robot.backbone is not None:
         outputs = tendon_outputs(robot.n_sections)
@@ -85,6 +89,8 @@ def replay(
     truth_table = None
     if truth is not None:
         truth_table = read_state_table(truth, gaps=True)  # t, x, y, z and any per-section columns
+        if truth_shift:
+            truth_table = replace(truth_table, t=truth_table.t - truth_shift)
         misfit = robot_misfit(truth_table.names, robot, complete=False)
         if misfit:
             raise InputError(f"{truth}: {misfit}; pass --robot with its robot")
