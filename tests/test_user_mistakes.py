@@ -2399,7 +2399,7 @@ def test_plot_refuses_positions_in_mm_without_a_robot(paper3d_pair, tmp_path, ca
 def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(paper3d_pair, tmp_path, capsys) -> None:
     """A truth 0.5 s late: evaluate, plot and view each say it (plot and view do not draw
     the offset as an error of the estimate without a word), naming the --truth-shift that
-    compares them (plot's own, evaluate's for view)."""
+    compares them (each command's own)."""
     e, late = str(paper3d_pair["e"]), str(paper3d_pair["t_late"])
     said = "the truth fits the estimate best +0.5 s later"
     assert main(["evaluate", e, late]) == 0
@@ -2410,7 +2410,7 @@ def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(paper3d_pair, tmp_path
     pytest.importorskip("rerun")
     assert main(["view", e, "--truth", late, "--save", str(tmp_path / "v.rrd")]) == 0
     err = capsys.readouterr().err
-    assert said in err and "evaluate --truth-shift 0.5 compares them so" in err
+    assert said in err and "; --truth-shift 0.5 compares them so" in err
 
 
 def _truth_with_gaps(src: Path, dst: Path, rows: range, columns: set[str] | None) -> None:
