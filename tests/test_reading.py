@@ -397,6 +397,21 @@ def test_raw_times_a_thousand_times_too_long_are_told_by_the_gyros(
     assert main(["estimate", str(good), "-o", str(out), "--robot", "two-section"]) == 0
 
 
+def test_raw_times_in_milliseconds_at_100_hz_are_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 100 Hz raw recording with its times in milliseconds read as seconds steps by
+    10 s a sample, which the reader warns of as it reads; the gyros then show the unit,
+    and the refusal is the one line (the warning is not said before it)."""
+    path = _raw_recording(tmp_path / "c.csv", 0.01, 4.0, 1e3, "t")
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(path), "-o", str(out), "--robot", "two-section"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "t looks like milliseconds: name the column t_ms" in err, err
+    assert not out.exists()
+
+
 def test_a_still_start_longer_than_a_block_does_not_hide_milliseconds(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -209,7 +209,11 @@ class _HeldTimeUnitWarnings:
 
 def run(args: argparse.Namespace) -> int:
     with _HeldTimeUnitWarnings() as held:
-        return _run(args, held)
+        try:
+            return _run(args, held)
+        except InputError:
+            held.drop()  # a refusal is its one line (a time unit's names the unit itself)
+            raise
 
 
 def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
