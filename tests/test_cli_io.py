@@ -444,6 +444,59 @@ def test_a_gap_reset_of_exactly_the_sample_period_restarts_nothing(tmp_path, cap
     assert list(read_state_table(est).status).count("ok") == 40
 
 
+@pytest.mark.parametrize(
+    ("cut", "said"),
+    [
+        ((4.0, 4.5), "estimated across 1 gap(s) in t up to --gap-reset 1 s (about 9 samples "
+         "missing at the usual step of 0.05 s; the largest 0.5 s, before t = 4.5 s)"),
+        ((4.0, 4.2), "estimated across 1 gap(s) in t up to --gap-reset 1 s (about 3 samples "
+         "missing at the usual step of 0.05 s; the largest 0.2 s, before t = 4.2 s)"),
+        ((4.0, 4.1), None),  # one sample lost: a step of twice the usual one, no gap
+        ((4.0, 5.5), None),  # longer than --gap-reset: the restart's clause says it
+        (None, None),
+    ],
+)  # fmt: skip
+def test_the_summary_names_the_gaps_in_t_the_estimate_went_across(tmp_path, capsys, cut, said):
+    """Samples lost for less than --gap-reset (a 20 Hz recording with the rows from 4 s
+    up to 4.5 s left out): the estimator predicts across them, and the summary counts
+    them with the largest; a step of up to three usual ones is no gap, a gap longer than
+    --gap-reset is said as the restart it is, and an even recording has none."""
+    meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "20", "-o", str(meas)]) == 0
+    if cut is not None:
+        lines = meas.read_text().splitlines()
+        kept = [ln for ln in lines[1:] if not cut[0] < float(ln.split(",")[0]) < cut[1]]
+        meas.write_text("\n".join([lines[0], *kept]) + "\n")
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "-o", str(est)]) == 0
+    summary = capsys.readouterr().err.splitlines()[-1]
+    if said is None:
+        assert "estimated across" not in summary, summary
+    else:
+        assert said in summary, summary
+    assert ("restarted after 1 gap(s) longer than 1 s" in summary) == (cut == (4.0, 5.5))
+
+
+def test_gaps_in_t_are_counted_across_blocks_and_in_a_short_recording() -> None:
+    """The gap tally sees a gap between two blocks as one within a block, and judges a
+    recording shorter than its usual-step sample at the end."""
+    from continuum_mhe.estimators.run_notices import GapsInTime
+
+    t = np.arange(0, 30, 0.1)
+    t = np.delete(t, range(100, 104))  # 10.0 to 10.3 s lost: a 0.5 s step
+    whole, split = GapsInTime(1.0), GapsInTime(1.0)
+    whole.add(t)
+    split.add(t[:100])  # the gap between the two blocks
+    split.add(t[100:])
+    for tally in (whole, split):
+        assert (tally.count, tally.missing) == (1, 4)
+        assert tally.largest == pytest.approx(0.5) and tally.largest_t == pytest.approx(10.4)
+    short = GapsInTime(None)
+    short.add(np.array([0.0, 0.1, 0.2, 0.3, 0.9, 1.0]))
+    assert short.clause() is not None and short.count == 1 and short.missing == 5
+    assert GapsInTime(1.0).clause() is None
+
+
 def test_evaluate_of_a_one_row_truth_says_so(tmp_path, capsys):
     """A truth of one row is named, not the estimate whose rows it cannot cover."""
     est = _write(

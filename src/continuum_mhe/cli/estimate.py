@@ -52,6 +52,7 @@ from continuum_mhe.estimators.run_notices import (
     BendsBeyondBound,
     BendsOnBound,
     ForceBeyondTensions,
+    GapsInTime,
     TensionGainFromOne,
     TwistWithTiltImus,
     WideUncertain,
@@ -103,6 +104,7 @@ class _Tally:
     gain: TensionGainFromOne
     twist: TwistWithTiltImus
     wide: WideUncertain
+    gaps: GapsInTime
     counts: dict[str, int] = field(default_factory=dict)
     frozen: dict[str, int] = field(default_factory=dict)
     outliers: int = 0
@@ -152,6 +154,7 @@ def _estimate_block(
     tally.twist.add(batch.output)
     tally.gain.add(batch.output, batch.output_std)
     tally.wide.add(batch.output_std, codes)
+    tally.gaps.add(t)
     tally.readings += int(np.isfinite(z).any(axis=1).sum())
     behind.submit(sink.write_batch, t, batch.output, batch.output_std, batch.outlier,
                   statuses, batch.solve_ms)  # fmt: skip
@@ -253,6 +256,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
             TensionGainFromOne(formulation),
             TwistWithTiltImus(formulation),
             WideUncertain(formulation, args.uncertain_fraction),
+            GapsInTime(est.recovery.gap_reset),
         )
         source = args.measurements  # by its full path, as --robot and --inputs are
         made = f"{version()} estimate {source if source == '-' else Path(source).resolve()}"
@@ -347,6 +351,8 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         msg += f"; {clause}"
     if free_note := free_of_load_clause(est.inference, n):
         msg += f"; {free_note}"
+    if gaps := tally.gaps.clause():
+        msg += f"; {gaps}"
     frozen = ", ".join(f"{k}: {v}" for k, v in sorted(tally.frozen.items()))
     for clause in recovery_clauses(diag, est.recovery, n, frozen):
         msg += f"; {clause}"

@@ -311,6 +311,88 @@ class TwistWithTiltImus:
         )
 
 
+#: A step of ``t`` longer than this many times the recording's usual one (the median of
+#: its first :data:`GAP_PERIOD_STEPS` steps) is a gap: samples lost between two read
+#: (:class:`GapsInTime`; ``live`` counts its lines' gaps alike).
+GAP_FACTOR = 3.0
+#: The steps of ``t`` whose median is the usual one (:class:`GapsInTime`).
+GAP_PERIOD_STEPS = 256
+
+
+class GapsInTime:
+    """The gaps in a recording's ``t`` (steps longer than :data:`GAP_FACTOR` times its
+    usual step) that are not longer than the gap reset: the estimator predicts across
+    them without a word of its own (a longer one restarts it, and its summary says so),
+    counted block by block (:meth:`add`) for one clause at the end (:meth:`clause`).
+    The usual step is the median of the first :data:`GAP_PERIOD_STEPS` steps, once
+    that many are read (of the whole recording where shorter)."""
+
+    def __init__(self, gap_reset: float | None) -> None:
+        self.gap_reset = gap_reset
+        # (step, time after it) of the steps before the usual one is known
+        self._pending: list[tuple[float, float]] = []
+        self._last_t: float | None = None
+        self.period: float | None = None
+        self.count = 0
+        self.missing = 0
+        self.largest = 0.0
+        self.largest_t = float("nan")  # the time of the sample after the largest gap
+
+    def add(self, t: FloatArray) -> None:
+        """Count the times ``t`` (n,) s, following those of the blocks before."""
+        if not len(t):
+            return
+        before = [] if self._last_t is None else [self._last_t]
+        ends = np.concatenate([before, np.asarray(t, dtype=float)])
+        self._last_t = float(ends[-1])
+        steps, after = np.diff(ends), ends[1:]
+        if self.period is None:
+            self._pending.extend(zip(steps.tolist(), after.tolist()))
+            if len(self._pending) < GAP_PERIOD_STEPS:
+                return
+            self._settle()
+            return
+        self._count(steps, after)
+
+    def _settle(self) -> None:
+        """Take the usual step from the steps held, and count them."""
+        if not self._pending:
+            return
+        steps = np.array([s for s, _ in self._pending])
+        after = np.array([a for _, a in self._pending])
+        self._pending = []
+        period = float(np.median(steps))
+        if period > 0:
+            self.period = period
+            self._count(steps, after)
+
+    def _count(self, steps: FloatArray, after: FloatArray) -> None:
+        assert self.period is not None
+        limit = np.inf if self.gap_reset is None else self.gap_reset
+        gap = (steps > GAP_FACTOR * self.period) & (steps <= limit)
+        if not gap.any():
+            return
+        self.count += int(gap.sum())
+        self.missing += int(np.sum(np.maximum(np.rint(steps[gap] / self.period) - 1, 0)))
+        k = int(np.argmax(np.where(gap, steps, -np.inf)))
+        if steps[k] > self.largest:
+            self.largest, self.largest_t = float(steps[k]), float(after[k])
+
+    def clause(self) -> str | None:
+        """The summary's clause of the gaps counted (None: none); the steps held for a
+        recording shorter than :data:`GAP_PERIOD_STEPS` are judged now."""
+        if self.period is None:
+            self._settle()
+        if not self.count:
+            return None
+        within = "" if self.gap_reset is None else f" up to --gap-reset {self.gap_reset:g} s"
+        return (
+            f"estimated across {self.count} gap(s) in t{within} (about {self.missing} "
+            f"samples missing at the usual step of {self.period:.3g} s; the largest "
+            f"{self.largest:.3g} s, before t = {self.largest_t:g} s)"
+        )
+
+
 #: The share of a run's estimates ``uncertain`` for a wide tip standard deviation above
 #: which ``estimate`` says why (:class:`WideUncertain`).
 WIDE_NOTICE_SHARE = 0.1
