@@ -484,15 +484,21 @@ def test_gaps_in_t_are_counted_across_blocks_and_in_a_short_recording() -> None:
 
     t = np.arange(0, 30, 0.1)
     t = np.delete(t, range(100, 104))  # 10.0 to 10.3 s lost: a 0.5 s step
-    whole, split = GapsInTime(1.0), GapsInTime(1.0)
-    whole.add(t)
-    split.add(t[:100])  # the gap between the two blocks
-    split.add(t[100:])
+    whole, split, reset = GapsInTime(1.0), GapsInTime(1.0), GapsInTime(1.0)
+    going_on = np.zeros(len(t), dtype=bool)
+    whole.add(t, going_on)
+    split.add(t[:100], going_on[:100])  # the gap between the two blocks
+    split.add(t[100:], going_on[100:])
     for tally in (whole, split):
         assert (tally.count, tally.missing) == (1, 4)
         assert tally.largest == pytest.approx(0.5) and tally.largest_t == pytest.approx(10.4)
+    restarted = going_on.copy()
+    restarted[100] = True  # the estimator restarted after it: not estimated across
+    reset.add(t, restarted)
+    assert reset.count == 0 and reset.clause() is None
     short = GapsInTime(None)
-    short.add(np.array([0.0, 0.1, 0.2, 0.3, 0.9, 1.0]))
+    times = np.array([0.0, 0.1, 0.2, 0.3, 0.9, 1.0])
+    short.add(times, np.zeros(len(times), dtype=bool))
     assert short.clause() is not None and short.count == 1 and short.missing == 5
     assert GapsInTime(1.0).clause() is None
 

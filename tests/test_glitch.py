@@ -528,6 +528,7 @@ def test_a_forward_clock_jump_restarts_and_is_named_not_skipped_as_a_glitch(
     text = said.out + said.err
     assert "restarted after 1 jump(s) in t shorter than 1 s" in text
     assert "0.92 s long, before t = 4.9 s" in text and "glitches" not in text
+    assert "estimated across" not in text  # restarted there: not a gap predicted across
     with out.open() as fh:
         rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
     with (DATA / "rod2" / "planar-s_truth.csv").open() as fh:

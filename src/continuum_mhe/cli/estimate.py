@@ -154,7 +154,7 @@ def _estimate_block(
     tally.twist.add(batch.output)
     tally.gain.add(batch.output, batch.output_std)
     tally.wide.add(batch.output_std, codes)
-    tally.gaps.add(t)
+    tally.gaps.add(t, codes == "reset")
     tally.readings += int(np.isfinite(z).any(axis=1).sum())
     behind.submit(sink.write_batch, t, batch.output, batch.output_std, batch.outlier,
                   statuses, batch.solve_ms)  # fmt: skip

@@ -321,16 +321,18 @@ GAP_PERIOD_STEPS = 256
 
 class GapsInTime:
     """The gaps in a recording's ``t`` (steps longer than :data:`GAP_FACTOR` times its
-    usual step) that are not longer than the gap reset: the estimator predicts across
-    them without a word of its own (a longer one restarts it, and its summary says so),
-    counted block by block (:meth:`add`) for one clause at the end (:meth:`clause`).
+    usual step) that are not longer than the gap reset and after which the estimator
+    did not restart: it predicted across them without a word of its own (a longer one,
+    or one whose readings disagreed with the prediction across it, restarts it, and its
+    summary says so), counted block by block (:meth:`add`) for one clause at the end
+    (:meth:`clause`).
     The usual step is the median of the first :data:`GAP_PERIOD_STEPS` steps, once
     that many are read (of the whole recording where shorter)."""
 
     def __init__(self, gap_reset: float | None) -> None:
         self.gap_reset = gap_reset
-        # (step, time after it) of the steps before the usual one is known
-        self._pending: list[tuple[float, float]] = []
+        # (step, time after it, restarted there) of the steps before the usual one is known
+        self._pending: list[tuple[float, float, bool]] = []
         self._last_t: float | None = None
         self.period: float | None = None
         self.count = 0
@@ -338,38 +340,41 @@ class GapsInTime:
         self.largest = 0.0
         self.largest_t = float("nan")  # the time of the sample after the largest gap
 
-    def add(self, t: FloatArray) -> None:
-        """Count the times ``t`` (n,) s, following those of the blocks before."""
+    def add(self, t: FloatArray, restarted: NDArray[np.bool_]) -> None:
+        """Count the times ``t`` (n,) s, following those of the blocks before;
+        ``restarted`` (n,): the estimator restarted at that sample (status ``reset``)."""
         if not len(t):
             return
         before = [] if self._last_t is None else [self._last_t]
         ends = np.concatenate([before, np.asarray(t, dtype=float)])
         self._last_t = float(ends[-1])
         steps, after = np.diff(ends), ends[1:]
+        reset = np.asarray(restarted, dtype=bool)[len(t) - len(steps) :]
         if self.period is None:
-            self._pending.extend(zip(steps.tolist(), after.tolist()))
+            self._pending.extend(zip(steps.tolist(), after.tolist(), reset.tolist()))
             if len(self._pending) < GAP_PERIOD_STEPS:
                 return
             self._settle()
             return
-        self._count(steps, after)
+        self._count(steps, after, reset)
 
     def _settle(self) -> None:
         """Take the usual step from the steps held, and count them."""
         if not self._pending:
             return
-        steps = np.array([s for s, _ in self._pending])
-        after = np.array([a for _, a in self._pending])
+        steps = np.array([s for s, _, _ in self._pending])
+        after = np.array([a for _, a, _ in self._pending])
+        reset = np.array([r for _, _, r in self._pending], dtype=bool)
         self._pending = []
         period = float(np.median(steps))
         if period > 0:
             self.period = period
-            self._count(steps, after)
+            self._count(steps, after, reset)
 
-    def _count(self, steps: FloatArray, after: FloatArray) -> None:
+    def _count(self, steps: FloatArray, after: FloatArray, reset: NDArray[np.bool_]) -> None:
         assert self.period is not None
         limit = np.inf if self.gap_reset is None else self.gap_reset
-        gap = (steps > GAP_FACTOR * self.period) & (steps <= limit)
+        gap = (steps > GAP_FACTOR * self.period) & (steps <= limit) & ~reset
         if not gap.any():
             return
         self.count += int(gap.sum())
