@@ -41,6 +41,8 @@ for _threads in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 # tests' time and level 1 takes about two thirds of it; the simulations run as fast,
 # and the shipped rod recording is still regenerated to its CSV's digits
 # (test_rod_generators.py). Set before numba is imported; an explicit setting is kept.
+# PyElastica caches its kernels in its own folder, keyed without the level, so later
+# runs in the same environment may load these: the same results, at about the speed.
 os.environ.setdefault("NUMBA_OPT", "1")
 
 import numpy as np  # noqa: E402

@@ -167,47 +167,6 @@ def test_the_check_is_on_by_default_for_tilt_only_and_the_cli_sets_it() -> None:
 ROD = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
 
 
-@pytest.mark.parametrize(
-    ("recording", "robot", "method", "recorded"),
-    [
-        ("planar-s_tilt", "two-section", [], "branch-check = true"),  # on: tilt, 2 sections
-        ("planar-s_raw", "two-section", [], "branch-check = false"),  # off: the gyros
-        ("planar-s_raw", "two-section", ["--branch-check"], "branch-check = true"),
-        ("planar-s_tilt", "two-section", ["--method", "ekf"], None),  # no window
-    ],
-)
-def test_the_estimate_file_records_the_checks_automatic_choice(
-    tmp_path, recording, robot, method, recorded
-) -> None:
-    """The ``# options`` line holds the branch check as the run made it, chosen by the
-    data where no option set it, so that ``--config`` with the file runs it again so:
-    the same rows."""
-    from continuum_mhe.cli import main
-
-    rows = 120
-    lines = (ROD / f"{recording}.csv").read_text().splitlines()[: rows + 1]
-    data = tmp_path / "data.csv"
-    data.write_text("\n".join(lines) + "\n")
-    out = tmp_path / "est.csv"
-    assert main(["estimate", str(data), "--robot", robot, "-o", str(out), *method]) == 0
-    options = next(ln for ln in out.read_text().splitlines() if ln.startswith("# options"))
-    if recorded is None:
-        assert "branch-check" not in options
-        return
-    assert recorded in options
-    again = tmp_path / "again.csv"
-    assert (
-        main(["estimate", str(data), "--robot", robot, "--config", str(out), "-o", str(again)]) == 0
-    )
-
-    def table(path):
-        return [
-            ln.split(",")[:-1] for ln in path.read_text().splitlines() if not ln.startswith("#")
-        ]
-
-    assert table(again) == table(out)  # every column but solve_ms
-
-
 def test_the_default_holds_the_branch_where_the_mhe_without_the_check_flips() -> None:
     """The first 200 samples of the torsion-stiff two-section Cosserat rod, tilt only:
     while section 1 passes 90 to 110 degrees (samples 124 to 145, where every estimator

@@ -501,6 +501,15 @@ def test_gaps_in_t_are_counted_across_blocks_and_in_a_short_recording() -> None:
     short.add(times, np.zeros(len(times), dtype=bool))
     assert short.clause() is not None and short.count == 1 and short.missing == 5
     assert GapsInTime(1.0).clause() is None
+    # at --gap-reset itself, within the times' rounding, the policy does not restart:
+    # such a gap is counted; one clearly longer is the restart's to say
+    even = np.arange(0, 30, 0.1)
+    edge = np.concatenate([even, even + even[-1] + 1.0000005])  # a step of 1.0000005 s
+    beyond = np.concatenate([even, even + even[-1] + 1.01])
+    for times, counted in ((edge, 1), (beyond, 0)):
+        tally = GapsInTime(1.0)
+        tally.add(times, np.zeros(len(times), dtype=bool))
+        assert tally.count == counted
 
 
 def test_evaluate_of_a_one_row_truth_says_so(tmp_path, capsys):

@@ -412,6 +412,31 @@ def test_raw_times_in_milliseconds_at_100_hz_are_refused_in_one_line(
     assert not out.exists()
 
 
+def test_a_refusal_for_another_fault_keeps_the_time_units_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Times in milliseconds and gyros in deg/s: the gyros' refusal is said, and the
+    warning that t steps like milliseconds before it (the second fault, so that fixing
+    the first does not meet it as a surprise)."""
+    path = _raw_recording(tmp_path / "d.csv", 0.01, 4.0, 1e3, "t")
+    lines = path.read_text().splitlines()
+    names = lines[0].split(",")
+    gyro = [i for i, n in enumerate(names) if n.startswith("g")]
+    rows = []
+    for line in lines[1:]:
+        v = line.split(",")
+        rows.append(",".join(repr(math.degrees(float(x))) if i in gyro else x
+                             for i, x in enumerate(v)))  # fmt: skip
+    path.write_text("\n".join([lines[0], *rows]) + "\n")
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(path), "-o", str(out), "--robot", "two-section"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert "t advances by a median of" in err[0] and "name the column t_ms" in err[0], err
+    assert err[-1].startswith("continuum-mhe: error: ") and "deg/s" in err[-1], err
+    assert not out.exists()
+
+
 def test_a_still_start_longer_than_a_block_does_not_hide_milliseconds(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -4,6 +4,7 @@ core's calls take (imports nothing from the package)."""
 from __future__ import annotations
 
 import sys
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,11 +53,15 @@ def typical_step(t: FloatArray) -> float:
     return float(np.median(longer if len(longer) else steps))
 
 
-def longer(span: float, limit: float, t: float) -> bool:
+@overload
+def longer(span: float, limit: float, t: float) -> bool: ...
+@overload
+def longer(span: FloatArray, limit: float, t: FloatArray) -> NDArray[np.bool_]: ...
+def longer(span: Any, limit: float, t: Any) -> Any:
     """Whether the time ``span`` (s) between two samples, the later at ``t`` (s), is
     longer than ``limit`` (s) by more than the times' rounding, as the compiled
     sensor-health policy decides it (``longer`` in ``csrc/sensor_health.cpp``): 1 us (a
     file's times kept to the microsecond) and a few units in the last place of ``t``
     (2e-7 s at a Unix time of 1.7e9 s), so that a step of exactly the limit, as the
-    times subtract, is not longer."""
+    times subtract, is not longer. Element by element for arrays ``span`` and ``t``."""
     return span > limit + 1e-6 + 8.0 * sys.float_info.epsilon * abs(t)

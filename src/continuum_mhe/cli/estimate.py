@@ -214,8 +214,9 @@ def run(args: argparse.Namespace) -> int:
     with _HeldTimeUnitWarnings() as held:
         try:
             return _run(args, held)
-        except InputError:
-            held.drop()  # a refusal is its one line (a time unit's names the unit itself)
+        except InputError as exc:
+            if "milliseconds" in str(exc):  # a time unit's refusal names the unit itself
+                held.drop()
             raise
 
 

@@ -130,14 +130,7 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
         leave_out |= {"bad_start", "glitch"} if robust else {"reject_reset"}
         if not formulation.drift_resets():
             leave_out.add("drift_reset")
-        recorded = args
-        if method == "mhe" and getattr(args, "branch_check", None) is None:
-            # the automatic choice, as the run made it (the file reproduces the run)
-            from continuum_mhe.estimators.branch import checks_branch
-
-            recorded = argparse.Namespace(**vars(args))
-            recorded.branch_check = checks_branch(formulation, None, robust=robust)
-        args.options_record = options_record(parser, recorded, leave_out)
+        args.options_record = options_record(parser, args, leave_out)
     return method
 
 

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import FloatArray, longer
+from continuum_mhe.errors import time_text
 from continuum_mhe.estimators.base import Inference, tension_rows
 from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
 from continuum_mhe.estimators.process_noise import bend_accel_psd_applies
@@ -374,7 +375,9 @@ class GapsInTime:
     def _count(self, steps: FloatArray, after: FloatArray, reset: NDArray[np.bool_]) -> None:
         assert self.period is not None
         limit = np.inf if self.gap_reset is None else self.gap_reset
-        gap = (steps > GAP_FACTOR * self.period) & (steps <= limit) & ~reset
+        # not longer than the gap reset as the compiled policy decides it (the times'
+        # rounding allowed: arrays.longer), so that no gap goes unsaid at the limit
+        gap = (steps > GAP_FACTOR * self.period) & ~longer(steps, limit, after) & ~reset
         if not gap.any():
             return
         self.count += int(gap.sum())
@@ -394,7 +397,7 @@ class GapsInTime:
         return (
             f"estimated across {self.count} gap(s) in t{within} (about {self.missing} "
             f"samples missing at the usual step of {self.period:.3g} s; the largest "
-            f"{self.largest:.3g} s, before t = {self.largest_t:g} s)"
+            f"{self.largest:.3g} s, before t = {time_text(self.largest_t)} s)"
         )
 
 
@@ -691,7 +694,7 @@ def recovery_clauses(
         first = ""
         if d.first_jump is not None:
             t, step = d.first_jump
-            first = f" (the first {step:.3g} s long, before t = {t:g} s)"
+            first = f" (the first {step:.3g} s long, before t = {time_text(t)} s)"
         clauses.append(
             f"restarted after {d.jump_resets} jump(s) in t shorter than {r.gap_reset:g} s"
             f"{first} whose "
