@@ -167,6 +167,35 @@ def test_the_check_is_on_by_default_for_tilt_only_and_the_cli_sets_it() -> None:
 ROD = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
 
 
+def test_the_estimate_file_says_whether_the_branch_check_ran(tmp_path) -> None:
+    """The ``# model`` line (which ``--config`` does not apply) says whether the MHE ran
+    the branch check, as the input chose it where no option set it: on for two sections
+    with tilt IMUs, off with their gyros and with a robust loss, absent for a filter.
+    An estimate file of raw IMUs given as ``--config`` to a tilt recording leaves the
+    tilt recording's own choice (on)."""
+    import tomllib
+
+    from continuum_mhe.cli import main
+
+    def ran(*args: str) -> bool | None:
+        out = tmp_path / "e.csv"
+        assert main(["estimate", *args, "--robot", "two-section", "-o", str(out),
+                     "--overwrite"]) == 0  # fmt: skip
+        line = next(ln for ln in out.read_text().splitlines() if ln.startswith("# model"))
+        return tomllib.loads(line[2:])["model"].get("branch-check")
+
+    tilt, raw = tmp_path / "tilt.csv", tmp_path / "raw.csv"
+    for name, path in (("planar-s_tilt", tilt), ("planar-s_raw", raw)):
+        path.write_text("\n".join((ROD / f"{name}.csv").read_text().splitlines()[:81]) + "\n")
+    assert ran(str(tilt)) is True
+    assert ran(str(raw)) is False
+    assert ran(str(tilt), "--loss", "huber") is False
+    assert ran(str(tilt), "--method", "ekf") is None
+    profile = tmp_path / "raw_est.csv"
+    assert main(["estimate", str(raw), "--robot", "two-section", "-o", str(profile)]) == 0
+    assert ran(str(tilt), "--config", str(profile)) is True
+
+
 def test_the_default_holds_the_branch_where_the_mhe_without_the_check_flips() -> None:
     """The first 200 samples of the torsion-stiff two-section Cosserat rod, tilt only:
     while section 1 passes 90 to 110 degrees (samples 124 to 145, where every estimator

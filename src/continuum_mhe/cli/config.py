@@ -528,15 +528,27 @@ def recorded_option(path: str, key: str) -> Any:
 _UNREAD_OPTIONS: set[str] = set()
 
 
-def model_record(formulation: Formulation) -> str:
+def model_record(formulation: Formulation, branch_check: bool | None = None) -> str:
     """The model an estimate ran on, as the TOML inline table an estimate file records
     beside its options (``{name = "direct", states = ["a_1", ...]}``): the options
     leave some choices to the input (raw IMUs with gyros take the direct model and its
-    gyro biases), and this line says which were made."""
+    gyro biases; the MHE's branch check, ``branch_check``, None for a filter), and this
+    line says which were made. ``--config`` does not apply it: another input decides
+    them again."""
     import json
 
     names = ", ".join(json.dumps(n) for n in formulation.state_names)
-    return f"{{name = {json.dumps(formulation.name)}, states = [{names}]}}"
+    check = "" if branch_check is None else f", branch-check = {str(branch_check).lower()}"
+    return f"{{name = {json.dumps(formulation.name)}, states = [{names}]{check}}}"
+
+
+def branch_check_ran(estimator: object) -> bool | None:
+    """Whether ``estimator`` (of :func:`~continuum_mhe.estimators.make_estimator`) runs
+    the MHE's branch check; None where it has no window."""
+    inference = getattr(estimator, "inference", None)
+    if not hasattr(inference, "branch"):
+        return None
+    return getattr(inference, "branch", None) is not None
 
 
 def options_record(

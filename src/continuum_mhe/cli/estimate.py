@@ -23,6 +23,7 @@ from continuum_mhe.cli.config import (
     OPTIONS_LINE,
     T0_LINE,
     add_config_option,
+    branch_check_ran,
     model_record,
 )
 from continuum_mhe.cli.input_options import (
@@ -264,7 +265,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         notes = [
             (MADE_LINE, json.dumps(made)),
             (OPTIONS_LINE, args.options_record),
-            (MODEL_LINE, model_record(formulation)),
+            (MODEL_LINE, model_record(formulation, branch_check_ran(est))),
         ]
         if stream.t0_ns:  # an MCAP's messages are stamped t0_ns + t, and say it too
             notes.append((T0_LINE, str(stream.t0_ns)))

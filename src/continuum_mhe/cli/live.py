@@ -14,6 +14,7 @@ from continuum_mhe.cli.config import (
     MODEL_LINE,
     OPTIONS_LINE,
     add_config_option,
+    branch_check_ran,
     model_record,
 )
 from continuum_mhe.cli.input_options import (
@@ -139,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
                     + (f", {LIVE_RECORDING} {rec_path.resolve()}" if rec_path is not None else "")
                 ),
                 f"{OPTIONS_LINE} = {args.options_record}",
-                f"{MODEL_LINE} = {model_record(formulation)}",
+                f"{MODEL_LINE} = {model_record(formulation, branch_check_ran(estimator))}",
             ),
         )
     )
