@@ -512,6 +512,18 @@ def test_gaps_in_t_are_counted_across_blocks_and_in_a_short_recording() -> None:
         assert tally.count == counted
 
 
+def test_rows_written_twice_are_no_gaps_in_t() -> None:
+    """A logger that writes each row twice, a microsecond apart: the usual step is the
+    rows' period (the project's typical step, bursts left out), so no step is a gap."""
+    from continuum_mhe.estimators.run_notices import GapsInTime
+
+    even = np.arange(0, 20, 0.05)
+    twice = np.sort(np.concatenate([even, even + 1e-6]))
+    tally = GapsInTime(1.0)
+    tally.add(twice, np.zeros(len(twice), dtype=bool))
+    assert tally.clause() is None and tally.period == pytest.approx(0.05, rel=1e-3)
+
+
 def test_evaluate_of_a_one_row_truth_says_so(tmp_path, capsys):
     """A truth of one row is named, not the estimate whose rows it cannot cover."""
     est = _write(

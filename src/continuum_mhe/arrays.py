@@ -48,7 +48,11 @@ def typical_step(t: FloatArray) -> float:
     """The median step (s) of the increasing times ``t`` (n >= 2), of the steps of at
     least :data:`BURST_STEP_S` where there are such: rows written twice, or stamped in
     bursts a microsecond apart, do not make the period look like a microsecond."""
-    steps = np.diff(np.asarray(t, dtype=float))
+    return typical_of_steps(np.diff(np.asarray(t, dtype=float)))
+
+
+def typical_of_steps(steps: FloatArray) -> float:
+    """:func:`typical_step` of the steps ``steps`` (s, at least one) themselves."""
     longer = steps[steps >= BURST_STEP_S]
     return float(np.median(longer if len(longer) else steps))
 

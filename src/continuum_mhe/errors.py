@@ -40,6 +40,12 @@ class InputError(UserError):
     and line."""
 
 
+class TimeUnitError(InputError):
+    """An input refused because its times are in another unit than the one read (a
+    ``t`` column in milliseconds, a ``t_ms`` one in microseconds): the line names the
+    unit, which any warning of the times' steps would only repeat."""
+
+
 class SampleTimeError(UserError):
     """A sample whose time is not later than the previous sample's: a sample that came
     late or twice (an online caller leaves it out and steps on: the estimator is as it

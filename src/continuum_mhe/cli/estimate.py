@@ -47,7 +47,7 @@ from continuum_mhe.cli.model_options import (
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.cli.recovery_options import add_recovery_options, recovery_settings_from_args
-from continuum_mhe.errors import InputError, time_text
+from continuum_mhe.errors import InputError, TimeUnitError, time_text
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.run_notices import (
     BendsBeyondBound,
@@ -215,9 +215,8 @@ def run(args: argparse.Namespace) -> int:
     with _HeldTimeUnitWarnings() as held:
         try:
             return _run(args, held)
-        except InputError as exc:
-            if "milliseconds" in str(exc):  # a time unit's refusal names the unit itself
-                held.drop()
+        except TimeUnitError:  # its line names the unit that the warnings would
+            held.drop()
             raise
 
 

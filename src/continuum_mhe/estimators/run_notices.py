@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.arrays import FloatArray, longer
+from continuum_mhe.arrays import FloatArray, longer, typical_of_steps
 from continuum_mhe.errors import time_text
 from continuum_mhe.estimators.base import Inference, tension_rows
 from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
@@ -312,9 +312,9 @@ class TwistWithTiltImus:
         )
 
 
-#: A step of ``t`` longer than this many times the recording's usual one (the median of
-#: its first :data:`GAP_PERIOD_STEPS` steps) is a gap: samples lost between two read
-#: (:class:`GapsInTime`; ``live`` counts its lines' gaps alike).
+#: A step of ``t`` longer than this many times the recording's usual one is a gap:
+#: samples lost between two read (:class:`GapsInTime`; ``live``'s default
+#: ``gap_factor`` for its lines' gaps).
 GAP_FACTOR = 3.0
 #: The steps of ``t`` whose median is the usual one (:class:`GapsInTime`).
 GAP_PERIOD_STEPS = 256
@@ -327,13 +327,15 @@ class GapsInTime:
     or one whose readings disagreed with the prediction across it, restarts it, and its
     summary says so), counted block by block (:meth:`add`) for one clause at the end
     (:meth:`clause`).
-    The usual step is the median of the first :data:`GAP_PERIOD_STEPS` steps, once
-    that many are read (of the whole recording where shorter)."""
+    The usual step is :func:`~continuum_mhe.arrays.typical_of_steps` of the first
+    :data:`GAP_PERIOD_STEPS` steps, once that many are read (of the whole recording
+    where shorter)."""
 
     def __init__(self, gap_reset: float | None) -> None:
         self.gap_reset = gap_reset
-        # (step, time after it, restarted there) of the steps before the usual one is known
-        self._pending: list[tuple[float, float, bool]] = []
+        # the steps before the usual one is known: (steps, times after them, restarted
+        # there) of each block
+        self._pending: list[tuple[FloatArray, FloatArray, NDArray[np.bool_]]] = []
         self._last_t: float | None = None
         self.period: float | None = None
         self.count = 0
@@ -352,10 +354,9 @@ class GapsInTime:
         steps, after = np.diff(ends), ends[1:]
         reset = np.asarray(restarted, dtype=bool)[len(t) - len(steps) :]
         if self.period is None:
-            self._pending.extend(zip(steps.tolist(), after.tolist(), reset.tolist()))
-            if len(self._pending) < GAP_PERIOD_STEPS:
-                return
-            self._settle()
+            self._pending.append((steps, after, reset))
+            if sum(len(p[0]) for p in self._pending) >= GAP_PERIOD_STEPS:
+                self._settle()
             return
         self._count(steps, after, reset)
 
@@ -363,11 +364,11 @@ class GapsInTime:
         """Take the usual step from the steps held, and count them."""
         if not self._pending:
             return
-        steps = np.array([s for s, _, _ in self._pending])
-        after = np.array([a for _, a, _ in self._pending])
-        reset = np.array([r for _, _, r in self._pending], dtype=bool)
+        steps, after, reset = (np.concatenate(part) for part in zip(*self._pending))
         self._pending = []
-        period = float(np.median(steps))
+        if not len(steps):
+            return
+        period = typical_of_steps(steps)
         if period > 0:
             self.period = period
             self._count(steps, after, reset)

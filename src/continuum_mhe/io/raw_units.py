@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import InputError
+from continuum_mhe.errors import InputError, TimeUnitError
 from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 
@@ -380,7 +380,7 @@ def check_time_unit(
         else "t looks like milliseconds: name the column t_ms (t is read in seconds; "
         "microseconds: divide them by 1000 first)"
     )
-    raise InputError(f"{name}: {problem}: {fix}")
+    raise TimeUnitError(f"{name}: {problem}: {fix}")
 
 
 def check_gyro_units(

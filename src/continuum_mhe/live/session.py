@@ -19,6 +19,7 @@ from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
 from continuum_mhe.estimators.run_notices import (
+    GAP_FACTOR,
     BendsBeyondBound,
     ForceBeyondTensions,
     TensionGainFromOne,
@@ -135,7 +136,7 @@ class LiveSettings:
     fmt: LineFormat = "raw"
     duration: float | None = None
     status_every: float = 1.0
-    gap_factor: float = 3.0
+    gap_factor: float = GAP_FACTOR
     behind_s: float = 1.0
     retry_max_s: float = 5.0
     restart_jump_s: float = 1.0
