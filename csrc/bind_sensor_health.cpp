@@ -22,6 +22,7 @@
 #include "bind_arrays.hpp"
 #include "bindings.hpp"
 #include "horizon.hpp"
+#include "process_noise.hpp"
 #include "sensor_health.hpp"
 #include "unscented.hpp"
 
@@ -461,7 +462,29 @@ class Running {
   std::optional<std::thread::id> outer_;
 };
 
+// The compiled process noise, and the Python function that answers where its Q is not
+// positive definite (its one-line error names the step)
+struct BoundProcessNoise {
+  ProcessNoise core;
+  nb::object fallback;
+};
+
+// ``process_noise(dt) -> (Q, Q^-1)``: a ProcessNoise in compiled code (Python only for its
+// fallback), or any Python callable
 ProcessModel::QFunction q_function(nb::object fn, int nx) {
+  if (nb::isinstance<BoundProcessNoise>(fn)) {
+    BoundProcessNoise* p = nb::cast<BoundProcessNoise*>(fn);
+    if (p->core.nx != nx)
+      throw std::invalid_argument("the process noise has " + std::to_string(p->core.nx) +
+                                  " states, expected " + std::to_string(nx));
+    return [fn, p, nx](double dt, double* Q, double* Qinv) {
+      if (p->core.compute(dt, Q, Qinv)) return;
+      nb::gil_scoped_acquire gil;
+      nb::tuple r = nb::cast<nb::tuple>(p->fallback(dt));
+      read_into(r[0], size_t(nx) * nx, Q, "Q");
+      read_into(r[1], size_t(nx) * nx, Qinv, "Q^-1");
+    };
+  }
   return [fn, nx](double dt, double* Q, double* Qinv) {
     nb::gil_scoped_acquire gil;
     nb::tuple r = nb::cast<nb::tuple>(fn(dt));
@@ -611,6 +634,31 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             return c.at_bound(x.data());
           },
           nb::arg("x"), "Whether a section's bend is at its bound.");
+
+  nb::class_<BoundProcessNoise>(
+      m, "ProcessNoise",
+      "A formulation's process noise Q(dt) and its inverse, from the tape of its covariance "
+      "(csrc/process_noise.hpp); the policy and the inferences take it without Python.")
+      .def(
+          "__init__",
+          [](BoundProcessNoise* self, const ModelFunction& q, int nx, std::vector<int> held,
+             nb::object fallback) {
+            new (self) BoundProcessNoise{ProcessNoise(q, nx, std::move(held)), fallback};
+          },
+          nb::arg("q"), nb::arg("nx"), nb::arg("held"), nb::arg("fallback"),
+          nb::keep_alive<1, 2>(),
+          "``q``: dt (s) -> Q (nx, nx); ``held``: states whose rows and columns of Q and Q^-1 "
+          "are zero; ``fallback(dt) -> (Q, Q^-1)`` where Q is not positive definite.")
+      .def(
+          "__call__",
+          [](BoundProcessNoise& p, double dt) -> nb::tuple {
+            const size_t nx = size_t(p.core.nx);
+            Array Q = new_array({nx, nx}), Qinv = new_array({nx, nx});
+            if (p.core.compute(dt, Q.data(), Qinv.data())) return nb::make_tuple(Q, Qinv);
+            return nb::cast<nb::tuple>(p.fallback(dt));
+          },
+          nb::arg("dt"), "``(Q, Q^-1)`` (nx, nx each) of a step of ``dt`` s.")
+      .def_prop_ro("nx", [](const BoundProcessNoise& p) { return p.core.nx; });
 
   nb::class_<HorizonInference>(
       m, "HorizonInference",

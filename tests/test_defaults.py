@@ -295,7 +295,10 @@ def test_a_hanging_recording_run_from_python_on_a_z_up_robot_is_refused(method: 
         up.run(rec.t, rec.z)
     message = str(refused.value)
     assert "\n" not in message and message.startswith("run: mounting: the robot is described")
-    assert message.endswith('the robot hangs from its base? make the Robot with mounting="z-down"')
+    assert message.endswith(
+        'the robot hangs from its base? make the Robot with mounting="z-down" (or set '
+        'mounting = "z-down" in its robot file)'
+    )
     series = make_estimator(method, make_formulation("bend", down)).run(rec.t, rec.z)
     assert len(series.t) == len(rec.t)
 
@@ -330,7 +333,9 @@ def test_step_and_continue_run_check_the_first_readings_against_the_mounting(met
             up.step(Measurement(float(t), z))
             stepped += 1
     assert stepped == MOUNTING_START_SAMPLES - 1 and "\n" not in str(refused.value)
-    assert str(refused.value).endswith('make the Robot with mounting="z-down"')
+    assert str(refused.value).endswith(
+        'make the Robot with mounting="z-down" (or set mounting = "z-down" in its robot file)'
+    )
     with pytest.raises(MountingError):  # every later sample, until a reset
         up.step(Measurement(float(rec.t[stepped + 1]), rec.z[stepped + 1]))
     # a sample the policy refuses (a time not after the last) is not one of the 25

@@ -91,6 +91,36 @@ def test_no_import_cycles():
         raise AssertionError(f"import cycle: {' -> '.join(exc.args[1])}") from None
 
 
+def test_every_error_and_warning_of_the_library_is_exported():
+    """Each class of the library (the command line's package aside) that derives from
+    ``UserError`` or ``UserWarning``, directly or through another, is importable from
+    ``continuum_mhe``, as the library guide says (found in the source's syntax trees)."""
+    import ast
+
+    import continuum_mhe
+
+    root = Path(continuum_mhe.__file__).parent
+    bases: dict[str, set[str]] = {}
+    for path in root.rglob("*.py"):
+        if "cli" in path.relative_to(root).parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef):
+                names = {
+                    b.id if isinstance(b, ast.Name) else getattr(b, "attr", "") for b in node.bases
+                }
+                bases[node.name] = names
+    public = {"UserError", "UserWarning"}
+    while True:
+        more = {name for name, of in bases.items() if of & public} - public
+        if not more:
+            break
+        public |= more
+    public -= {"UserWarning"}
+    missing = sorted(n for n in public if n not in continuum_mhe._EXPORTS)
+    assert not missing, f"not importable from continuum_mhe: {missing}"
+
+
 def test_ci_runs_exactly_the_readme_test_command():
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()

@@ -1320,7 +1320,9 @@ def test_load_input_checks_the_first_readings_against_the_robots_mounting(
             load_input(path, InputOptions(), up)
         message = str(refused.value)
         assert "\n" not in message and "--mounting" not in message, message
-        assert message.endswith('make the Robot with mounting="z-down"'), message
+        assert message.endswith(
+            'make the Robot with mounting="z-down" (or set mounting = "z-down" in its robot file)'
+        ), message
         down = make_formulation("bend", Robot(sections, imus, mounting="z-down"))
         assert len(load_input(path, InputOptions(), down).t) == len(recording["stamps"])
 

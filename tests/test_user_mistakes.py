@@ -1780,6 +1780,48 @@ def test_step_and_continue_run_refuse_the_times_run_refuses() -> None:
         assert len(statuses) == len(burst), how  # every sample estimated, none refused
 
 
+@pytest.mark.parametrize("how", ["step", "continue_run"])
+def test_a_refused_first_time_that_is_not_finite_leaves_the_too_fast_check_on(how: str) -> None:
+    """A garbled first line (t NaN), refused, then times in microseconds read as seconds:
+    the check of times far too fast still refuses them from the sample that ends the
+    first ``TOO_FAST_STEPS`` steps (the NaN kept in the check's times compared false
+    with every later one, and the check never filled)."""
+    from continuum_mhe import Measurement, SampleTimeError, make_formulation, simulate
+    from continuum_mhe.estimators.reading_units import ReadingUnitsError
+
+    rec = simulate("paper3d", duration=6.0)
+    t = rec.t * 1e-6
+    est = make_estimator("ekf", make_formulation("bend"))
+    with pytest.raises(SampleTimeError, match="must be finite"):
+        est.step(Measurement(float("nan"), rec.z[0]))
+    with pytest.raises(ReadingUnitsError, match="t must be in seconds"):
+        if how == "step":
+            for ti, zi in zip(t, rec.z):
+                est.step(Measurement(ti, zi))
+        else:
+            est.continue_run(t, rec.z)
+
+
+def test_a_sample_refused_after_one_stamped_far_ahead_says_that_time_is_the_cause() -> None:
+    """One sample stamped 40,000 s ahead (a wrong time) restarts the estimator after the
+    gap; every true sample after it is then refused as late, and the refusal says so
+    and that reset() is the way on, not the late sample's "step on"."""
+    from continuum_mhe import Measurement, SampleTimeError, make_formulation, simulate
+
+    rec = simulate("paper3d", duration=2.0)
+    est = make_estimator("ekf", make_formulation("bend"))
+    for i in range(20):
+        est.step(Measurement(rec.t[i], rec.z[i]))
+    est.step(Measurement(rec.t[20] + 4.0e4, rec.z[20]))
+    for i in (21, 22):
+        with pytest.raises(SampleTimeError, match=r"before it is 39999\.9 s later: a clock that "
+                           r"stepped back.*until reset\(\)") as info:  # fmt: skip
+            est.step(Measurement(rec.t[i], rec.z[i]))
+        assert "step on" not in str(info.value)
+    est.reset(keep_counts=True)
+    assert est.step(Measurement(rec.t[23], rec.z[23])).t == rec.t[23]
+
+
 def test_write_measurements_refuses_what_read_measurements_would(tmp_path) -> None:
     """An infinite reading (written empty: read back as a dropout), names given as one
     string (its letters became the columns) and no samples (a header alone): each a
@@ -2932,10 +2974,11 @@ def test_a_robot_built_in_code_gets_the_robot_files_slip_warnings() -> None:
 
 def test_an_estimator_of_a_robot_built_with_a_mount_rpy_says_that_it_is_not_applied() -> None:
     """A robot built in code with an IMU's ``mount_rpy``, and readings handed to the
-    estimator: the estimator takes them in each IMU's disk frame, so ``make_estimator``
-    warns, once per robot, naming the IMU; readings that came through the raw
-    conversion (turned by ``mount_rpy``) or from ``simulate_robot`` (in the disks'
-    frames) get no warning."""
+    estimator: the estimator takes them in each IMU's disk frame, so its first samples
+    (``step``, ``run`` or ``continue_run``) get a warning, once per robot, naming the IMU;
+    readings that came through the raw conversion (turned by ``mount_rpy``), before the
+    estimator was made or after it (a control loop that converts each sample before it
+    steps it), or from ``simulate_robot`` (in the disks' frames) get no warning."""
     from continuum_mhe.io import raw_measurements
     from continuum_mhe.model.robot import RobotWarning
 
@@ -2944,12 +2987,20 @@ def test_an_estimator_of_a_robot_built_with_a_mount_rpy_says_that_it_is_not_appl
         (Section(0.1571), Section(0.1429)),
         (ImuPlacement(0), ImuPlacement(1, mount_rpy=(0.0, 0.0, 30.0))),
     )
-    formulation = make_formulation("bend", mounted)
-    with pytest.warns(RobotWarning, match=r"^robot: the mount_rpy of IMU 2 is not applied"):
-        make_estimator("ekf", formulation)
-    with warnings.catch_warnings():  # said once
-        warnings.simplefilter("error")
-        make_estimator("ekf", formulation)
+    z = np.zeros(4)
+    for k, how in enumerate(("step", "run", "continue_run")):
+        if k:  # a robot not said of yet
+            mounted = Robot((Section(0.1580 + k * 1e-4), Section(0.1420)), mounted.imus)
+        formulation = make_formulation("bend", mounted)
+        est = make_estimator("ekf", formulation)
+        with pytest.warns(RobotWarning, match=r"^robot: the mount_rpy of IMU 2 is not applied"):
+            if how == "step":
+                est.step(Measurement(0.0, z))
+            else:
+                getattr(est, how)([0.0], [z])
+        with warnings.catch_warnings():  # said once per robot
+            warnings.simplefilter("error")
+            make_estimator("ekf", formulation).step(Measurement(0.0, z))
     from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 
     built = Robot(  # an estimator built directly says it too, naming the caller's line
@@ -2957,7 +3008,7 @@ def test_an_estimator_of_a_robot_built_with_a_mount_rpy_says_that_it_is_not_appl
         (ImuPlacement(0), ImuPlacement(1, mount_rpy=(0.0, 0.0, 30.0))),
     )
     with pytest.warns(RobotWarning, match=r"IMU 2 is not applied") as said:
-        ExtendedKalmanFilter(make_formulation("bend", built))
+        ExtendedKalmanFilter(make_formulation("bend", built)).step(Measurement(0.0, z))
     assert said[0].filename == __file__
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -2972,8 +3023,18 @@ def test_an_estimator_of_a_robot_built_with_a_mount_rpy_says_that_it_is_not_appl
             (ImuPlacement(0), ImuPlacement(1, mount_rpy=(0.0, 0.0, 40.0))),
         )
         acc = np.tile([0.0, 0.0, 9.81], (5, 2, 1))
-        z = raw_measurements(converted, np.arange(5) * 0.02, acc, np.zeros((5, 2, 3)))
-        make_estimator("ekf", make_formulation("direct", converted)).run(np.arange(5) * 0.02, z)
+        raw = raw_measurements(converted, np.arange(5) * 0.02, acc, np.zeros((5, 2, 3)))
+        make_estimator("ekf", make_formulation("direct", converted)).run(np.arange(5) * 0.02, raw)
+        in_loop = Robot(  # converted sample by sample after the estimator was made
+            (Section(0.1575), Section(0.1425)),
+            (ImuPlacement(0), ImuPlacement(1, mount_rpy=(0.0, 0.0, 40.0))),
+        )
+        est = make_estimator("ekf", make_formulation("direct", in_loop))
+        for k in range(5):
+            one = raw_measurements(
+                in_loop, np.array([k * 0.02]), acc[k : k + 1], np.zeros((1, 2, 3))
+            )
+            est.step(Measurement(k * 0.02, one[0]))
 
 
 @pytest.mark.parametrize(

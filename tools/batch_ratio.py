@@ -8,6 +8,11 @@ and ``copies`` of it end to end, each one's ``t`` shifted after the one before::
 
     python tools/batch_ratio.py            # 10 copies: 100,010 samples, 3 runs
     python tools/batch_ratio.py 1 5        # the 10,001 samples, 5 runs
+    python tools/batch_ratio.py --jitter 2e-4   # each t moved by up to 0.2 ms
+
+``--jitter S`` moves each sample's time by a uniform draw in [-S, S] s (seed 0), written
+to the microsecond, as a logger's clock stamps its samples: every time step then
+differs a little from the others.
 
 Each run is the command as a user runs it, in a new process (the modules' bytecode
 cached, as an install has it: an untimed first run writes it where it is missing);
@@ -33,16 +38,20 @@ import numpy as np
 STEP_S = 0.05  # paper3d's sample period
 
 
-def recording(folder: Path, copies: int) -> Path:
-    """The simulated recording, ``copies`` times end to end (one header)."""
+def recording(folder: Path, copies: int, jitter: float = 0.0) -> Path:
+    """The simulated recording, ``copies`` times end to end (one header), each time
+    moved by a uniform draw in ``[-jitter, jitter]`` s."""
     one = folder / "one.csv"
     run(["simulate", "paper3d", "--duration", "500", "-o", str(one)])
     header, *rows = one.read_text().splitlines()
     t = np.array([float(r.split(",", 1)[0]) for r in rows])
     span = t[-1] - t[0] + STEP_S
     lines = [header]
+    rng = np.random.default_rng(0)
     for k in range(copies):
-        lines += [f"{tv + k * span:.10g},{r.split(',', 1)[1]}" for tv, r in zip(t, rows)]
+        moved = t + k * span + rng.uniform(-jitter, jitter, len(t)) if jitter else t + k * span
+        digits = ".6f" if jitter else ".10g"
+        lines += [f"{tv:{digits}},{r.split(',', 1)[1]}" for tv, r in zip(moved, rows)]
     out = folder / f"x{copies}.csv"
     out.write_text("\n".join(lines) + "\n")
     return out
@@ -76,12 +85,18 @@ def main() -> None:
         help="copies of the recording (10,001 samples each) (default 10)",
     )
     p.add_argument("runs", nargs="?", type=int, default=3, help="runs (default 3)")
+    p.add_argument(
+        "--jitter",
+        type=float,
+        default=0.0,
+        help="s: each sample's time moved by a uniform draw in [-S, S] (default 0)",
+    )
     a = p.parse_args()
     copies = a.copies
     runs = a.runs
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        source = recording(folder, copies)
+        source = recording(folder, copies, a.jitter)
         out = folder / "e.csv"
         warm = folder / "warm.csv"  # a first, untimed run writes the bytecode it lacks
         warm.write_text("\n".join(source.read_text().splitlines()[:3]) + "\n")

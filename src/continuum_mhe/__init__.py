@@ -33,11 +33,13 @@ _EXPORTS: dict[str, str] = {
     "FieldError": "continuum_mhe.errors",
     "InputError": "continuum_mhe.errors",
     "SampleTimeError": "continuum_mhe.errors",
+    "TimeUnitError": "continuum_mhe.errors",
     "UnobservableShapeWarning": "continuum_mhe.errors",
     "UserError": "continuum_mhe.errors",
     "ReadingUnitsError": "continuum_mhe.estimators.reading_units",
     "BackendFallbackWarning": "continuum_mhe.estimators.fast.window_functions",
     "FigureWarning": "continuum_mhe.evaluation.estimate_figure",
+    "UnsolvedBackboneError": "continuum_mhe.evaluation.estimate_tables",
     "TruthCoverageWarning": "continuum_mhe.evaluation.metrics",
     "MissingExtraError": "continuum_mhe.extras",
     "DropoutWarning": "continuum_mhe.io.csv_files",
@@ -97,6 +99,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
         FieldError,
         InputError,
         SampleTimeError,
+        TimeUnitError,
         UnobservableShapeWarning,
         UserError,
     )
@@ -115,6 +118,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from continuum_mhe.estimators.fast.window_functions import BackendFallbackWarning
     from continuum_mhe.estimators.reading_units import ReadingUnitsError
     from continuum_mhe.evaluation.estimate_figure import FigureWarning
+    from continuum_mhe.evaluation.estimate_tables import UnsolvedBackboneError
     from continuum_mhe.evaluation.metrics import Metrics, TruthCoverageWarning, compute_metrics
     from continuum_mhe.extras import MissingExtraError
     from continuum_mhe.io.csv_files import DropoutWarning, UnitWarning

@@ -136,7 +136,9 @@ class Measurement:
     """One sample: time ``t`` in seconds and the measurement vector ``z``.
 
     ``z`` holds the formulation's measurement blocks one after the other (for one tilt
-    IMU ``[roll, pitch]`` in radians). NaN in a block marks a dropout of that sensor.
+    IMU ``[roll, pitch]`` in radians). NaN in a block marks a dropout of that sensor; a
+    raw IMU's block is its accelerometer and gyro together (NaN in any of them: the
+    IMU's whole reading is left out).
     ``labels``: the names of ``z``'s values where it came labelled (a pandas Series's
     index), which the estimator checks against its formulation's order.
     """

@@ -818,6 +818,22 @@ class StateChecks:
     def at_bound(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> bool:
         """Whether a section's bend is at its bound."""
 
+class ProcessNoise:
+    """
+    A formulation's process noise Q(dt) and its inverse, from the tape of its covariance (csrc/process_noise.hpp); the policy and the inferences take it without Python.
+    """
+
+    def __init__(self, q: ModelFunction, nx: int, held: Sequence[int], fallback: object) -> None:
+        """
+        ``q``: dt (s) -> Q (nx, nx); ``held``: states whose rows and columns of Q and Q^-1 are zero; ``fallback(dt) -> (Q, Q^-1)`` where Q is not positive definite.
+        """
+
+    def __call__(self, dt: float) -> tuple:
+        """``(Q, Q^-1)`` (nx, nx each) of a step of ``dt`` s."""
+
+    @property
+    def nx(self) -> int: ...
+
 class HorizonInference:
     """
     The fast MHE's inference for the compiled policy: the window step in compiled code, the Python inference only for its hooks (csrc/bind_sensor_health.cpp).

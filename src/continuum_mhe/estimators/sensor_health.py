@@ -27,7 +27,6 @@ import sys
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from functools import partial
 from typing import Generic, NoReturn, SupportsIndex, TypeVar
 
 import numpy as np
@@ -48,7 +47,7 @@ from continuum_mhe.estimators import start_check
 from continuum_mhe.estimators.base import NUMERICAL_FAILURES, Inference, tension_rows, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
-from continuum_mhe.estimators.process_noise import process_noise
+from continuum_mhe.estimators.process_noise import compiled_process_noise
 from continuum_mhe.estimators.reading_units import (
     ReadingUnitsError,
     ReadingUnitsWatch,
@@ -267,9 +266,7 @@ class Estimator(Generic[InferenceT]):
         self.inference: InferenceT = inference
         formulation = inference.formulation
         refuse_tendons_ignored(formulation)
-        # readings in the sensors' frames, handed over without the conversion that turns
-        # them by mount_rpy (the user's line named)
-        warn_mount_not_applied(formulation.robot, stacklevel=_outside_stacklevel() + 1)
+        self._mount_said = False  # _say_mount_not_applied ran
         self.formulation: Formulation = formulation
         #: the estimator's name (``mhe``, ``ekf``, ``ukf``)
         self.name: str = inference.name
@@ -413,7 +410,7 @@ class Estimator(Generic[InferenceT]):
             unobserved_after=UNOBSERVED_AFTER,
             degrees_like=DEGREES_LIKE,
             whole_rows=self._tension_block_rows,
-            process_noise=partial(process_noise, f),  # the core caches it
+            process_noise=compiled_process_noise(f),  # the core caches it
             inputs=f.inputs,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
             checks=f.state_checks(),
@@ -504,6 +501,15 @@ class Estimator(Generic[InferenceT]):
         for k, t in got.first_freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t
         self.inference.sync_counts()
+
+    def _say_mount_not_applied(self) -> None:
+        """Readings in the sensors' frames, handed over without the conversion that turns
+        them by ``mount_rpy`` (:func:`~continuum_mhe.model.robot.warn_mount_not_applied`,
+        naming the user's line): said at the first samples handed over, by which a caller
+        that converts each sample before stepping it has converted one."""
+        if not self._mount_said:
+            self._mount_said = True
+            warn_mount_not_applied(self.formulation.robot, stacklevel=_outside_stacklevel() + 1)
 
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
@@ -607,6 +613,7 @@ class Estimator(Generic[InferenceT]):
                 f"formulation, got {np.shape(measurement.z)}"
             )
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
+        self._say_mount_not_applied()
         times = np.array([t], dtype=float)  # the one sample's, for the stream's checks
         self._refuse_too_fast(times, "step")
         if self._tension_rows:
@@ -700,6 +707,12 @@ class Estimator(Generic[InferenceT]):
             first = previous is None and math.isfinite(t)  # the call's first sample
             if first and self._ran:
                 hint = "; run() left the estimator at its recording's end: call reset() first"
+            elif first and math.isfinite(last) and last - t > (self.recovery.gap_reset or 1.0):
+                hint = (
+                    f"; the sample before it is {last - t:g} s later: a clock that stepped "
+                    "back, or a wrong time on that sample; every later sample is refused "
+                    "against it until reset() (reset(keep_counts=True) within one recording)"
+                )
             elif first:
                 hint = (
                     "; a sample that came late or twice is to be left out (the estimator is "
@@ -766,6 +779,7 @@ class Estimator(Generic[InferenceT]):
             )
         checked = mounting_checked(z, self.formulation.robot)  # read whole and checked
         t, z = self._samples(t, z)
+        self._say_mount_not_applied()
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
         )
@@ -938,6 +952,7 @@ class Estimator(Generic[InferenceT]):
         the call returns the samples stepped so far (a shorter batch; the next call goes
         on from there)."""
         t, z = self._samples(t, z)
+        self._say_mount_not_applied()
         if check_units:
             self._refuse_too_fast(t, "continue_run")
         if block is not None and not (is_integer(block) and block >= 1):
@@ -975,10 +990,10 @@ class Estimator(Generic[InferenceT]):
         sample until a reset (a new recording)."""
         times = self._fast_times
         if times is not None and self.refuses_fast_times:
-            for v in t:  # (a time not after the last is refused elsewhere)
+            for v in t:  # (a time not after the last, or not finite, is refused elsewhere)
                 if len(times) > TOO_FAST_STEPS:
                     break
-                if not times or float(v) > times[-1]:
+                if math.isfinite(v) and (not times or float(v) > times[-1]):
                     times.append(float(v))
             if len(times) > TOO_FAST_STEPS:
                 self._too_fast = too_fast_problem(what, np.asarray(times))

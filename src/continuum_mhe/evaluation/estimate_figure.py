@@ -17,7 +17,7 @@ from continuum_mhe.evaluation.estimate_tables import (
     POINTS_PER_SECTION,
     BackboneOf,
     TrackedPoint,
-    UnsolvedBackbone,
+    UnsolvedBackboneError,
     broken,
     has_bend_columns,
     has_tip_force,
@@ -274,11 +274,11 @@ def _backbones(
             if backbone is not None and has_tip_force(table.names):
                 try:
                     solved = backbone(table, row)
-                except UnsolvedBackbone as exc:  # drawn through its section ends, said
+                except UnsolvedBackboneError as exc:  # drawn through its section ends, said
                     unsolved.append(str(exc))
                     est_unsolved += table is est
                     if est_unsolved == len(picks):  # none of the estimate's: no figure
-                        raise UnsolvedBackbone(unsolved[0]) from None
+                        raise UnsolvedBackboneError(unsolved[0]) from None
             if solved is not None:
                 line = solved
                 if table is est:

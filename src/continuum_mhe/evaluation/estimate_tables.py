@@ -189,12 +189,12 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
             return statics.backbone_points(force, tension, POINTS_PER_SECTION, k0=k0)
         except ArithmeticError as exc:
             followed[id(table)] = (table, row, None)
-            raise UnsolvedBackbone(str(no_equilibrium_at(float(table.t[row]), exc))) from None
+            raise UnsolvedBackboneError(str(no_equilibrium_at(float(table.t[row]), exc))) from None
 
     return points
 
 
-class UnsolvedBackbone(UserError):
+class UnsolvedBackboneError(UserError):
     """A row whose loads the mechanics model holds no equilibrium under: its backbone
     cannot be drawn from the model (the drawing joins its section ends instead)."""
 

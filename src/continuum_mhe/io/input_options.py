@@ -504,10 +504,12 @@ def robot_fix(
     place each is given. A shipped robot named by its name (``two-section``) is changed
     in a copy of its file (:func:`~continuum_mhe.io.robot_file.shipped_robots`). For a
     caller in Python (``python``), the robot's field: ``make the Robot with
-    mounting="z-down"``, ``raise the Sections' theta_max``."""
+    mounting="z-down"`` (or its robot file's line), ``raise the Sections' theta_max``."""
     if python:
         if value:
-            return f'make the Robot with {key}="{value}"'
+            return (
+                f'make the Robot with {key}="{value}" (or set {key} = "{value}" in its robot file)'
+            )
         return f"raise the Sections' {key}"
     if robot_file:
         shipped = shipped_robots().get(robot_file)

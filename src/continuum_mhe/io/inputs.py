@@ -319,10 +319,13 @@ def raw_measurements(
     and ``gyr`` (n, n_imus, 3) rad/s or None, in each sensor's frame; each IMU's
     ``mount_rpy`` turns it into its disk's frame and its ``gyro_bias`` is removed
     (:func:`imu_converters`). The IMU model is ``raw.imu_model``, else ``direct`` with
-    gyros (``make_formulation("direct", robot)``) and ``tilt`` without. NaN in a
-    sample's reading is that IMU's dropout there; an infinite reading, or one beyond
-    any IMU's range (an acceleration of more than 1e4 m/s^2, a rate of more than 1e3
-    rad/s), is a :class:`UserError` naming the sample and the IMU."""
+    gyros (``make_formulation("direct", robot)``) and ``tilt`` without. NaN in any axis
+    of a sample's accelerometer or gyro reading is that IMU's dropout there (both its
+    readings NaN in the result), and so is an accelerometer reading of exactly zero on
+    every axis (no gravity direction: a sensor that returned nothing); an infinite
+    reading, or one beyond any IMU's range (an acceleration of more than 1e4 m/s^2, a
+    rate of more than 1e3 rad/s), is a :class:`UserError` naming the sample and the
+    IMU."""
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     acc = np.asarray(acc, dtype=float)
     n_imus = robot.n_imus
