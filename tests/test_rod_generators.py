@@ -442,6 +442,11 @@ def _tendon_robot(tmp_path: Path, edit: tuple[str, str] = ("", "")) -> Path:
         (["-o", "{tmp}/none/dir/x"], "{tmp}/none/dir/x: folder {tmp}/none/dir does not exist"),
         (["-o", "{tmp}/file"], "{tmp}/file: exists and is not a folder"),
         (["--robot", "{tmp}/z-down.toml"], "{tmp}/z-down.toml: mounting = 'z-down': "),
+        (
+            ["--robot", "{tmp}/soft.toml"],  # a thinner backbone curls through turns
+            "{tmp}/soft.toml: --scenario unloaded: its tensions, sized for tendon-two-section, "
+            "would bend section 1 through 3.08 full turns at t = 4.96 s",
+        ),
     ],
 )
 def test_the_tendon_generator_refuses_bad_arguments_before_it_simulates(
@@ -465,6 +470,7 @@ def test_the_tendon_generator_refuses_bad_arguments_before_it_simulates(
     _tendon_robot(tmp_path, ('mounting = "z-up"', 'mounting = "z-down"')).rename(
         tmp_path / "z-down.toml"
     )
+    _tendon_robot(tmp_path, ("radius = 0.0007", "radius = 0.0004")).rename(tmp_path / "soft.toml")
     before = sorted(tmp_path.iterdir())
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
     if "-o" not in argv:

@@ -104,6 +104,26 @@ def test_smooth_tensions_are_taken_row_by_row() -> None:
     np.testing.assert_allclose(table.rates, np.gradient(raw[:, 1:], raw[:, 0], axis=0), atol=1e-9)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_smooth_tensions_at_irregular_times_are_not_read_as_noise(seed: int) -> None:
+    """The shipped noiseless tensions taken at 240 random times over their 8 s (a
+    controller that logs when it can): the noise read between the rows needs no
+    smoothing at their median step (the rows are moved onto an even grid by a
+    shape-preserving cubic; a line between them read its own error, under 0.5 mN, as
+    noise), while 5 mN of white noise on the same rows does."""
+    from scipy.interpolate import CubicSpline
+
+    raw = np.loadtxt(DATA / "unloaded_tensions.csv", delimiter=",", skiprows=1)
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(raw[0, 0], raw[-1, 0], 240))
+    t[[0, -1]] = raw[0, 0], raw[-1, 0]
+    values = CubicSpline(raw[:, 0], raw[:, 1:], axis=0)(t)
+    step = float(np.median(np.diff(t)))
+    assert smoothing_rows(tension_noise_std(values, t), step) == 0
+    noisy = values + rng.normal(0.0, 5e-3, values.shape)
+    assert smoothing_rows(tension_noise_std(noisy, t), step) > 0
+
+
 def test_a_cubic_in_time_keeps_its_derivatives_through_the_smoothing() -> None:
     """Tensions that are a cubic in time plus noise: the local cubic's rates and second
     derivatives are the cubic's within a few times their noise tolerances (exact for the

@@ -103,7 +103,14 @@ def tension_noise_std(values: FloatArray, t: FloatArray | None = None) -> float:
     if len(values) < 2 * k + 1:
         return 0.0
     if t is not None:
-        values = _on_even_grid(t, values, 1e-3)[1]
+        grid, _ = _on_even_grid(t, values[:, :1], 1e-3)
+        if grid is not t:
+            # a shape-preserving cubic, not a line, between the rows: a line's own
+            # error (h^2 f''/8) between unevenly timed rows of a smooth tension reads
+            # as noise in the high differences (a controller's log at irregular times)
+            from scipy.interpolate import PchipInterpolator  # scipy only for a tendon robot
+
+            values = PchipInterpolator(t, values, axis=0)(grid)
     windows = np.lib.stride_tricks.sliding_window_view(values, k + 1, axis=0)
     varies = windows.max(axis=-1) > windows.min(axis=-1)  # (n - k, columns)
     d = np.diff(values, n=k, axis=0)

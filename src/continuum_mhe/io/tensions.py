@@ -161,6 +161,31 @@ def span_buckling_problem(robot: Robot, t: FloatArray, rows: FloatArray, name: s
     return ""
 
 
+def tension_turns(robot: Robot, rows: FloatArray) -> tuple[int, int, float] | None:
+    """``(row, section, turns)`` of the first section (0-based) of ``robot`` (with a
+    ``[backbone]``) whose tendons' net moment at one of the tensions ``rows`` (n,
+    tendons; N), over its bending stiffness, times its length, bends it through more
+    than :data:`MAX_TENDON_TURNS` full turns, at the row where it is largest; None where
+    none does (the twist left out)."""
+    if robot.backbone is None or not robot.tendons:
+        return None
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    ei = robot.backbone.bending_stiffness
+    for k, section in enumerate(robot.sections):
+        idx = [j for j, td in enumerate(robot.tendons) if td.section >= k]
+        if not idx:
+            continue
+        arm = np.array([[robot.tendons[j].radius * math.cos(robot.tendons[j].angle),
+                         robot.tendons[j].radius * math.sin(robot.tendons[j].angle)]
+                        for j in idx])  # fmt: skip
+        moment = np.linalg.norm(np.nan_to_num(rows[:, idx]) @ arm, axis=1)  # N m, per row
+        bend = moment * section.length / ei
+        i = int(np.argmax(bend))
+        if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
+            return i, k, float(bend[i] / (2 * math.pi))
+    return None
+
+
 def tension_scale_problem(
     robot: Robot,
     t: FloatArray,
@@ -170,13 +195,32 @@ def tension_scale_problem(
 ) -> str | None:
     """The line saying where the tensions ``rows`` (n, tendons; N) at the times ``t``
     would bend a section of ``robot`` (with a ``[backbone]``) through more than
-    :data:`MAX_TENDON_TURNS` full turns on their own: the net moment of the tendons
-    through section ``k`` (each ``T r`` toward its angle, the twist left out) over its
-    bending stiffness, times its length, at some row (tensions in mN, or a modulus far
-    too low); ``name`` the source in the line, ``lines`` each row's line in it; None
-    where no row does."""
-    if robot.backbone is None or not robot.tendons:
+    :data:`MAX_TENDON_TURNS` full turns on their own (:func:`tension_turns`: tensions
+    in mN, or a modulus far too low); ``name`` the source in the line, ``lines`` each
+    row's line in it; None where no row does."""
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    beyond = tension_turns(robot, rows)
+    if beyond is None or robot.backbone is None:
         return None
+    i, k, turns = beyond
+    bb = robot.backbone
+    # a unit only for a modulus below 1e6 Pa, softer than any backbone's in Pa
+    unit = modulus_unit_hint(bb.youngs_modulus) if bb.youngs_modulus < 1e6 else None
+    soft = (
+        f"the robot file's [backbone] too soft (youngs_modulus {bb.youngs_modulus:g} "
+        f"Pa{': ' + unit if unit else ''}; radius {bb.radius:g} m)"
+    )
+    # tensions a tendon can carry in N point at the backbone first
+    causes = [soft, "tensions in N (mN?)"]
+    if float(np.nanmax(rows)) > PLAUSIBLE_TENSION_N:
+        causes.reverse()
+    line = "" if lines is None else f"line {lines[i]}: "
+    return (
+        f"{name}: {line}at t = {time_text(float(t[i]))} s the tensions "
+        f"({', '.join(f'{v:g}' for v in rows[i])} N) would bend section "
+        f"{k + 1} through {turns:.3g} full turns (its bending "
+        f"stiffness {bb.bending_stiffness:.3g} N m^2): {causes[0]}, or {causes[1]}?"
+    )
     rows = np.atleast_2d(np.asarray(rows, dtype=float))
     ei = robot.backbone.bending_stiffness
     for k, section in enumerate(robot.sections):

@@ -200,6 +200,36 @@ def check_generated_robot(robot: Robot) -> None:
             )
 
 
+def check_tensions_estimable(
+    robot: Robot,
+    scenario: str,
+    duration: float,
+    settings: TendonRodSettings | None = None,
+    robot_name: str = "tendon-two-section",
+) -> None:
+    """A one-line :class:`~continuum_mhe.errors.UserError` naming ``robot_name`` (as
+    given), before anything is
+    simulated, where the motion's tensions (sized for ``tendon-two-section``) would bend
+    a section of ``robot`` through more turns than ``estimate`` takes from a tensions
+    file (:func:`~continuum_mhe.io.tensions.tension_turns`): a robot far softer, or with
+    tendons further out, curls through them, and the truth's bend angles (at most 180
+    degrees) would hide it."""
+    from continuum_mhe.io.tensions import MAX_TENDON_TURNS, tension_turns
+
+    s = settings or TendonRodSettings()
+    t = np.arange(int(round(duration / RECORD_DT)) + 1, dtype=np.float64) * RECORD_DT
+    tensions = np.array([tension_profile(robot, scenario, float(tk), s) for tk in t])
+    beyond = tension_turns(robot, tensions)
+    if beyond is not None:
+        i, k, turns = beyond
+        raise UserError(
+            f"{robot_name}: --scenario {scenario}: its tensions, sized for "
+            f"tendon-two-section, would bend section {k + 1} through {turns:.3g} full turns at t = "
+            f"{t[i]:g} s, more than estimate takes from a tensions file ({MAX_TENDON_TURNS:g}); "
+            "a stiffer backbone, or tendons nearer to it, bend less; nothing simulated"
+        )
+
+
 class EquilibriumError(RuntimeError):
     """The discrete rod's energy minimisation (:func:`energy_equilibrium`) did not
     converge."""
@@ -255,6 +285,8 @@ def write_tendon_recording(
 
     check_generated_robot(robot)
     check_new_folder(out, overwrite=True, names=())
+    if trajectory is None:
+        check_tensions_estimable(robot, scenario, duration, settings, robot_name)
     traj = trajectory or quasi_static_trajectory(
         robot, scenario, duration, settings, segments_per_disk=segments_per_disk, route=route
     )
