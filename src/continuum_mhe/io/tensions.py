@@ -221,38 +221,6 @@ def tension_scale_problem(
         f"{k + 1} through {turns:.3g} full turns (its bending "
         f"stiffness {bb.bending_stiffness:.3g} N m^2): {causes[0]}, or {causes[1]}?"
     )
-    rows = np.atleast_2d(np.asarray(rows, dtype=float))
-    ei = robot.backbone.bending_stiffness
-    for k, section in enumerate(robot.sections):
-        idx = [j for j, td in enumerate(robot.tendons) if td.section >= k]
-        if not idx:
-            continue
-        arm = np.array([[robot.tendons[j].radius * math.cos(robot.tendons[j].angle),
-                         robot.tendons[j].radius * math.sin(robot.tendons[j].angle)]
-                        for j in idx])  # fmt: skip
-        moment = np.linalg.norm(np.nan_to_num(rows[:, idx]) @ arm, axis=1)  # N m, per row
-        bend = moment * section.length / ei
-        i = int(np.argmax(bend))
-        if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
-            bb = robot.backbone
-            # a unit only for a modulus below 1e6 Pa, softer than any backbone's in Pa
-            unit = modulus_unit_hint(bb.youngs_modulus) if bb.youngs_modulus < 1e6 else None
-            soft = (
-                f"the robot file's [backbone] too soft (youngs_modulus {bb.youngs_modulus:g} "
-                f"Pa{': ' + unit if unit else ''}; radius {bb.radius:g} m)"
-            )
-            # tensions a tendon can carry in N point at the backbone first
-            causes = [soft, "tensions in N (mN?)"]
-            if float(np.nanmax(rows)) > PLAUSIBLE_TENSION_N:
-                causes.reverse()
-            line = "" if lines is None else f"line {lines[i]}: "
-            return (
-                f"{name}: {line}at t = {time_text(float(t[i]))} s the tensions "
-                f"({', '.join(f'{v:g}' for v in rows[i])} N) would bend section "
-                f"{k + 1} through {bend[i] / (2 * math.pi):.3g} full turns (its bending "
-                f"stiffness {ei:.3g} N m^2): {causes[0]}, or {causes[1]}?"
-            )
-    return None
 
 
 #: How far beyond a tensions file's first or last row (s) a sample still counts as
