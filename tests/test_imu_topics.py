@@ -47,6 +47,49 @@ def test_pair_stamps_known_answers() -> None:
     assert [list(i) for i in idx] == [[0, 1, 2, 3, 4], [0, 1, 2, 3, -1], [0, -1, 1, 2, -1]]
 
 
+def test_samples_that_lose_their_nearest_pair_with_a_free_one_in_order() -> None:
+    """Two IMUs about half a period apart: a sample of IMU 1 whose nearest sample of IMU
+    2 is another's (mutual nearest fails) pairs with the free one between its
+    neighbours' partners, within the tolerance, the order kept."""
+    ref = np.array([0, 20, 40, 60], dtype=np.int64)
+    other = np.array([9, 31, 49, 71], dtype=np.int64)
+    # 20's nearest (31 and 9 tie: the later) is 40's nearest: 20 takes 31, which is free
+    assert [list(i) for i in pair_stamps([ref, other], 12)] == [[0, 1, 2, 3], [0, 1, 2, 3]]
+    # within the tolerance only: 20 and 31 are 11 apart
+    assert [list(i) for i in pair_stamps([ref, other], 10)] == [[0, 1, 2, 3], [0, -1, 2, -1]]
+    # not across a pair: 1's partner lies between 0 and 2's, none is free there
+    assert [list(i) for i in pair_stamps([np.array([0, 4]), np.array([3])], 5)] == [[0, 1], [-1, 0]]
+
+
+def test_two_imus_sampling_out_of_phase_are_said_so(
+    streams: dict[str, Any], tmp_path: Path
+) -> None:
+    """IMU 2 stamped 9 ms (+- 2 ms) after IMU 1 at 50 Hz: within the default tolerance
+    (half the period) many of its samples find no partner; the pairing note says its
+    stamps lie that far from IMU 1's and that a larger --pair-tolerance pairs more, and
+    one does (a topic's own few strays are not said so)."""
+    imu1 = streams["imu"][0]
+    rng = np.random.default_rng(5)
+    stamps = imu1["stamps"] + 9_000_000 + rng.integers(-2_000_000, 2_000_000, len(imu1["stamps"]))
+    late = [imu1, {"stamps": stamps, "acc": imu1["acc"], "gyr": imu1["gyr"]}]
+    log = write_mcap_topics(tmp_path / "phase.mcap", late)
+    paired = read_imu_topics(log, TOPICS, 2)
+    assert paired.unpaired[1] > 0.1 * paired.read[1]
+    assert paired.report().endswith(
+        "; /imu2's stamps lie a median 8.74 ms from /imu1's: the IMUs sample out of phase, "
+        "and a larger --pair-tolerance pairs more of their readings (each taken at IMU 1's "
+        "time, up to that far from its own)"
+    ), paired.report()
+    wide = read_imu_topics(log, TOPICS, 2, tolerance_s=0.019)
+    assert wide.unpaired[1] * 4 < paired.unpaired[1]
+    assert (
+        "out of phase"
+        not in read_imu_topics(
+            write_mcap_topics(tmp_path / "in_phase.mcap", streams["imu"]), TOPICS, 2
+        ).report()
+    )
+
+
 def test_fill_outages_known_answers() -> None:
     """IMU 1 silent from 20 to 60 (period 10, tolerance 4): IMU 2's samples there fill
     the outage, thinned to IMU 1's rate where IMU 2 is faster, none closer than 0.75 of
@@ -543,7 +586,8 @@ def test_topics_in_the_wrong_order_warn_once(
         f"{log}: the topics are given as /imu2, /imu1, against the numbers in their names: "
         "the first --topic is IMU 1 of the robot file (nearest the base), the next IMU 2, "
         "...; if /imu1 is the IMU nearest the base, give it first (IMUs in the wrong order "
-        "can give estimates far off that fit the readings)"
+        "can give estimates far off that fit the readings, or a calibration written to the "
+        "wrong IMU)"
     )
     assert said.startswith(f"{log}: ") and " samples (" in said
     assert said.endswith(

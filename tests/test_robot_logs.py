@@ -1461,3 +1461,33 @@ def test_messages_delivered_late_are_put_in_place_by_their_stamps(
     log = read_imu_log(write_mcap(tmp_path / "slow.mcap", swapped, headers=slow["stamps"][order]))
     assert log.reordered == 1 and log.skipped == [] and len(log.t) == n
     np.testing.assert_array_equal(log.acc, slow["acc"])
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".mcap"])
+def test_a_truth_on_the_logs_clock_is_pointed_to_the_estimates_t0(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str], suffix: str
+) -> None:
+    """A truth (motion capture) on the log's clock, seconds since 1970, that starts 2 s
+    before the IMUs: ``evaluate`` refuses the times that do not overlap and names the
+    ``--truth-shift`` of the estimate's ``t0_ns`` (its line, or its MCAP's note), which
+    compares them (it named a shift that assumed the two started together)."""
+    log = write_mcap(tmp_path / "run.mcap", recording)
+    est = tmp_path / f"e{suffix}"
+    assert main(["estimate", str(log), "--length", "0.2", "-o", str(est)]) == 0
+    t = (recording["stamps"] - T0_NS) * 1e-9
+    early = np.arange(-100, 0) * 0.02
+    truth_t = np.concatenate([early, t]) + T0_NS * 1e-9
+    truth = np.vstack([np.repeat(recording["truth"][:1], 100, axis=0), recording["truth"]])
+    names = "t,x,y,z,theta,phi"
+    rows = [f"{tv:.6f}," + ",".join(f"{v:.9g}" for v in row) for tv, row in zip(truth_t, truth)]
+    (tmp_path / "mocap.csv").write_text(names + "\n" + "\n".join(rows) + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(tmp_path / "mocap.csv"), "--length", "0.2"]) == 2
+    err = capsys.readouterr().err
+    shift = T0_NS / 1e9
+    assert f"(its t0_ns): a truth on that clock compares with --truth-shift {shift!r}" in err
+    argv = ["evaluate", str(est), str(tmp_path / "mocap.csv"), "--length", "0.2"]
+    assert main([*argv, "--truth-shift", repr(shift)]) == 0
+    out = capsys.readouterr().out
+    mean = float(re.search(r"tip error mean\s+([0-9.]+) mm", out).group(1))  # type: ignore[union-attr]
+    assert mean < 5.0, out

@@ -496,6 +496,28 @@ def _made_line(source: str) -> str | None:
     return value if isinstance(value, str) else None
 
 
+def recorded_t0_s(path: str) -> float | None:
+    """An estimate's ``t0_ns`` (its ``# t0_ns = ...`` line, an MCAP's note) in s, or
+    None where it has none (not of a robot log) or cannot be read."""
+    try:
+        if Path(path).suffix.lower() == ".mcap":
+            from continuum_mhe.io.mcap_estimates import read_notes_mcap
+
+            value = read_notes_mcap(path).get(T0_LINE)
+        else:
+            value = None
+            with open(path, encoding="utf-8-sig") as f:
+                for line in f:
+                    if not line.startswith("#"):
+                        break
+                    key, _, rest = line[1:].partition("=")
+                    if key.strip() == T0_LINE:
+                        value = rest.strip()
+        return None if value is None else int(str(value).strip('"')) / 1e9
+    except (OSError, ValueError, InputError):
+        return None
+
+
 def recorded_option(path: str, key: str) -> Any:
     """The value of option ``key`` on an estimate CSV's ``# options = {...}`` line (an
     estimate MCAP's ``options`` note), or None where the file has no such line or key

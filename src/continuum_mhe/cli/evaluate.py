@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from continuum_mhe.cli.config import recorded_t0_s
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import (
     DEFAULT_LENGTH,
@@ -67,6 +68,25 @@ from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.results import Status
 
 
+def _log_clock_hint(
+    path_est: str, t_est: np.ndarray, t_truth: np.ndarray, given_shift: float
+) -> str:
+    """Where the estimate is of a robot log (its ``t0_ns`` line or note) and the truth's
+    times, read at the log's clock less ``t0_ns``, overlap the estimate's: the
+    ``--truth-shift`` that compares them (a clause to end a refusal); else ``""``."""
+    t0_s = recorded_t0_s(path_est)
+    if t0_s is None:
+        return ""
+    total = given_shift + t0_s
+    shifted = t_truth + given_shift - total
+    if shifted[-1] < t_est[0] or shifted[0] > t_est[-1]:
+        return ""
+    return (
+        f"; the estimate's t = 0 is {time_text(t0_s)} s on its robot log's clock (its "
+        f"t0_ns): a truth on that clock compares with --truth-shift {total!r}"
+    )
+
+
 def _align(
     path_est: str,
     t_est: np.ndarray,
@@ -112,7 +132,8 @@ def _align(
             warning += cut
     if problem:
         first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
-        raise InputError(problem + offset_hint(first, t_est, t_truth, given_shift))
+        hint = _log_clock_hint(path_est, t_est, t_truth, given_shift)
+        raise InputError(problem + (hint or offset_hint(first, t_est, t_truth, given_shift)))
     warnings = [warning] if warning else []
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])

@@ -6,7 +6,10 @@ topic is read as in :mod:`continuum_mhe.io.robot_logs` (messages with a non-incr
 stamp skipped and counted); then samples are paired across topics by header stamp: a
 sample of IMU 1 and one of IMU ``k`` are a pair when each is the other's nearest in time
 (mutual nearest neighbours, so no sample is used twice) and their stamps differ by at
-most the tolerance. Every sample of IMU 1 is a sample, at IMU 1's stamp; where IMU 1
+most the tolerance; a sample of IMU 1 left without a partner then takes the nearest
+sample within the tolerance that no pair took, between its neighbours' partners (two
+IMUs about half a period out of phase, whose nearest samples are each other's
+neighbours'). Every sample of IMU 1 is a sample, at IMU 1's stamp; where IMU 1
 is silent between two of its samples, or after its last one, for more than one and a
 half of its median sample periods (an outage) while another topic goes on, that topic's
 samples there are samples too (:func:`fill_outages`), thinned to at least three
@@ -15,7 +18,8 @@ in a topic has that IMU's reading missing (a dropout of that IMU, as a table's r
 its fields empty). The default tolerance is half of IMU 1's median sample period (a pair
 is then always closer than the next sample); ``--pair-tolerance`` sets it in seconds.
 The dropouts and the samples of the topics left without a partner are counted per
-topic and reported in one line. A run in which many
+topic and reported in one line, which says where a topic's stamps lie far from IMU 1's
+and many of its samples found no partner (IMUs sampling out of phase). A run in which many
 samples restarted the estimator gets one warning that the topics may be out of order
 (:func:`warn_topic_order`), and so do topics whose names number them in another order
 than the one given (:func:`warn_numbers_out_of_order`). Topics whose header stamps stand
@@ -63,6 +67,8 @@ class PairedImus:
         read: samples read per topic (after skipping non-increasing stamps).
         partners: per topic, the samples with a partner in it (IMU 1: its own).
         skipped: descriptions of skipped messages, prefixed by their topic.
+        offsets_s: per topic, the median distance of its stamps from the nearest of
+            IMU 1's, s (IMU 1's: 0).
     """
 
     logs: tuple[ImuLog, ...]
@@ -72,6 +78,7 @@ class PairedImus:
     read: tuple[int, ...]
     partners: tuple[int, ...] = ()
     skipped: list[str] = field(default_factory=list)
+    offsets_s: tuple[float, ...] = ()
 
     @property
     def unpaired(self) -> tuple[int, ...]:
@@ -97,8 +104,32 @@ class PairedImus:
         return (
             f"paired {len(self.t)} samples of {len(self.logs)} topics ({topics}) by "
             f"{' and '.join(clocks)} within {_duration(self.tolerance_s)}; without a "
-            f"partner (a dropout of that IMU): {missing}; unpaired: {left}"
+            f"partner (a dropout of that IMU): {missing}; unpaired: {left}" + self._phase_clause()
         )
+
+    def _phase_clause(self) -> str:
+        """Where more than :data:`UNPAIRED_SHARE` of a topic's samples found no partner
+        and its stamps lie a median of more than half the tolerance from IMU 1's (two
+        IMUs sampling out of phase, not a topic's own gaps): a clause saying so."""
+        said = [
+            f"{log.topic}'s stamps lie a median {_duration(offset)} from {self.logs[0].topic}'s"
+            for log, offset, unpaired, read in zip(
+                self.logs[1:], self.offsets_s[1:], self.unpaired[1:], self.read[1:]
+            )
+            if unpaired > UNPAIRED_SHARE * read and offset > 0.5 * self.tolerance_s
+        ]
+        if not said:
+            return ""
+        return (
+            f"; {', '.join(said)}: the IMUs sample out of phase, and a larger "
+            "--pair-tolerance pairs more of their readings (each taken at IMU 1's time, "
+            "up to that far from its own)"
+        )
+
+
+#: A topic with more than this share of its samples left without a partner, whose stamps
+#: lie far from IMU 1's, is said to sample out of phase (:meth:`PairedImus.report`).
+UNPAIRED_SHARE = 0.1
 
 
 def _duration(seconds: float) -> str:
@@ -127,8 +158,38 @@ def pair_stamps(stamps: Sequence[IntArray], tolerance_ns: int) -> list[IntArray]
         j = _nearest(ref, other)
         back = _nearest(other, ref)
         paired = (back[j] == np.arange(len(ref))) & (np.abs(other[j] - ref) <= tolerance_ns)
-        out.append(np.where(paired, j, -1).astype(np.int64))
+        idx = np.where(paired, j, -1).astype(np.int64)
+        _pair_leftovers(ref, other, idx, tolerance_ns)
+        out.append(idx)
     return out
+
+
+def _pair_leftovers(ref: IntArray, other: IntArray, idx: IntArray, tolerance_ns: int) -> None:
+    """Pair, in place, each sample of ``ref`` left without a partner with the nearest
+    sample of ``other`` within the tolerance that no sample took, between the partners
+    of its paired neighbours (the order kept): two sensors half a period apart leave
+    two candidates for one partner at every jitter, which mutual nearest pairing loses."""
+    free = np.ones(len(other), dtype=bool)
+    free[idx[idx >= 0]] = False
+    nxt = np.full(len(ref), len(other), dtype=np.int64)  # the next partner after each
+    upcoming = len(other)
+    for i in range(len(ref) - 1, -1, -1):
+        nxt[i] = upcoming
+        if idx[i] >= 0:
+            upcoming = int(idx[i])
+    last = -1
+    for i in range(len(ref)):
+        if idx[i] >= 0:
+            last = int(idx[i])
+            continue
+        lo = max(last + 1, int(np.searchsorted(other, ref[i] - tolerance_ns)))
+        hi = min(int(nxt[i]), int(np.searchsorted(other, ref[i] + tolerance_ns, side="right")))
+        cand = [k for k in range(lo, hi) if free[k]]
+        if cand:
+            k = min(cand, key=lambda k: abs(int(other[k]) - int(ref[i])))
+            idx[i] = k
+            free[k] = False
+            last = k
 
 
 #: The samples silent for more than this many of IMU 1's median sample periods, between
@@ -284,6 +345,9 @@ def read_imu_topics(
         read=tuple(len(s) for s in stamps),
         partners=tuple(int((i >= 0).sum()) for i in idx),
         skipped=[f"{log.topic}: {s}" for log in logs for s in log.skipped],
+        offsets_s=tuple(
+            float(np.median(np.abs(s - stamps[0][_nearest(s, stamps[0])]))) / 1e9 for s in stamps
+        ),
     )
 
 
@@ -330,7 +394,8 @@ def warn_numbers_out_of_order(name: str, topics: Sequence[str]) -> None:
         f"{name}: the topics are given as {', '.join(topics)}, against the numbers in their "
         "names: the first --topic is IMU 1 of the robot file (nearest the base), the next "
         f"IMU 2, ...; if {first} is the IMU nearest the base, give it first (IMUs in the "
-        "wrong order can give estimates far off that fit the readings)",
+        "wrong order can give estimates far off that fit the readings, or a calibration "
+        "written to the wrong IMU)",
         TopicOrderWarning,
         stacklevel=3,
     )
