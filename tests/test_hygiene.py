@@ -297,8 +297,15 @@ def test_library_guide_python_examples_run(tmp_path, monkeypatch):
     assert raw["data"].formulation == make_formulation("direct", raw["robot"])
     assert raw["data"].formulation.estimate_gyro_bias and len(raw["series"].t) == 601
     # the same recording as arrays through raw_measurements: the same estimates
-    (arrays,) = [ns for ns in spaces if "read_raw_imus" in ns and "tendon" not in ns]
+    untensioned = [ns for ns in spaces if "read_raw_imus" in ns and "Tensions" not in ns]
+    (arrays,) = [ns for ns in untensioned if "series" in ns]
     np.testing.assert_allclose(arrays["series"].output, raw["series"].output, atol=1e-12)
+    # the control loop's conversion and steps, sample by sample: the batch run's estimate
+    (loop,) = [ns for ns in untensioned if "TensionStream" not in ns and "series" not in ns]
+    batch_ekf = make_estimator("ekf", make_formulation("direct", raw["robot"]))
+    ekf_series = batch_ekf.run(arrays["raw"].t[:50], arrays["z"][:50])
+    np.testing.assert_allclose(loop["estimate"].output, ekf_series.output[-1], rtol=0, atol=1e-12)
+    assert loop["estimate"].status == ekf_series.status[-1] == "ok"
     # raw readings simulated and estimated with the model that describes them: the tip
     # within 1 mm, each axis's 95 % intervals holding the truth 85 to 99.9 % of the time
     (simulated,) = [ns for ns in spaces if "raw_readings" in ns]
