@@ -31,7 +31,7 @@ from continuum_mhe.errors import UserError
 Sym = Any  # casadi.SX or casadi.MX
 
 #: Below this value of ``theta**2`` the series branches are used. The truncation
-#: error of the series at the switch is < 1e-20, far below double precision, so the
+#: error of the series at the switch is below 3e-18, under double precision, so the
 #: value and its first and second derivatives are continuous to machine precision.
 SERIES_SWITCH_Q = 1e-2
 
