@@ -18,7 +18,7 @@ import pytest
 from estimator_helpers import bare
 
 from continuum_mhe.errors import InputError
-from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators import EstimateSeries, make_estimator
 from continuum_mhe.estimators.base import Estimate
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.live.session import LiveSession, LiveSettings
@@ -288,10 +288,14 @@ def _restart_with_record(tmp_path: Path, silence_s: float) -> tuple[LiveSession,
 def _replayed(rec: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``estimate``'s run (the compiled batch) on the recording, with the session's
     estimator settings."""
+    series = _replay_series(rec)
+    return series.t, series.output, series.status
+
+
+def _replay_series(rec: Path) -> EstimateSeries:
     data = np.loadtxt(rec, delimiter=",", skiprows=1)
     f = make_formulation("bend", Robot.single(), NoiseSettings())
-    series = make_estimator("ekf", f, MHESettings(horizon=10)).run(data[:, 0], data[:, 1:])
-    return series.t, series.output, series.status
+    return make_estimator("ekf", f, MHESettings(horizon=10)).run(data[:, 0], data[:, 1:])
 
 
 def test_summary_after_a_clock_restart_in_a_long_silence_says_the_replay_restarts_too(
@@ -310,8 +314,38 @@ def test_summary_after_a_clock_restart_in_a_long_silence_says_the_replay_restart
     assert status[300] == rows[300][-2] == "reset"
     summary = s.summary()
     assert "'estimate' on the recording restarts at the same sample(s)" in summary
-    assert "with the same estimates" in summary and "does not" not in summary
-    assert f"may differ from this run's after t={t[300]:.3f} s" in summary
+    assert "with the same estimates, statuses and standard deviations" in summary
+    assert "does not" not in summary
+
+
+def test_a_clock_restart_keeps_the_model_error_learned_as_the_replays_gap_does(
+    tmp_path: Path,
+) -> None:
+    """Readings that scatter far beyond their noise model (the model error the
+    consistency check learns and widens the standard deviations by), then a device clock
+    restart after a silence longer than --gap-reset: live keeps what it learned, as the
+    replay's gap restart does, so every row's standard deviations and status equal the
+    replay's after the restart too (live learned them anew and said narrower ones)."""
+    out = io.StringIO()
+    s, _ = _session(out=out)
+    rec = tmp_path / "raw.csv"
+    s.record = RowFile(rec, ("t", "roll_1", "pitch_1"), overwrite=False)
+    rng = np.random.default_rng(4)
+    scatter = np.radians(6.0) * rng.standard_normal((400, 2))  # R says 2 degrees
+    now = time.monotonic()
+    for i in range(400):
+        t_ms, arrival = (10 * i, 0.01 * i) if i < 300 else (10 * (i - 300), 5.0 + 0.01 * i)
+        roll, pitch = 0.3 + scatter[i, 0], 0.2 + scatter[i, 1]
+        s.handle_line(f"{t_ms},{roll:.6f},{pitch:.6f}".encode(), now + arrival)
+    s.record.close()
+    assert s.counts.restarts == 1
+    rows = [r.split(",") for r in out.getvalue().splitlines()[1:]]
+    header = out.getvalue().splitlines()[0].split(",")
+    std = [j for j, name in enumerate(header) if name.startswith("std_")]
+    series = _replay_series(rec)
+    live_std = np.array([[float(r[j]) for j in std] for r in rows])
+    np.testing.assert_allclose(live_std, series.output_std, rtol=1e-6, atol=1e-9)
+    assert [r[-2] for r in rows] == [str(v) for v in series.status]
 
 
 def test_summary_after_a_clock_restart_in_a_short_silence_says_where_the_replay_differs(
@@ -471,11 +505,19 @@ def test_a_gap_of_exactly_the_gap_reset_on_an_epoch_clock_is_decided_as_the_poli
     """A device clock in Unix milliseconds (t near 1.7e9 s): a gap of exactly
     ``--gap-reset`` (0.3 s, 1700000000.001 to 1700000000.301 s, which subtract to
     0.30000019 s) is no long gap to the estimator's policy (no gap reset), and live says
-    ``estimating across it`` (not ``estimator restarts``, restarting the raw IMUs'
+    ``predicting across it`` (not ``estimator restarts``, restarting the raw IMUs'
     attitude filters where the estimator goes on); a gap 1 ms longer restarts both."""
     from continuum_mhe.settings import RecoverySettings
 
-    for gap_ms, resets, how in ((300, 0, "estimating across it"), (301, 1, "estimator restarts")):
+    for gap_ms, resets, how in (
+        (
+            300,
+            0,
+            "predicting across it (the estimator restarts where the readings after it "
+            "disagree with the prediction)",
+        ),
+        (301, 1, "estimator restarts"),
+    ):
         said: list[str] = []
         f = make_formulation("bend", Robot.single(), NoiseSettings())
         est = make_estimator("ekf", f, recovery=RecoverySettings(gap_reset=0.3))

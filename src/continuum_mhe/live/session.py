@@ -862,7 +862,7 @@ class LiveSession:
                 self.check_units()
                 if self.fatal is not None:
                     return None  # neither recorded nor estimated: the session stops
-        restart = False
+        restart = by_gap = False
         if placed.event == "wrap":
             c.clock_wraps += 1
             self.say(
@@ -874,9 +874,13 @@ class LiveSession:
             restart = True
             assert t_prev is not None  # a restart steps back from a sample
             gap_reset = self.estimator.recovery.gap_reset
-            # the recording's gap too short for the estimator's gap reset (as its policy
-            # decides it, the times' rounding allowed)
-            if not (gap_reset and longer(t - t_prev, gap_reset, t)):
+            # a silence longer than the estimator's gap reset (as its policy decides it,
+            # the times' rounding allowed) is a gap in t, at which the estimator restarts
+            # itself, as estimate's does on the recording: the same restart
+            by_gap = bool(gap_reset) and longer(t - t_prev, gap_reset, t)
+            if by_gap:
+                self._count_restart(t)
+            else:
                 self._replay_differs(
                     t,
                     f"the clock restart after {t - t_prev:.3f} s of silence, not a gap longer "
@@ -898,7 +902,12 @@ class LiveSession:
                 # decided as the estimator's policy decides its gap reset (the times'
                 # rounding allowed), so that the two restart together
                 long_gap = gap_reset is not None and longer(dt, gap_reset, t)
-                how = "estimator restarts" if long_gap else "estimating across it"
+                how = (
+                    "estimator restarts"
+                    if long_gap
+                    else "predicting across it (the estimator restarts where the readings "
+                    "after it disagree with the prediction)"
+                )
                 if long_gap:  # the estimator restarts itself (status reset); so do the
                     for conv in self.converters or ():  # attitude filters of raw IMUs
                         conv.reset()
@@ -920,7 +929,10 @@ class LiveSession:
         if restart:  # the estimator restarts when this sample is estimated
             for conv in self.converters or ():
                 conv.reset()
-        self._pending.append(_Pending(t, self._measurement(t, s.values), restart, arrival, given))
+        restart_here = restart and not by_gap  # a gap's restart is the estimator's own
+        self._pending.append(
+            _Pending(t, self._measurement(t, s.values), restart_here, arrival, given)
+        )
         if self._tension_stream is None:
             return self._estimate_pending([None])
         return self._estimate_pending(self._tension_stream.push(t, s.tensions))
@@ -1000,15 +1012,20 @@ class LiveSession:
         """Restart the estimator at the sample at ``t`` s (and the raw converters, unless
         they were restarted when that sample arrived), keeping what it knew of the
         sensors unless not ``keep_sensors`` (after an estimator failure)."""
-        c = self.counts
-        c.restarts += 1
-        if c.first_restart_t is None:
-            c.first_restart_t = t
+        self._count_restart(t)
         for conv in (self.converters or ()) if converters else ():
             conv.reset()
         # the same session: its freezes said once
         self.estimator.reset(keep_counts=True, keep_sensors=keep_sensors)
         self._restarted = True  # the next estimate says so (status reset)
+
+    def _count_restart(self, t: float) -> None:
+        """Count a restart of the estimator at ``t`` s (the summary's, the first time
+        kept)."""
+        c = self.counts
+        c.restarts += 1
+        if c.first_restart_t is None:
+            c.first_restart_t = t
 
     def _replay_differs(self, t: float, why: str) -> None:
         """Live restarts the estimator at ``t`` s where ``estimate`` on the recording
@@ -1165,29 +1182,19 @@ class LiveSession:
         """How ``estimate`` on the recording compares with this run, given live's
         restarts of the estimator. A clock restart after a silence longer than
         ``--gap-reset`` is a gap in the recording, where ``estimate`` restarts at the
-        same sample with the same estimates; but live starts the sensor checks afresh
-        there (the consistency check's average and model error, as for a new
-        recording), where a gap keeps them, so the statuses may differ after it."""
+        same sample with the same estimates, statuses and standard deviations (both keep
+        the readings' consistency average and the model error learned)."""
         c = self.counts
-        first = f"t={c.first_restart_t:.3f} s"
-        checks = (
-            "live starts the sensor checks afresh at a restart (the readings' consistency "
-            "average and model error) and a gap keeps them, so its statuses (such as "
-            f"'inconsistent') may differ from this run's after {first}"
-        )
         if c.replay_differs_t is None:
             return (
                 "'estimate' on the recording restarts at the same sample(s) (a gap longer "
-                "than --gap-reset) with the same estimates, but " + checks
+                "than --gap-reset) with the same estimates, statuses and standard deviations"
             )
-        note = (
+        return (
             f"'estimate' on the recording does not restart at t={c.replay_differs_t:.3f} s "
             f"({c.replay_differs_why}), so its estimates match this run's only before that "
             "time"
         )
-        if c.replay_differs_t > (c.first_restart_t or 0.0):
-            note += "; before it, " + checks
-        return note
 
     def _not_shown(self) -> str:
         """The device messages' repeats not shown, for the summary, or ""."""
