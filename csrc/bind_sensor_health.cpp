@@ -467,6 +467,7 @@ class Running {
 struct BoundProcessNoise {
   ProcessNoise core;
   nb::object fallback;
+  int64_t python_calls = 0;  // calls of __call__ (from Python, or a caller's callable)
 };
 
 // ``process_noise(dt) -> (Q, Q^-1)``: a ProcessNoise in compiled code (Python only for its
@@ -641,24 +642,29 @@ void cmhe::bind_sensor_health(nb::module_& m) {
       "(csrc/process_noise.hpp); the policy and the inferences take it without Python.")
       .def(
           "__init__",
-          [](BoundProcessNoise* self, const ModelFunction& q, int nx, std::vector<int> held,
+          [](BoundProcessNoise* self, const TapeFunction& q, int nx, std::vector<int> held,
              nb::object fallback) {
             new (self) BoundProcessNoise{ProcessNoise(q, nx, std::move(held)), fallback};
           },
           nb::arg("q"), nb::arg("nx"), nb::arg("held"), nb::arg("fallback"),
           nb::keep_alive<1, 2>(),
           "``q``: dt (s) -> Q (nx, nx); ``held``: states whose rows and columns of Q and Q^-1 "
-          "are zero; ``fallback(dt) -> (Q, Q^-1)`` where Q is not positive definite.")
+          "are zero; ``fallback(dt) -> (Q, Q^-1)`` where Q is not positive definite (it "
+          "must not refer back to this object: the garbage collector does not see it).")
       .def(
           "__call__",
           [](BoundProcessNoise& p, double dt) -> nb::tuple {
+            ++p.python_calls;
             const size_t nx = size_t(p.core.nx);
             Array Q = new_array({nx, nx}), Qinv = new_array({nx, nx});
             if (p.core.compute(dt, Q.data(), Qinv.data())) return nb::make_tuple(Q, Qinv);
             return nb::cast<nb::tuple>(p.fallback(dt));
           },
           nb::arg("dt"), "``(Q, Q^-1)`` (nx, nx each) of a step of ``dt`` s.")
-      .def_prop_ro("nx", [](const BoundProcessNoise& p) { return p.core.nx; });
+      .def_prop_ro("nx", [](const BoundProcessNoise& p) { return p.core.nx; })
+      .def_prop_ro(
+          "python_calls", [](const BoundProcessNoise& p) { return p.python_calls; },
+          "Calls of this object from Python (the compiled steps compute without them).");
 
   nb::class_<HorizonInference>(
       m, "HorizonInference",

@@ -8,8 +8,10 @@
 
 namespace cmhe {
 
-ProcessNoise::ProcessNoise(const ModelFunction& q, int nx_, std::vector<int> held)
+ProcessNoise::ProcessNoise(const TapeFunction& q, int nx_, std::vector<int> held)
     : nx(nx_), q_(q), held_(std::move(held)) {
+  if (q_.tape().input_sizes() != std::vector<int64_t>{1})
+    throw std::invalid_argument("the process noise function takes one input, dt (one value)");
   if (q_.output_size() != int64_t(nx) * nx)
     throw std::invalid_argument("the process noise function writes " +
                                 std::to_string(q_.output_size()) + " values, expected nx^2");

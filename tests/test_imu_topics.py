@@ -88,6 +88,17 @@ def test_two_imus_sampling_out_of_phase_are_said_so(
             write_mcap_topics(tmp_path / "in_phase.mcap", streams["imu"]), TOPICS, 2
         ).report()
     )
+    # a topic twice as fast, in phase: every sample of IMU 1 has a partner, its extra
+    # samples are left over, half a period from IMU 1's; not out of phase
+    n = len(imu1["stamps"])
+    twice = {
+        "stamps": imu1["stamps"][0] + np.arange(2 * n, dtype=np.int64) * (DT_NS // 2),
+        "acc": np.repeat(imu1["acc"], 2, axis=0),
+        "gyr": np.repeat(imu1["gyr"], 2, axis=0),
+    }
+    log = write_mcap_topics(tmp_path / "twice.mcap", [imu1, twice])
+    faster = read_imu_topics(log, TOPICS, 2)
+    assert faster.unpaired[1] > 0.1 * faster.read[1] and "out of phase" not in faster.report()
 
 
 def test_fill_outages_known_answers() -> None:

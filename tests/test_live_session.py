@@ -325,7 +325,7 @@ def test_a_clock_restart_keeps_the_model_error_learned_as_the_replays_gap_does(
     consistency check learns and widens the standard deviations by), then a device clock
     restart after a silence longer than --gap-reset: live keeps what it learned, as the
     replay's gap restart does, so every row's standard deviations and status equal the
-    replay's after the restart too (live learned them anew and said narrower ones)."""
+    replay's after the restart too."""
     out = io.StringIO()
     s, _ = _session(out=out)
     rec = tmp_path / "raw.csv"
@@ -513,8 +513,8 @@ def test_a_gap_of_exactly_the_gap_reset_on_an_epoch_clock_is_decided_as_the_poli
         (
             300,
             0,
-            "predicting across it (the estimator restarts where the readings after it "
-            "disagree with the prediction)",
+            "predicting across it (a restart if the readings after it lie far beyond the "
+            "prediction: --glitch)",
         ),
         (301, 1, "estimator restarts"),
     ):

@@ -74,12 +74,15 @@ def test_a_covariance_that_is_not_positive_definite_is_the_fallbacks() -> None:
 
     noise = _core.ProcessNoise(singular, 2, [], fallback)
     Q, Qinv = noise(0.5)
-    assert calls == [0.5]
+    assert calls == [0.5] and noise.python_calls == 1
     assert np.array_equal(Q, answer[0]) and np.array_equal(Qinv, answer[1])
     positive = tape_function(ca.Function("q", [dt], [ca.diag(ca.vertcat(dt, 2 * dt))]))
     Q, Qinv = _core.ProcessNoise(positive, 2, [], fallback)(0.5)
     assert calls == [0.5]  # not called again
     assert np.allclose(Qinv, np.diag([2.0, 1.0]))
+    two = tape_function(ca.Function("q", [ca.SX.sym("dt", 2)], [ca.SX.eye(2)]))
+    with pytest.raises(ValueError, match="one input, dt"):  # it would read past dt
+        _core.ProcessNoise(two, 2, [], fallback)
 
 
 @pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
@@ -101,4 +104,8 @@ def test_a_run_over_jittered_times_computes_the_process_noise_in_compiled_code(
     monkeypatch.setattr(process_noise_module, "process_noise", counted)
     series = est.run(t, rec.z)
     assert len(series.t) == len(t) and np.sum(series.status == "ok") > len(t) // 2
-    assert calls == []
+    assert calls == []  # no fallback
+    inference = est.inference
+    steps = getattr(inference, "_q", None) or inference._process_weight  # type: ignore[attr-defined]
+    for compiled in (est.process_noise, steps.compiled):  # not called from Python either
+        assert compiled.python_calls == 0

@@ -1470,7 +1470,7 @@ def test_a_truth_on_the_logs_clock_is_pointed_to_the_estimates_t0(
     """A truth (motion capture) on the log's clock, seconds since 1970, that starts 2 s
     before the IMUs: ``evaluate`` refuses the times that do not overlap and names the
     ``--truth-shift`` of the estimate's ``t0_ns`` (its line, or its MCAP's note), which
-    compares them (it named a shift that assumed the two started together)."""
+    compares them, not a shift that takes the two to start together."""
     log = write_mcap(tmp_path / "run.mcap", recording)
     est = tmp_path / f"e{suffix}"
     assert main(["estimate", str(log), "--length", "0.2", "-o", str(est)]) == 0

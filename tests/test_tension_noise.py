@@ -109,7 +109,7 @@ def test_smooth_tensions_at_irregular_times_are_not_read_as_noise(seed: int) -> 
     """The shipped noiseless tensions taken at 240 random times over their 8 s (a
     controller that logs when it can): the noise read between the rows needs no
     smoothing at their median step (the rows are moved onto an even grid by a
-    shape-preserving cubic; a line between them read its own error, under 0.5 mN, as
+    shape-preserving cubic: a line between them reads its own error, under 0.5 mN, as
     noise), while 5 mN of white noise on the same rows does."""
     from scipy.interpolate import CubicSpline
 

@@ -1784,8 +1784,8 @@ def test_step_and_continue_run_refuse_the_times_run_refuses() -> None:
 def test_a_refused_first_time_that_is_not_finite_leaves_the_too_fast_check_on(how: str) -> None:
     """A garbled first line (t NaN), refused, then times in microseconds read as seconds:
     the check of times far too fast still refuses them from the sample that ends the
-    first ``TOO_FAST_STEPS`` steps (the NaN kept in the check's times compared false
-    with every later one, and the check never filled)."""
+    first ``TOO_FAST_STEPS`` steps (a NaN kept in the check's times would compare false
+    with every later one, and the check would never fill)."""
     from continuum_mhe import Measurement, SampleTimeError, make_formulation, simulate
     from continuum_mhe.estimators.reading_units import ReadingUnitsError
 
@@ -1804,8 +1804,8 @@ def test_a_refused_first_time_that_is_not_finite_leaves_the_too_fast_check_on(ho
 
 def test_a_sample_refused_after_one_stamped_far_ahead_says_that_time_is_the_cause() -> None:
     """One sample stamped 40,000 s ahead (a wrong time) restarts the estimator after the
-    gap; every true sample after it is then refused as late, and the refusal says so
-    and that reset() is the way on, not the late sample's "step on"."""
+    gap; every true sample after it is then refused as late, and the refusal names
+    both times' cases: reset() where the earlier time was the wrong one."""
     from continuum_mhe import Measurement, SampleTimeError, make_formulation, simulate
 
     rec = simulate("paper3d", duration=2.0)
@@ -1814,12 +1814,25 @@ def test_a_sample_refused_after_one_stamped_far_ahead_says_that_time_is_the_caus
         est.step(Measurement(rec.t[i], rec.z[i]))
     est.step(Measurement(rec.t[20] + 4.0e4, rec.z[20]))
     for i in (21, 22):
-        with pytest.raises(SampleTimeError, match=r"before it is 39999\.9 s later: a clock that "
-                           r"stepped back.*until reset\(\)") as info:  # fmt: skip
+        with pytest.raises(SampleTimeError, match=r"before it is 39999\.9 s later: if this "
+                           r"sample's time is the wrong one.*until reset\(\)"):  # fmt: skip
             est.step(Measurement(rec.t[i], rec.z[i]))
-        assert "step on" not in str(info.value)
     est.reset(keep_counts=True)
     assert est.step(Measurement(rec.t[23], rec.z[23])).t == rec.t[23]
+
+
+def test_a_sample_stamped_far_behind_is_left_out_and_the_next_one_steps() -> None:
+    """One sample whose own time is wrong (0 s in a stream at 1.4 s): its refusal says
+    it can be left out, and the next true sample steps without a reset."""
+    from continuum_mhe import Measurement, SampleTimeError, make_formulation, simulate
+
+    rec = simulate("paper3d", duration=2.0)
+    est = make_estimator("ekf", make_formulation("bend"))
+    for i in range(30):
+        est.step(Measurement(rec.t[i], rec.z[i]))
+    with pytest.raises(SampleTimeError, match="leave it out and step on"):
+        est.step(Measurement(0.0, rec.z[30]))
+    assert est.step(Measurement(rec.t[31], rec.z[31])).t == rec.t[31]
 
 
 def test_write_measurements_refuses_what_read_measurements_would(tmp_path) -> None:

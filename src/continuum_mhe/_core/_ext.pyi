@@ -823,9 +823,9 @@ class ProcessNoise:
     A formulation's process noise Q(dt) and its inverse, from the tape of its covariance (csrc/process_noise.hpp); the policy and the inferences take it without Python.
     """
 
-    def __init__(self, q: ModelFunction, nx: int, held: Sequence[int], fallback: object) -> None:
+    def __init__(self, q: TapeFunction, nx: int, held: Sequence[int], fallback: object) -> None:
         """
-        ``q``: dt (s) -> Q (nx, nx); ``held``: states whose rows and columns of Q and Q^-1 are zero; ``fallback(dt) -> (Q, Q^-1)`` where Q is not positive definite.
+        ``q``: dt (s) -> Q (nx, nx); ``held``: states whose rows and columns of Q and Q^-1 are zero; ``fallback(dt) -> (Q, Q^-1)`` where Q is not positive definite (it must not refer back to this object: the garbage collector does not see it).
         """
 
     def __call__(self, dt: float) -> tuple:
@@ -833,6 +833,12 @@ class ProcessNoise:
 
     @property
     def nx(self) -> int: ...
+
+    @property
+    def python_calls(self) -> int:
+        """
+        Calls of this object from Python (the compiled steps compute without them).
+        """
 
 class HorizonInference:
     """

@@ -7,7 +7,7 @@ LAPACK's for the steps in Python (the MHE on IPOPT, the reference filters)."""
 from __future__ import annotations
 
 from dataclasses import replace
-from functools import lru_cache, partial
+from functools import cached_property, lru_cache, partial
 
 import casadi as ca
 import numpy as np
@@ -93,12 +93,16 @@ class ProcessNoiseCache:
     ``Q^-1`` there is that of the other states, as on an inactive term)."""
 
     def __init__(self, formulation: Formulation, held: tuple[int, ...] = ()) -> None:
-        #: the same in compiled code (:func:`compiled_process_noise`), which the
-        #: estimators' compiled steps take; its ``Q^-1`` agrees with this one's to rounding
-        self.compiled = compiled_process_noise(formulation, held)
         self._f = formulation
         self._held = tuple(held)
         self._cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+
+    @cached_property
+    def compiled(self) -> _core.ProcessNoise:
+        """The same in compiled code (:func:`compiled_process_noise`), which the
+        estimators' compiled steps take; its ``Q^-1`` agrees with this one's to
+        rounding."""
+        return compiled_process_noise(self._f, self._held)
 
     def __call__(self, dt: float) -> tuple[FloatArray, FloatArray]:
         key = round(dt, 9)

@@ -367,6 +367,8 @@ class Estimator(Generic[InferenceT]):
             else []
         )
         free = f.free_bends()  # the sections whose bend the IMUs leave free
+        #: the policy's Q(dt) and Q^-1, in compiled code (the core caches them per step)
+        self.process_noise = compiled_process_noise(f)
         return _core.SensorHealth(
             PythonInference(self.inference) if compiled is None else compiled,
             self._consistency.core,
@@ -410,7 +412,7 @@ class Estimator(Generic[InferenceT]):
             unobserved_after=UNOBSERVED_AFTER,
             degrees_like=DEGREES_LIKE,
             whole_rows=self._tension_block_rows,
-            process_noise=compiled_process_noise(f),  # the core caches it
+            process_noise=self.process_noise,
             inputs=f.inputs,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
             checks=f.state_checks(),
@@ -709,9 +711,10 @@ class Estimator(Generic[InferenceT]):
                 hint = "; run() left the estimator at its recording's end: call reset() first"
             elif first and math.isfinite(last) and last - t > (self.recovery.gap_reset or 1.0):
                 hint = (
-                    f"; the sample before it is {last - t:g} s later: a clock that stepped "
-                    "back, or a wrong time on that sample; every later sample is refused "
-                    "against it until reset() (reset(keep_counts=True) within one recording)"
+                    f"; the sample before it is {last - t:g} s later: if this sample's time "
+                    "is the wrong one, leave it out and step on; if that sample's was, or "
+                    "the clock stepped back, every later sample is refused against it until "
+                    "reset() (reset(keep_counts=True) within one recording)"
                 )
             elif first:
                 hint = (

@@ -108,15 +108,24 @@ class PairedImus:
         )
 
     def _phase_clause(self) -> str:
-        """Where more than :data:`UNPAIRED_SHARE` of a topic's samples found no partner
-        and its stamps lie a median of more than half the tolerance from IMU 1's (two
-        IMUs sampling out of phase, not a topic's own gaps): a clause saying so."""
+        """Where more than :data:`UNPAIRED_SHARE` of a topic's samples found no partner,
+        as many of IMU 1's samples have none in it (not a faster topic, whose extra
+        samples are left over beside a partner for every sample), and its stamps lie a
+        median of more than half the tolerance from IMU 1's (two IMUs sampling out of
+        phase, not a topic's own gaps): a clause saying so."""
+        n = len(self.t)
         said = [
             f"{log.topic}'s stamps lie a median {_duration(offset)} from {self.logs[0].topic}'s"
-            for log, offset, unpaired, read in zip(
-                self.logs[1:], self.offsets_s[1:], self.unpaired[1:], self.read[1:]
+            for log, offset, unpaired, read, dropouts in zip(
+                self.logs[1:],
+                self.offsets_s[1:],
+                self.unpaired[1:],
+                self.read[1:],
+                self.dropouts[1:],
             )
-            if unpaired > UNPAIRED_SHARE * read and offset > 0.5 * self.tolerance_s
+            if unpaired > UNPAIRED_SHARE * read
+            and dropouts > UNPAIRED_SHARE * n
+            and offset > 0.5 * self.tolerance_s
         ]
         if not said:
             return ""
@@ -169,22 +178,21 @@ def _pair_leftovers(ref: IntArray, other: IntArray, idx: IntArray, tolerance_ns:
     sample of ``other`` within the tolerance that no sample took, between the partners
     of its paired neighbours (the order kept): two sensors half a period apart leave
     two candidates for one partner at every jitter, which mutual nearest pairing loses."""
+    left = np.flatnonzero(idx < 0)
+    if not len(left) or not len(other):
+        return
     free = np.ones(len(other), dtype=bool)
     free[idx[idx >= 0]] = False
-    nxt = np.full(len(ref), len(other), dtype=np.int64)  # the next partner after each
-    upcoming = len(other)
-    for i in range(len(ref) - 1, -1, -1):
-        nxt[i] = upcoming
-        if idx[i] >= 0:
-            upcoming = int(idx[i])
-    last = -1
-    for i in range(len(ref)):
-        if idx[i] >= 0:
-            last = int(idx[i])
-            continue
-        lo = max(last + 1, int(np.searchsorted(other, ref[i] - tolerance_ns)))
-        hi = min(int(nxt[i]), int(np.searchsorted(other, ref[i] + tolerance_ns, side="right")))
-        cand = [k for k in range(lo, hi) if free[k]]
+    partner = np.where(idx >= 0, idx, -1)
+    before = np.maximum.accumulate(partner)  # the last partner up to each sample
+    after = np.minimum.accumulate(np.where(idx >= 0, idx, len(other))[::-1])[::-1]
+    lows = np.searchsorted(other, ref[left] - tolerance_ns)
+    highs = np.searchsorted(other, ref[left] + tolerance_ns, side="right")
+    last = -1  # the partner given to the leftover before
+    for i, low, high in zip(left.tolist(), lows.tolist(), highs.tolist()):
+        nxt = int(after[i + 1]) if i + 1 < len(ref) else len(other)
+        lo = max(int(before[i]) + 1, last + 1, low)
+        cand = [k for k in range(lo, min(nxt, high)) if free[k]]
         if cand:
             k = min(cand, key=lambda k: abs(int(other[k]) - int(ref[i])))
             idx[i] = k

@@ -905,8 +905,8 @@ class LiveSession:
                 how = (
                     "estimator restarts"
                     if long_gap
-                    else "predicting across it (the estimator restarts where the readings "
-                    "after it disagree with the prediction)"
+                    else "predicting across it (a restart if the readings after it lie far "
+                    "beyond the prediction: --glitch)"
                 )
                 if long_gap:  # the estimator restarts itself (status reset); so do the
                     for conv in self.converters or ():  # attitude filters of raw IMUs
