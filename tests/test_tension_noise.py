@@ -108,9 +108,10 @@ def test_smooth_tensions_are_taken_row_by_row() -> None:
 def test_smooth_tensions_at_irregular_times_are_not_read_as_noise(seed: int) -> None:
     """The shipped noiseless tensions taken at 240 random times over their 8 s (a
     controller that logs when it can): the noise read between the rows needs no
-    smoothing at their median step (the rows are moved onto an even grid by a
-    shape-preserving cubic: a line between them reads its own error, under 0.5 mN, as
-    noise), while 5 mN of white noise on the same rows does."""
+    smoothing at their median step (the rows' divided differences, each over its
+    weights' norm, read the noise without resampling: a line between them reads its
+    own error, under 0.5 mN, as noise), while 5 mN of white noise on the same rows does,
+    and is read as 5 mN."""
     from scipy.interpolate import CubicSpline
 
     raw = np.loadtxt(DATA / "unloaded_tensions.csv", delimiter=",", skiprows=1)
@@ -122,6 +123,7 @@ def test_smooth_tensions_at_irregular_times_are_not_read_as_noise(seed: int) -> 
     assert smoothing_rows(tension_noise_std(values, t), step) == 0
     noisy = values + rng.normal(0.0, 5e-3, values.shape)
     assert smoothing_rows(tension_noise_std(noisy, t), step) > 0
+    assert tension_noise_std(noisy, t) == pytest.approx(5e-3, rel=0.25)  # read as itself
 
 
 def test_a_cubic_in_time_keeps_its_derivatives_through_the_smoothing() -> None:

@@ -96,31 +96,44 @@ def tension_noise_std(values: FloatArray, t: FloatArray | None = None) -> float:
     k))``). A smooth tension's k-th differences shrink as ``(2 pi f step)^k`` with its
     frequency ``f``: two newtons swinging at 3 Hz, sampled at 50 Hz, read as 7e-6 N,
     far under the noise a 50 Hz file is smoothed for (1.3e-4 N). Rows at uneven times
-    ``t`` are interpolated onto an even grid at their median step first (a smooth
-    tension at jittered times is not noise), and windows of ``k + 1`` equal rows (a
+    ``t`` take divided differences instead, each scaled to the noise it carries
+    (:func:`_unit_divided_differences`: a smooth tension at jittered times is not
+    noise, and white noise reads as itself), and windows of ``k + 1`` equal rows (a
     slack tendon at exactly 0, a hold) are left out. 0 with too few rows."""
     k = NOISE_ORDER
     if len(values) < 2 * k + 1:
         return 0.0
-    if t is not None:
-        grid, _ = _on_even_grid(t, values[:, :1], 1e-3)
-        if grid is not t:
-            # a shape-preserving cubic, not a line, between the rows: a line's own
-            # error (h^2 f''/8) between unevenly timed rows of a smooth tension reads
-            # as noise in the high differences (a controller's log at irregular times)
-            from scipy.interpolate import PchipInterpolator  # scipy only for a tendon robot
-
-            values = PchipInterpolator(t, values, axis=0)(grid)
     windows = np.lib.stride_tricks.sliding_window_view(values, k + 1, axis=0)
     varies = windows.max(axis=-1) > windows.min(axis=-1)  # (n - k, columns)
-    d = np.diff(values, n=k, axis=0)
+    if t is not None and _on_even_grid(t, values[:, :1], 1e-3)[0] is not t:
+        unit = _unit_divided_differences(np.asarray(t, dtype=float), values, k)
+        scale = 1.0
+    else:
+        unit, scale = np.diff(values, n=k, axis=0), math.sqrt(math.comb(2 * k, k))
     spread = 0.0
     for j in range(values.shape[1]):
-        dj = d[varies[:, j], j]
+        dj = unit[varies[:, j], j]
         if len(dj) >= 2 * k + 1:
             mad = float(np.median(np.abs(dj - np.median(dj))))
             spread = max(spread, 1.4826 * mad)
-    return spread / math.sqrt(math.comb(2 * k, k))
+    return spread / scale
+
+
+def _unit_divided_differences(t: FloatArray, values: FloatArray, k: int) -> FloatArray:
+    """The ``k``-th divided differences of ``values`` (n, columns) at the uneven times
+    ``t`` (n,), each over the norm of its weights, so that white noise of standard
+    deviation ``s`` gives them the standard deviation ``s`` whatever the spacing (on an
+    even grid they are the rows' ``k``-th differences over ``sqrt(C(2 k, k))``); a
+    smooth tension's part is its ``k``-th derivative over ``k!`` times as small a factor
+    as on the grid. No resampling: a line or a cubic between the rows would read its own
+    error as noise, and average the noise it moves."""
+    times = np.lib.stride_tricks.sliding_window_view(t, k + 1)  # (n - k, k + 1)
+    apart = times[:, :, None] - times[:, None, :]
+    apart[:, np.arange(k + 1), np.arange(k + 1)] = 1.0
+    weights = 1.0 / np.prod(apart, axis=2)  # (n - k, k + 1): the divided difference's
+    weights /= np.linalg.norm(weights, axis=1, keepdims=True)
+    rows = np.lib.stride_tricks.sliding_window_view(values, k + 1, axis=0)  # (n - k, c, k + 1)
+    return np.einsum("wck,wk->wc", rows, weights)
 
 
 def smoothing_rows(noise: float, step: float) -> int:
