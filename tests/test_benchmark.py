@@ -72,10 +72,11 @@ def test_benchmark_command_records_ratios_and_environment(
     monkeypatch.setattr(bench_env, "cpu_model", lambda: "Test CPU 9000")
     out = tmp_path / "bench.json"
     args = ["benchmark", "--horizons", "4", "--duration", "0.6", "--memory-samples", "1000",
-            "--loss-horizons", "none", "--repeats", "1"]  # fmt: skip
+            "--loss-horizons", "none", "--repeats", "1", "--interpreted-peers"]  # fmt: skip
     assert main([*args, "--json", str(out)]) == 0
     report = json.loads(out.read_text())
     rows = {r["method"]: r for r in report["results"]}
+    assert report["casadi_peers_compiled"] is False
     assert set(report["skipped"]) <= {"acados"}  # unless comma-deps-acados is installed
     assert set(rows) == set(bm.METHODS) - set(report["skipped"]) == set(report["methods"])
     fast = rows["fast"]
@@ -241,7 +242,7 @@ def test_each_peer_solves_the_mhe_windows_to_ipopts_answers(
         solver = request.getfixturevalue("acados_peer")
         solver.reset()
     else:
-        solver = peers.make_peer(name, f, n, peers.find_acados(folder))
+        solver = peers.make_peer(name, f, n, peers.find_acados(folder), compiled=False)
     nlp = build_nlp(f, n, 100, 1e-10)
     X = None
     worst = 0.0
@@ -374,7 +375,8 @@ def test_a_missing_peer_is_skipped_with_the_line_that_installs_it(
     monkeypatch.setattr(peers, "find_acados", lambda folder=None: None)
     has_nlpsol = casadi.has_nlpsol
     monkeypatch.setattr(casadi, "has_nlpsol", lambda name: name != "fatrop" and has_nlpsol(name))
-    report = bm.run_benchmark([3], 0.4, ("ipopt", "acados", "fatrop", "ekf"), 0, ())
+    report = bm.run_benchmark([3], 0.4, ("ipopt", "acados", "fatrop", "ekf"), 0, (),
+                              compile_peers=False)  # fmt: skip
     assert report["skipped"] == {
         "acados": "needs comma-deps-acados: " + peers.ACADOS_HINT,
         "fatrop": "this CasADi has no fatrop: pip install 'casadi>=3.8.2'",
@@ -412,7 +414,7 @@ def test_the_ratios_line_names_only_the_contenders_that_ran(
 ) -> None:
     """With the EKFs skipped the fast MHE's line gives its ratio to IPOPT alone, with no
     '-x the compiled EKF' for the contenders that did not run."""
-    report = bm.run_benchmark([3], 0.4, ("fast", "ipopt"), 0, (), repeats=1)
+    report = bm.run_benchmark([3], 0.4, ("fast", "ipopt"), 0, (), repeats=1, compile_peers=False)
     bm.print_report(report)
     out = " ".join(capsys.readouterr().out.split())
     line = out[out.index("fast MHE at N = 3:") :].split("machine:")[0]
@@ -498,7 +500,7 @@ def test_a_casadi_peer_is_called_with_casadi_matrices(monkeypatch) -> None:
 
     f = make_formulation("bend")
     windows = peers.record_windows(f, simulate("paper3d", duration=0.4, seed=0), 3)
-    peer = peers.CasadiPeer(f, 3, "sqp-hpipm")
+    peer = peers.CasadiPeer(f, 3, "sqp-hpipm", compiled=False)
     solver, kinds = peer.solver, []
 
     class Spy:
@@ -639,3 +641,25 @@ def test_the_robot_benchmark_refuses_a_tendon_robot_in_its_own_words(
         "ipopt do)\n"
     )
     assert not out.exists()
+
+
+def test_a_compiled_casadi_peer_gives_the_interpreted_ones_answers() -> None:
+    """The CasADi peers' functions compiled to C (as acados' are generated C; CasADi's
+    SX virtual machine otherwise evaluates them, about twice as slowly): the same
+    answers, bit for bit, on every window; and the benchmark's record says whether they
+    were."""
+    import shutil
+
+    f = make_formulation("bend")
+    windows = peers.record_windows(f, simulate("paper3d", duration=0.4, seed=0), 3)
+    assert peers.casadi_peer_compile_options(False) == {}
+    assert peers.casadi_peer_compile_options(True)["jit"] is True
+    assert peers.casadi_peers_compiled() == (shutil.which("cc") is not None)
+    compiled = peers.CasadiPeer(f, 3, "sqp-hpipm", compiled=True)
+    interpreted = peers.CasadiPeer(f, 3, "sqp-hpipm", compiled=False)
+    X = Y = None
+    for problem in windows:
+        assert problem is not None
+        X, _, _ = peers.solve_window(compiled, problem, peers.shifted_guess(f, problem, X))
+        Y, _, _ = peers.solve_window(interpreted, problem, peers.shifted_guess(f, problem, Y))
+        np.testing.assert_array_equal(X, Y)

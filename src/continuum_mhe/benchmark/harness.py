@@ -364,6 +364,7 @@ def _runs(
     methods: tuple[str, ...],
     acados: Any = None,
     closing: list[Callable[[], None]] | None = None,
+    compile_peers: bool | None = None,
 ) -> dict[str, Run]:
     """Every method of ``methods`` at horizon ``n`` as a :data:`Run`, in the order of
     :data:`METHODS` (IPOPT, do-mpc and the peers beside the cheap ones). The peers'
@@ -380,7 +381,7 @@ def _runs(
     if peers:
         windows = record_windows(f, rec, n)
         for name in peers:
-            solver = make_peer(name, f, n, acados)
+            solver = make_peer(name, f, n, acados, compile_peers)
             close = getattr(solver, "close", None)
             if close is not None and closing is not None:
                 closing.append(close)
@@ -397,17 +398,25 @@ def run_benchmark(
     repeats: int = REPEATS,
     acados_folder: str | None = None,
     say: Callable[[str], None] | None = None,
+    compile_peers: bool | None = None,
 ) -> dict[str, Any]:
     """Time every method at every horizon on one recording, and each MHE loss at
     ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); every
     method ``repeats`` times in turn (:func:`_interleaved`); a peer that cannot run here
     is skipped with the line that says what to install (``acados_folder``: where
-    ``comma-deps-acados`` was installed apart, see :mod:`.peers`); ``say``: called with
+    ``comma-deps-acados`` was installed apart, see :mod:`.peers`; ``compile_peers``: the
+    CasADi peers' functions compiled, None where a C compiler is found:
+    :func:`~.peers.casadi_peers_compiled`); ``say``: called with
     a line as each part starts and ends (the command line's progress); see the
     module docstring."""
     progress = say or (lambda line: None)
     from continuum_mhe.benchmark.losses import run_loss_benchmark
-    from continuum_mhe.benchmark.peers import acados_version, find_acados, missing_peers
+    from continuum_mhe.benchmark.peers import (
+        acados_version,
+        casadi_peers_compiled,
+        find_acados,
+        missing_peers,
+    )
 
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=duration, dt=DT, noise_deg=2.0, seed=0)
@@ -417,6 +426,7 @@ def run_benchmark(
     acados = find_acados(acados_folder) if "acados" in methods else None
     if acados is not None:
         env["versions"]["comma-deps-acados"] = acados_version(acados)
+    env["casadi_peers_compiled"] = casadi_peers_compiled(compile_peers)
     results: list[Timing] = []
     for k, n in enumerate(horizons, start=1):
         closing: list[Callable[[], None]] = []
@@ -426,7 +436,7 @@ def run_benchmark(
             f"and {repeats} interleaved rounds of {len(rec.t)} samples each"
         )
         try:
-            rows = _interleaved(_runs(f, rec, n, methods, acados, closing), repeats)
+            rows = _interleaved(_runs(f, rec, n, methods, acados, closing, compile_peers), repeats)
         finally:
             for close in closing:
                 close()

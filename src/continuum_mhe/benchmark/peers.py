@@ -75,14 +75,15 @@ PEER_NOTES: dict[str, str] = {
     "acados' own time",
     "fatrop": "CasADi's fatrop (structure-exploiting interior point) on the same windows "
     "(noise as control), warm-started from its shifted answer (it takes no multipliers): "
-    "the nlpsol call",
+    "the nlpsol call (its functions compiled where a C compiler is found)",
     "sqp-hpipm": "CasADi's sqpmethod with HPIPM as QP solver (exact Hessian) on the same "
     "windows (noise as control), warm-started from its shifted answer and multipliers: "
-    "the nlpsol call",
+    "the nlpsol call (its functions compiled where a C compiler is found)",
     "ipopt-warm": "IPOPT through CasADi on the same windows (noise as control), "
     "warm-started as an interior point can be: its shifted answer and multipliers, "
     "warm_start_init_point, mu_init 1e-4, bound pushes 1e-9, adaptive mu: the nlpsol "
-    "call, no covariance (the ipopt row is the whole estimator step)",
+    "call (its functions compiled where a C compiler is found), no covariance (the ipopt "
+    "row is the whole estimator step)",
 }
 
 #: IPOPT's options as the ipopt-warm peer runs it: a warm start from the previous
@@ -275,7 +276,9 @@ class CasadiPeer:
     ``"sqp-hpipm"`` (sqpmethod, exact Hessian, HPIPM with the stage sizes given) or
     ``"ipopt-warm"`` (IPOPT warm-started: :data:`IPOPT_WARM_OPTIONS`)."""
 
-    def __init__(self, formulation: Formulation, horizon: int, name: str) -> None:
+    def __init__(
+        self, formulation: Formulation, horizon: int, name: str, compiled: bool | None = None
+    ) -> None:
         self.formulation, self.horizon = formulation, horizon
         self.ocp = o = ocp_nlp(formulation, horizon)
         # the bounds and the prepared window (prepare) as nlpsol takes them: CasADi
@@ -287,7 +290,11 @@ class CasadiPeer:
         self._lam: tuple[ca.DM, ca.DM] | None = None
         self._lam0: dict[str, ca.DM] = {}
         nx, n = formulation.nx, horizon
-        common: dict[str, Any] = {"print_time": False, "error_on_fail": False}
+        common: dict[str, Any] = {
+            "print_time": False,
+            "error_on_fail": False,
+            **casadi_peer_compile_options(compiled),
+        }
         if name == "fatrop":
             opts = {
                 **common,
@@ -596,16 +603,37 @@ def acados_version(acados: ModuleType) -> str | None:
     return None
 
 
+def casadi_peers_compiled(compiled: bool | None = None) -> bool:
+    """Whether the CasADi peers' functions are compiled: ``compiled``, or (None) where a
+    C compiler (``cc``) is found."""
+    return shutil.which("cc") is not None if compiled is None else compiled
+
+
+def casadi_peer_compile_options(compiled: bool | None = None) -> dict[str, Any]:
+    """The ``nlpsol`` options of a CasADi peer (:func:`casadi_peers_compiled`): its
+    window's functions compiled to C (``jit``, ``-O2``) before the clock starts, as
+    acados' generated C is; CasADi's SX virtual machine otherwise evaluates them, fatrop
+    about twice as slowly at N = 30."""
+    if not casadi_peers_compiled(compiled):
+        return {}
+    return {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"]}}
+
+
 def make_peer(
-    name: str, formulation: Formulation, horizon: int, acados: ModuleType | None = None
+    name: str,
+    formulation: Formulation,
+    horizon: int,
+    acados: ModuleType | None = None,
+    compiled: bool | None = None,
 ) -> WindowSolver:
     """The peer ``name`` of :data:`PEERS` at ``horizon`` (``acados``: the package
-    :func:`find_acados` found)."""
+    :func:`find_acados` found; ``compiled``: the CasADi peers', see
+    :func:`casadi_peers_compiled`)."""
     if name == "acados":
         if acados is None:
             raise ValueError("the acados peer needs the acados package (find_acados)")
         return AcadosPeer(formulation, horizon, acados)
-    return CasadiPeer(formulation, horizon, name)
+    return CasadiPeer(formulation, horizon, name, compiled)
 
 
 def missing_peers(acados_folder: str | None = None) -> dict[str, str]:

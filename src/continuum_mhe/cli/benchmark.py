@@ -144,6 +144,7 @@ def run(args: argparse.Namespace) -> int:
         args.repeats,
         args.acados,
         say=_say,
+        compile_peers=False if args.interpreted_peers else None,
     )
     print_report(report)
     if args.json:
@@ -213,6 +214,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="where comma-deps-acados was installed apart from CasADi (pip install "
         "--no-deps --target DIR comma-deps-acados; it ships a CasADi without IPOPT); "
         "without it, acados is looked for among the installed packages",
+    )
+    p.add_argument(
+        "--interpreted-peers",
+        action="store_true",
+        help="evaluate the CasADi peers' functions (fatrop, sqp-hpipm, ipopt-warm) in "
+        "CasADi's virtual machine instead of compiling them to C before the clock starts "
+        "(the default where a C compiler is found; faster to set up, slower to solve)",
     )
     p.add_argument(
         "--memory-samples",
