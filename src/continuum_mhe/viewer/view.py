@@ -180,6 +180,8 @@ class BackboneView:
         self._status = ""
         self._min_step = 1.0 / max_hz if max_hz else 0.0
         self._drawn_t: float | None = None
+        #: the last estimate left undrawn by ``max_hz`` since the last one drawn
+        self._undrawn: Estimate | None = None
         #: the rows of the estimate and of the truth sent (``log_rows``, ``log_truth``)
         #: whose loads the mechanics model holds no equilibrium under: their backbones
         #: drawn through their section ends, as ``plot`` draws them, without IMU frames
@@ -314,7 +316,7 @@ class BackboneView:
     def log_estimate(self, est: Estimate) -> None:
         """The live hook: log one estimate (its ``output`` in ``outputs`` order), one
         entity at a time (``log_rows`` sends a whole recording as columns)."""
-        rr, rec, size = self.rr, self.rec, self.robot.length
+        rr, rec = self.rr, self.rec
         self.estimates += 1
         rec.set_time("t", duration=nanoseconds(est.t))
         changed = str(est.status) != self._status
@@ -330,7 +332,14 @@ class BackboneView:
             and self._drawn_t is not None
             and 0 <= est.t - self._drawn_t < self._min_step
         ):
+            self._undrawn = est  # drawn at close if no later one is
             return  # max_hz: drawn often enough (status changes and gaps always are)
+        self._draw_estimate(est, out)
+
+    def _draw_estimate(self, est: Estimate, out: FloatArray) -> None:
+        """Draw the estimate ``est`` with its outputs ``out`` (its time set)."""
+        rr, rec, size = self.rr, self.rec, self.robot.length
+        self._undrawn = None
         self._drawn_t = float(est.t)
         if self.tendon is not None and est.state is not None:
             geom = self.tendon.from_states(est.state[None, :])
@@ -634,6 +643,10 @@ class BackboneView:
         Ctrl-C, then stop it."""
         if self._closed:
             return
+        if self._undrawn is not None and self._undrawn.output is not None:
+            # the last estimate, which max_hz left undrawn: the view ends where live did
+            self.rec.set_time("t", duration=nanoseconds(self._undrawn.t))
+            self._draw_estimate(self._undrawn, self._undrawn.output)
         try:
             if self.sink.kind == "save" and self._tmp is not None and keep:
                 self._finish_file(self._tmp)
