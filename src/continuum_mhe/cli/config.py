@@ -198,7 +198,7 @@ def _is_estimate_file(path: str, text: str | None = None) -> bool:
                 first = [fh.readline()]
         except (OSError, UnicodeDecodeError):
             return False
-    return _made_note(first) is not None
+    return _note_line(first, MADE_LINE) is not None
 
 
 def _line(text: str, key: str, offset: int = 0) -> str:
@@ -459,40 +459,45 @@ def recorded_recording(source: str) -> str | None:
     return None if found is None else found.group(1)
 
 
-def _made_note(lines: Iterable[str]) -> str | None:
-    """The ``continuum-mhe = ...`` note among the ``#`` lines above a CSV's header."""
+def _note_line(lines: Iterable[str], key: str) -> str | None:
+    """The ``key = ...`` note among the ``#`` lines above a CSV's header."""
     for ln in lines:
         if not ln.startswith("#"):
             return None
-        if re.match(rf"{MADE_LINE}\s*=", ln[1:].strip()):
+        if re.match(rf"{key}\s*=", ln[1:].strip()):
             return ln[1:].strip()
     return None
 
 
-def _made_line(source: str) -> str | None:
-    """The value of the estimate ``source``'s ``continuum-mhe`` note (CSV: a ``#`` line
-    above its header; MCAP: its notes record), or None."""
+def _note_value(source: str, key: str) -> Any:
+    """The value of the estimate ``source``'s note ``key`` (CSV: a ``#`` line above its
+    header; MCAP: its notes record), read as TOML, or None."""
     if Path(source).suffix.lower() == ".mcap":
         from continuum_mhe.io.mcap_estimates import read_notes_mcap
 
-        text = read_notes_mcap(source).get(MADE_LINE)
-        line = None if text is None else f"{MADE_LINE} = {text}"
+        text = read_notes_mcap(source).get(key)
+        line = None if text is None else f"{key} = {text}"
     else:
         held = held_text(source)
         try:
             if held is not None:
-                line = _made_note(held.splitlines())
+                line = _note_line(held.splitlines(), key)
             else:
                 with Path(source).open(encoding="utf-8-sig") as fh:
-                    line = _made_note(fh)
+                    line = _note_line(fh, key)
         except (OSError, UnicodeDecodeError):
             return None
     if line is None:
         return None
     try:
-        value = tomllib.loads(line).get(MADE_LINE)
+        return tomllib.loads(line).get(key)
     except tomllib.TOMLDecodeError:
         return None
+
+
+def _made_line(source: str) -> str | None:
+    """The value of the estimate ``source``'s ``continuum-mhe`` note, or None."""
+    value = _note_value(source, MADE_LINE)
     return value if isinstance(value, str) else None
 
 
@@ -500,22 +505,10 @@ def recorded_t0_s(path: str) -> float | None:
     """An estimate's ``t0_ns`` (its ``# t0_ns = ...`` line, an MCAP's note) in s, or
     None where it has none (not of a robot log) or cannot be read."""
     try:
-        if Path(path).suffix.lower() == ".mcap":
-            from continuum_mhe.io.mcap_estimates import read_notes_mcap
-
-            value = read_notes_mcap(path).get(T0_LINE)
-        else:
-            value = None
-            with open(path, encoding="utf-8-sig") as f:
-                for line in f:
-                    if not line.startswith("#"):
-                        break
-                    key, _, rest = line[1:].partition("=")
-                    if key.strip() == T0_LINE:
-                        value = rest.strip()
-        return None if value is None else int(str(value).strip('"')) / 1e9
-    except (OSError, ValueError, InputError):
+        value = _note_value(path, T0_LINE)
+    except InputError:  # an MCAP whose notes cannot be read: its reader says why
         return None
+    return value / 1e9 if isinstance(value, int) and not isinstance(value, bool) else None
 
 
 def recorded_option(path: str, key: str) -> Any:

@@ -181,22 +181,19 @@ def _pair_leftovers(ref: IntArray, other: IntArray, idx: IntArray, tolerance_ns:
     left = np.flatnonzero(idx < 0)
     if not len(left) or not len(other):
         return
-    free = np.ones(len(other), dtype=bool)
-    free[idx[idx >= 0]] = False
-    partner = np.where(idx >= 0, idx, -1)
-    before = np.maximum.accumulate(partner)  # the last partner up to each sample
+    # the pairs are in order: between the last partner before a sample and the next
+    # after it, every sample of ``other`` is free but those given to leftovers before
+    before = np.maximum.accumulate(idx)  # the last partner up to each sample (-1: none)
     after = np.minimum.accumulate(np.where(idx >= 0, idx, len(other))[::-1])[::-1]
     lows = np.searchsorted(other, ref[left] - tolerance_ns)
     highs = np.searchsorted(other, ref[left] + tolerance_ns, side="right")
     last = -1  # the partner given to the leftover before
     for i, low, high in zip(left.tolist(), lows.tolist(), highs.tolist()):
         nxt = int(after[i + 1]) if i + 1 < len(ref) else len(other)
-        lo = max(int(before[i]) + 1, last + 1, low)
-        cand = [k for k in range(lo, min(nxt, high)) if free[k]]
-        if cand:
+        cand = range(max(int(before[i]) + 1, last + 1, low), min(nxt, high))
+        if len(cand):
             k = min(cand, key=lambda k: abs(int(other[k]) - int(ref[i])))
             idx[i] = k
-            free[k] = False
             last = k
 
 

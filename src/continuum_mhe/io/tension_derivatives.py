@@ -105,7 +105,7 @@ def tension_noise_std(values: FloatArray, t: FloatArray | None = None) -> float:
         return 0.0
     windows = np.lib.stride_tricks.sliding_window_view(values, k + 1, axis=0)
     varies = windows.max(axis=-1) > windows.min(axis=-1)  # (n - k, columns)
-    if t is not None and _on_even_grid(t, values[:, :1], 1e-3)[0] is not t:
+    if t is not None and not _evenly_apart(t, 1e-3):
         unit = _unit_divided_differences(np.asarray(t, dtype=float), values, k)
         scale = 1.0
     else:
@@ -175,16 +175,23 @@ def _cubic_gains(rows: int, step: float) -> tuple[float, float]:
     )
 
 
+def _evenly_apart(t: FloatArray, tol: float) -> bool:
+    """Whether every step of ``t`` is within ``tol`` of their median (relative)."""
+    steps = np.diff(t)
+    step = float(np.median(steps))
+    return bool(np.all(np.abs(steps - step) <= tol * step))
+
+
 def _on_even_grid(t: FloatArray, values: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
     """``(t, values)`` where the rows' steps are within ``tol`` of their median, else the
     rows interpolated onto an even grid at the median step from ``t[0]``. Where that grid
     would hold more than :data:`MAX_GRID_ROWS_PER_ROW` points a row (one row far from the
     others: a logger's clock that jumped), a gap of more than :data:`MAX_GRID_GAP_STEPS`
     median steps is not filled: the rows on each side get their own grid."""
+    if _evenly_apart(t, tol):
+        return t, values
     steps = np.diff(t)
     step = float(np.median(steps))
-    if np.all(np.abs(steps - step) <= tol * step):
-        return t, values
     if (t[-1] - t[0]) / step <= MAX_GRID_ROWS_PER_ROW * len(t):
         grid = np.arange(t[0], t[-1] + 0.5 * step, step)
         return grid, _at_rows(grid, t, values)

@@ -877,7 +877,7 @@ class LiveSession:
             # a silence longer than the estimator's gap reset (as its policy decides it,
             # the times' rounding allowed) is a gap in t, at which the estimator restarts
             # itself, as estimate's does on the recording: the same restart
-            by_gap = gap_reset is not None and gap_reset > 0 and longer(t - t_prev, gap_reset, t)
+            by_gap = gap_reset is not None and longer(t - t_prev, gap_reset, t)
             if by_gap:
                 self._count_restart(t)
             else:

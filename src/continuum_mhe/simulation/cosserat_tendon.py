@@ -200,6 +200,11 @@ def check_generated_robot(robot: Robot) -> None:
             )
 
 
+def record_times(duration: float, record_dt: float) -> FloatArray:
+    """The times (s) the rod is recorded at: every ``record_dt`` from 0 to ``duration``."""
+    return np.arange(int(round(duration / record_dt)) + 1, dtype=np.float64) * record_dt
+
+
 def check_tensions_estimable(
     robot: Robot,
     scenario: str,
@@ -217,7 +222,7 @@ def check_tensions_estimable(
     from continuum_mhe.io.tensions import MAX_TENDON_TURNS, tension_turns
 
     s = settings or TendonRodSettings()
-    t = np.arange(int(round(duration / RECORD_DT)) + 1, dtype=np.float64) * RECORD_DT
+    t = record_times(duration, RECORD_DT)
     tensions = np.array([tension_profile(robot, scenario, float(tk), s) for tk in t])
     beyond = tension_turns(robot, tensions)
     if beyond is not None:
@@ -578,8 +583,8 @@ def quasi_static_trajectory(
     :class:`EquilibriumError` names the time of an equilibrium not found."""
     s = settings or TendonRodSettings()
     disks = [sec.disks for sec in robot.sections]
-    n_rec = int(round(duration / record_dt)) + 1
-    t = np.arange(n_rec, dtype=np.float64) * record_dt
+    t = record_times(duration, record_dt)
+    n_rec = len(t)
     end_seg = (segments_per_disk * disks[0] - 1, segments_per_disk * sum(disks) - 1)
     n_nodes = segments_per_disk * sum(disks) + 1
     nodes = np.zeros((n_rec, 3, n_nodes))
