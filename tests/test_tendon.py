@@ -1,15 +1,13 @@
-"""Tendon-driven robots: the robot file, the statics against known answers and an
-independent peer, the formulation's Jacobians, slack tendons, the tensions input."""
+"""Tendon-driven robots estimated: starts and restarts, loaded recordings, one IMU, the
+standard deviations, and a push the backbone cannot hold."""
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import io
 import math
 import re
 import sys
-import tempfile
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -17,635 +15,32 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from tendon_helpers import (
+    BACKBONE,
+    DATA,
+    EI,
+    TENDON_FILE,
+    one_section_robot,
+    small_robot,
+    small_robot_recording,
+    write_text_table,
+)
 
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError, UserError
-from continuum_mhe.io.csv_files import DropoutWarning
 from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.input_options import OptionWarning
-from continuum_mhe.io.robot_file import read_robot, robot_toml
+from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import StateTable, read_state_table
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
 from continuum_mhe.model.tendon import TendonFormulation
-from continuum_mhe.model.tendon_statics import STEPS_PER_SECTION, Station, TendonStatics
+from continuum_mhe.model.tendon_statics import TendonStatics
 
-DATA = Path(__file__).resolve().parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
 ROBOTS = DATA.parent / "robots"
-BACKBONE = Backbone(54e9, 20.77e9, 0.0007)
-EI = BACKBONE.bending_stiffness
-GJ = BACKBONE.torsional_stiffness
 
 
-def _one_section(*tendons: Tendon, backbone: Backbone = BACKBONE) -> Robot:
-    return Robot((Section(0.2, 3.0, 10),), (ImuPlacement(0, 1.0),), "z-up", backbone, tendons)
-
-
-# --- the robot file --------------------------------------------------------------------
-TENDON_FILE = """
-[backbone]
-youngs_modulus = 54e9
-shear_modulus = 20.77e9
-radius = 0.0007
-[[section]]
-length = 0.2
-disks = 10
-[[tendon]]
-section = 1
-angle = 90
-radius = 0.01
-[[imu]]
-section = 1
-disk = 5
-"""
-
-
-def test_the_tendon_robot_file_is_read(tmp_path: Path) -> None:
-    path = tmp_path / "r.toml"
-    path.write_text(TENDON_FILE)
-    robot = read_robot(path)
-    assert robot.backbone == BACKBONE
-    assert robot.sections[0].disks == 10
-    (td,) = robot.tendons
-    assert td.section == 0 and td.radius == 0.01
-    assert td.offset == pytest.approx((0.0, 0.01), abs=1e-15)
-    assert robot.imus[0].at == 0.5  # disk 5 of 10
-    again = tmp_path / "again.toml"
-    again.write_text(robot_toml(robot))
-    assert read_robot(again) == robot
-
-
-def test_a_pcc_robot_file_reads_as_before() -> None:
-    robot = read_robot("two-section")
-    assert robot.backbone is None and robot.tendons == ()
-    assert robot == Robot(
-        (Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1))
-    )
-
-
-@pytest.mark.parametrize(
-    ("edit", "message"),
-    [
-        (("[backbone]\nyoungs_modulus = 54e9\nshear_modulus = 20.77e9\nradius = 0.0007\n", ""),
-         "1 [[tendon]] but no [backbone]"),
-        (("youngs_modulus = 54e9", "youngs_modulus = -1"), "line 3: backbone youngs_modulus (Pa)"),
-        (("youngs_modulus = 54e9", "youngs_modulus = 54"), "line 3: backbone youngs_modulus 54.0"),
-        (("radius = 0.0007", "radius = 0.7"), "line 5: backbone radius 0.7 m is over 0.1 m"),
-        (("shear_modulus = 20.77e9\n", ""), "backbone: missing key 'shear_modulus'"),
-        (("angle = 90", "angle = 90\npitch = 1"), "tendon 1: unknown key 'pitch'"),
-        (("section = 1\nangle", "section = 2\nangle"), "tendon 1: section must be"),
-        (("radius = 0.01", "radius = 0"), "tendon 1: radius = 0: tendon radius (m) must be"),
-        (("disk = 5", "disk = 11"), "imu 1: disk must be a disk number from 1 to 10"),
-        (("disks = 10", "disks = 2.5"), "section 1: disks must be a whole number"),
-    ],
-)  # fmt: skip
-def test_bad_tendon_robot_files_are_one_line_errors(
-    tmp_path: Path, edit: tuple[str, str], message: str
-) -> None:
-    path = tmp_path / "r.toml"
-    path.write_text(TENDON_FILE.replace(*edit))
-    with pytest.raises(InputError) as err:
-        read_robot(path)
-    text = str(err.value)
-    assert text.startswith(f"{path}: ") and message in text and "\n" not in text
-
-
-# --- the statics against known answers ------------------------------------------------------
-def test_one_tendon_on_a_straight_rod_gives_a_circular_arc() -> None:
-    """Curvature ``tension * radius / EI`` towards the tendon, no twist."""
-    for angle in (0.0, 2.0):
-        robot = _one_section(Tendon(0, angle, 0.01))
-        tau = 1.5
-        _, poses = TendonStatics(robot).solve(np.zeros(3), np.array([tau]))
-        R, p = poses[Station(0, 1.0)]
-        kappa = tau * 0.01 / EI
-        theta = kappa * 0.2
-        towards = np.array([math.cos(angle), math.sin(angle), 0.0])
-        expected = (1 - math.cos(theta)) / kappa * towards + [0, 0, math.sin(theta) / kappa]
-        np.testing.assert_allclose(p, expected, atol=1e-8)
-        tangent = math.sin(theta) * towards + [0, 0, math.cos(theta)]
-        np.testing.assert_allclose(R[:, 2], tangent, atol=1e-8)
-        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-7)
-
-
-def test_shape_gives_the_arc_of_one_tendon_and_phi_0_where_straight() -> None:
-    """``TendonFormulation.shape``: one tendon at 0 deg on a weightless section bends it
-    to ``tension * radius / EI * L`` towards +x (``phi`` pi: the tangent is
-    ``(-cos phi sin theta, -sin phi sin theta, cos theta)``), its end where the arc
-    ends; with no tension the section is straight and its ``phi`` is 0, not -pi (the
-    exact clip of a slack tendon: a one-IMU robot's default smooth one pulls 0.5 mN)."""
-    robot = _one_section(Tendon(0, 0.0, 0.01))
-    f = TendonFormulation(robot, slack_smoothing=0.0)
-    straight = f.shape([0.0])
-    assert straight["theta_1"] == 0.0 and straight["phi_1"] == 0.0
-    assert straight["psi_1"] == 0.0 and straight["z"] == pytest.approx(0.2, abs=1e-12)
-    bent = f.shape([1.5])
-    kappa = 1.5 * 0.01 / EI
-    assert bent["theta_1"] == pytest.approx(kappa * 0.2, rel=1e-9)
-    assert abs(bent["phi_1"]) == pytest.approx(math.pi, abs=1e-9)
-    assert bent["x"] == pytest.approx((1 - math.cos(kappa * 0.2)) / kappa, rel=1e-7)
-    assert bent["z"] == pytest.approx(math.sin(kappa * 0.2) / kappa, rel=1e-9)
-    assert (bent["fx"], bent["fy"], bent["fz"]) == (0.0, 0.0, 0.0)
-    with pytest.raises(UserError, match="non-negative tensions"):
-        f.shape([-1.0])
-    with pytest.raises(UserError, match="1 finite"):
-        f.shape([1.0, 2.0])
-
-
-def test_the_backbone_points_of_one_tendon_lie_on_its_arc_evenly_spaced() -> None:
-    """The drawn backbone (``backbone_points``) of a straight rod pulled by one tendon:
-    every point on the circle of curvature ``tension * radius / EI`` through the base,
-    in the tendon's plane, at arc lengths ``L j / m``."""
-    robot = _one_section(Tendon(0, 2.0, 0.01))
-    tau, m = 1.5, 8
-    points = TendonStatics(robot).backbone_points(np.zeros(3), np.array([tau]), m)
-    kappa = tau * 0.01 / EI
-    s = 0.2 * np.arange(m + 1) / m
-    towards = np.array([math.cos(2.0), math.sin(2.0), 0.0])
-    expected = ((1 - np.cos(kappa * s)) / kappa)[:, None] * towards
-    expected[:, 2] = np.sin(kappa * s) / kappa
-    np.testing.assert_allclose(points, expected, atol=1e-8)
-
-
-def test_the_backbone_points_pass_through_the_models_section_ends() -> None:
-    """Under a tip force that twists a bent two-section robot, the drawn backbone ends
-    each section where the estimators' model puts its end: to the error of the model's
-    two steps a section (2e-5 m on this bend), which the drawn curve's 16 do not share."""
-    robot = read_robot("tendon-two-section")
-    statics = TendonStatics(robot)
-    tension = np.zeros(robot.n_tendons)
-    tension[0] = 3.0
-    force = np.array([0.05, 0.1, 0.0])
-    points = statics.backbone_points(force, tension, 16)
-    _, poses = statics.solve(force, tension)
-    assert points.shape == (33, 3)
-    for k in range(2):
-        np.testing.assert_allclose(points[16 * (k + 1)], poses[Station(k, 1.0)][1], atol=5e-5)
-    assert np.linalg.norm(points[-1] - points[0]) > 0.1  # a bend, not a straight rod
-
-
-@pytest.mark.parametrize("scenario", ["force-29", "twist-29"])
-def test_the_statics_solve_the_loaded_recordings_from_the_straight_rod(scenario: str) -> None:
-    """``TendonStatics.solve`` from the straight rod (as ``plot`` draws a row) under the
-    true tip force and tensions of every 10th sample of a loaded recording: each tip
-    within 0.6 mm of the recording's truth (the model floor: the generator's own
-    rod is not this model). A plain Newton from the straight rod leaves 16 of force-29's
-    41 rows 250 to 640 mm off and raises LinAlgError on 8."""
-    truth = read_state_table(DATA / f"{scenario}_truth.csv")
-    tensions = read_tensions(DATA / f"{scenario}_tensions.csv", 6)
-    statics = TendonStatics(read_robot("tendon-two-section"))
-    force = np.stack([truth.column(c) for c in ("fx", "fy", "fz")], axis=1)
-    tip = np.stack([truth.column(c) for c in ("x", "y", "z")], axis=1)
-    for row in range(0, len(truth.t), 10):
-        _, poses = statics.solve(force[row], tensions.at(float(truth.t[row]))[0])
-        assert np.linalg.norm(poses[Station(1, 1.0)][1] - tip[row]) < 6e-4, row
-
-
-def test_the_statics_say_when_the_rod_holds_no_equilibrium() -> None:
-    """Loads that are not finite have no equilibrium: ``ArithmeticError`` (not
-    numpy's singular matrix)."""
-    statics = TendonStatics(read_robot("tendon-two-section"))
-    with pytest.raises(ArithmeticError, match="no equilibrium"):
-        statics.solve(np.array([np.nan, 0.0, 0.0]), np.zeros(6))
-
-
-SOFT_TENDON_FILE = (
-    """
-[backbone]
-youngs_modulus = 60e9
-shear_modulus = 23e9
-radius = 0.0004
-density = 6450
-[[section]]
-length = 0.15
-disks = 8
-[[section]]
-length = 0.25
-disks = 12
-"""
-    + "".join(
-        f"[[tendon]]\nsection = {k}\nangle = {a}\nradius = {r}\n"
-        for k, r, angles in ((1, 0.008, (45, 135, 225, 315)), (2, 0.006, (0, 90, 180, 270)))
-        for a in angles
-    )
-    + "[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
-)
-
-
-def test_a_drawn_backbone_follows_the_rows_where_the_loads_hold_two_equilibria(
-    tmp_path: Path,
-) -> None:
-    """A soft backbone under a tip force eleven times its buckling load holds more than
-    one equilibrium: solved from the straight rod, the last of 41 rows whose loads grow
-    in proportion reaches one whose tip is over 100 mm from the one the rows come
-    through, each solved from the one before (as the generator's rod and ``view`` follow
-    them). ``plot``'s backbone of that row (``tendon_backbone``) is the rows' one."""
-    from continuum_mhe.evaluation.estimate_tables import tendon_backbone
-
-    path = tmp_path / "soft.toml"
-    path.write_text(SOFT_TENDON_FILE)
-    robot = read_robot(path)
-    statics = TendonStatics(robot)
-    force = np.array([0.0571, 0.1093, 0.0925])  # a generator recording's, at t = 1.56 s
-    tension = np.array([1.0598, 0.5874, 0.003, 0.4753, 1.5312, 0.4865, 0.063, 1.1077])
-    scale = np.linspace(0.0, 1.0, 41)
-    t = 0.02 * np.arange(len(scale))
-    k0 = None
-    for s in scale:
-        k0, poses = statics.solve(s * force, s * tension, k0)
-    followed = poses[Station(1, 1.0)][1]
-    _, cold = statics.solve(force, tension)
-    assert np.linalg.norm(cold[Station(1, 1.0)][1] - followed) > 0.1  # another one
-    table_path = tmp_path / "tensions.csv"
-    names = ["t"] + [f"tension_{j}" for j in range(1, 9)]
-    write_table(table_path, names, [[tk, *(s * tension)] for tk, s in zip(t, scale)])
-    tensions = read_tensions(table_path, 8)
-    table = StateTable(
-        t=t,
-        names=("fx", "fy", "fz"),
-        values=scale[:, None] * force,
-        status=np.array(["ok"] * len(t)),
-    )
-    points = tendon_backbone(robot, tensions)
-    np.testing.assert_allclose(points(table, len(t) - 1)[-1], followed, atol=1e-3)
-
-
-def test_a_small_tip_force_gives_the_cantilever_deflection() -> None:
-    """``F L^3 / (3 EI)`` for a force across the straight rod, to first order."""
-    robot = _one_section()
-    force = 1e-4
-    _, poses = TendonStatics(robot).solve(np.array([0.0, force, 0.0]), np.zeros(0))
-    _, p = poses[Station(0, 1.0)]
-    assert p[1] == pytest.approx(force * 0.2**3 / (3 * EI), rel=1e-4)
-
-
-def test_the_base_moment_balances_the_tip_force_and_twists_a_bent_rod() -> None:
-    """With no weight the base carries ``p_tip x F`` (exact), its twist part is resisted
-    by ``GJ + tau r^2``; a force across a rod bent towards +x twists it positively about
-    its tangent."""
-    tau = 8.0  # bends the 0.2 m rod by about 90 degrees towards +x
-    robot = _one_section(Tendon(0, 0.0, 0.01))
-    force = np.array([0.0, 0.01, 0.0])
-    statics = TendonStatics(robot)
-    k0, poses = statics.solve(force, np.array([tau]))
-    R_tip, p_tip = poses[Station(0, 1.0)]
-    np.testing.assert_allclose(k0 * EI, np.cross(p_tip, force), rtol=1e-9, atol=1e-14)
-    u = np.asarray(statics.curvature_sym(ca.DM(k0 * EI), [(tau, 0.01, 0.0)]), float).ravel()
-    assert u[2] == pytest.approx(p_tip[0] * force[1] / (GJ + tau * 1e-4), rel=1e-12)
-    f = TendonFormulation(robot=robot)
-    x = np.zeros(f.nx)
-    x[:3], x[3:6], x[6] = k0, force, tau
-    names = [o.name for o in f.outputs]
-    psi = f.output(x)[names.index("psi_1")]
-    assert psi > 0.005
-    # the mirror image (force along -y) twists the other way by as much
-    k0m, _ = statics.solve(-force, np.array([tau]))
-    x[:3], x[3:6] = k0m, -force
-    assert f.output(x)[names.index("psi_1")] == pytest.approx(-psi, rel=1e-9)
-
-
-def test_the_shooting_converges_with_its_steps() -> None:
-    """The default steps agree with four times as many to 0.05 mm on a large bend with a
-    tip force (the integrator is of fourth order: four times the steps leave a 256th of
-    the error)."""
-    robot = Robot(
-        (Section(0.2, 3.0, 10), Section(0.2, 3.0, 10)),
-        (ImuPlacement(0), ImuPlacement(1)),
-        "z-up",
-        Backbone(54e9, 20.77e9, 0.0007, density=6450),
-        (Tendon(0, 0.0, 0.01), Tendon(1, 2.0, 0.01)),
-    )
-    args = (np.array([0.05, -0.03, 0.02]), np.array([4.0, 6.0]))
-    _, coarse = TendonStatics(robot).solve(*args)
-    _, fine = TendonStatics(robot, steps_per_section=4 * STEPS_PER_SECTION).solve(*args)
-    tip = Station(1, 1.0)
-    assert np.linalg.norm(coarse[tip][1] - fine[tip][1]) < 5e-5
-
-
-def _rod_section_ends(robot: Robot, tau: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """Both section ends (3, 2) of :func:`~continuum_mhe.simulation.cosserat_tendon.
-    energy_equilibrium` extrapolated to zero segment length: it converges as ``ds^2``, so
-    Richardson on 1 and 2 segments per disk; the rod's two distances between them show
-    that the bend is large enough for the extrapolation to matter."""
-    from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
-
-    ends = {}
-    for per in (1, 2):
-        _, frames = energy_equilibrium(robot, tau, force, segments_per_disk=per)
-        ends[per] = frames[9:, [10 * per - 1, 20 * per - 1]]
-    for k in range(2):
-        assert np.linalg.norm(ends[2][:, k] - ends[1][:, k]) > 5e-5
-    return ends[2] + (ends[2] - ends[1]) / 3
-
-
-def test_the_shooting_agrees_with_an_independent_energy_minimisation() -> None:
-    """The discrete rod of :func:`~continuum_mhe.simulation.cosserat_tendon.energy_equilibrium`
-    (energy minimised, tendons as polylines through every segment's end), extrapolated
-    to zero segment length: the section ends agree to 0.05 mm on a loaded spatial
-    bend."""
-    robot = read_robot("tendon-two-section")
-    tau = np.array([2.0, 0.5, 0.5, 3.0, 0.7, 0.8])
-    force = np.array([0.05, 0.0, 0.0])
-    _, poses = TendonStatics(robot).solve(force, tau)
-    limit = _rod_section_ends(robot, tau, force)
-    for k in range(2):
-        assert np.linalg.norm(poses[Station(k, 1.0)][1] - limit[:, k]) < 5e-5
-
-
-def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) -> None:
-    """One tendon on a section of four disks (5 cm apart), 1.5 N: routed continuously,
-    the generator's rod bends by ``tension * radius * length / EI`` (to 0.1 %); drawn
-    straight from disk to disk, the chords run nearer the bend's centre, a longer lever,
-    and it bends further (by more than 1 %). The generator draws a robot file's
-    ``tendon_route`` by default, ``--route`` another, and its info says which."""
-    import json
-
-    from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
-    from continuum_mhe.simulation.cosserat_tendon import main as generate
-
-    length = 0.2
-    robot = Robot((Section(length, 3.0, 4),), (ImuPlacement(0, 1.0),), "z-up", BACKBONE,
-                  (Tendon(0, 0.0, 0.01),))  # fmt: skip
-    ei = BACKBONE.youngs_modulus * math.pi * BACKBONE.radius**4 / 4
-    bends = {}
-    for route in ("continuous", "disks"):
-        _, frames = energy_equilibrium(robot, np.array([1.5]), np.zeros(3), route=route)
-        tangent = frames[:9, -1].reshape(3, 3, order="F")[:, 2]
-        bends[route] = math.acos(min(1.0, abs(float(tangent[2]))))
-    assert bends["continuous"] == pytest.approx(1.5 * 0.01 * length / ei, rel=1e-3)
-    assert bends["disks"] > 1.01 * bends["continuous"]
-    text = (DATA.parent / "robots" / "tendon_two_section.toml").read_text()
-    robot_file = tmp_path / "r.toml"  # two disks a section: a quick rod
-    robot_file.write_text('tendon_route = "disks"\n' + text.replace("disks = 10", "disks = 2"))
-    assert generate(["--robot", str(robot_file), "--segments-per-disk", "0", "-o",
-                     str(tmp_path / "none")]) == 2  # fmt: skip
-    assert not (tmp_path / "none").exists()
-    for extra, route in (([], "disks"), (["--route", "continuous"], "continuous")):
-        out = tmp_path / f"rec-{route}"
-        argv = ["--robot", str(robot_file), "--duration", "0.1", "-o", str(out), *extra]
-        assert generate(argv) == 0
-        assert json.loads((out / "unloaded_info.json").read_text())["route"] == route
-
-
-@pytest.mark.parametrize(
-    ("disks", "tendons", "within_mm", "continuous_off_mm"),
-    [(4, ((0.0, 8.0), (120.0, 6.0), (240.0, 6.0)), 0.2, 30.0),
-     (5, ((0.0, 12.0), (115.0, 3.6)), 2.5, 40.0)],
-)  # fmt: skip
-def test_the_disk_routed_model_agrees_with_the_discrete_rod_drawn_so(
-    disks: int, tendons: tuple[tuple[float, float], ...], within_mm: float,
-    continuous_off_mm: float,
-) -> None:  # fmt: skip
-    """A 0.2 m section with tendons drawn straight from disk to disk, against the
-    generator's discrete rod drawn so (extrapolated to zero segment length from 8 and 16
-    segments per disk): 4 disks (5 cm apart) and three pretensioned tendons, 20 N in all
-    (0.41 of the section's bending stiffness in the chords' term), bent by 41 degrees,
-    within 0.2 mm where the continuous tendons' model is over 30 mm off; 5 disks and two
-    tendons bent by 154 degrees, within 2.5 mm where it is over 40 mm off."""
-    from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
-
-    robot = Robot((Section(0.2, 3.0, disks),), (ImuPlacement(0, 1.0),), "z-up", BACKBONE,
-                  tuple(Tendon(0, math.radians(a), 0.01) for a, _ in tendons))  # fmt: skip
-    tau = np.array([t for _, t in tendons])
-    ends = {}
-    for per in (8, 16):
-        _, frames = energy_equilibrium(
-            robot, tau, np.zeros(3), route="disks", segments_per_disk=per
-        )
-        ends[per] = frames[9:, -1]
-    rod = ends[16] + (ends[16] - ends[8]) / 3
-    tips = {}
-    for route in ("continuous", "disks"):
-        _, poses = TendonStatics(replace(robot, tendon_route=route)).solve(np.zeros(3), tau)
-        tips[route] = poses[Station(0, 1.0)][1]
-    assert np.linalg.norm(tips["disks"] - rod) < within_mm * 1e-3
-    assert np.linalg.norm(tips["continuous"] - rod) > continuous_off_mm * 1e-3
-
-
-def test_a_disk_routed_robot_file_round_trips_and_its_mistakes_are_one_line(tmp_path: Path) -> None:
-    """``tendon_route = "disks"`` is read and written back; another word, the key on a
-    robot without tendons, or a section its tendons pass without disks: refused naming
-    the file and the key."""
-    from continuum_mhe.io.robot_file import robot_toml
-
-    text = (DATA.parent / "robots" / "tendon_two_section.toml").read_text()
-    path = tmp_path / "r.toml"
-    path.write_text('tendon_route = "disks"\n' + text)
-    robot = read_robot(path)
-    assert robot.tendon_route == "disks"
-    assert robot.describe().endswith(", 6 tendons from disk to disk")  # in every summary
-    again = tmp_path / "again.toml"
-    again.write_text(robot_toml(robot))
-    assert read_robot(again) == robot
-    bad = [
-        ('tendon_route = "chords"\n' + text, 'tendon_route: must be one of continuous, disks'),
-        ('tendon_route = "disks"\n' + text.replace("disks = 10", "disks = 0", 1),
-         'tendon_route = "disks": section 1, which tendons pass, gives no disks'),
-        ('tendon_route = "disks"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n',
-         'tendon_route = "disks" is for a robot with [[tendon]]s'),
-    ]  # fmt: skip
-    for body, message in bad:
-        path.write_text(body)
-        with pytest.raises(InputError, match=re.escape(message)) as info:
-            read_robot(path)
-        assert str(info.value).startswith(str(path)), info.value
-    # written after a table's header, TOML puts it in that table: said as a top-level key
-    path.write_text(text + '\ntendon_route = "disks"\n')
-    with pytest.raises(InputError, match=re.escape(
-            "unknown key 'tendon_route' (a top-level key: write it before the file's "
-            "first [table])")):  # fmt: skip
-        read_robot(path)
-
-
-def test_the_model_floor_on_a_bend_past_120_degrees() -> None:
-    """The largest bend of the ``unloaded`` recording (121 and 102 degrees, tendons of
-    up to 12 N, the backbone's weight): the shooting agrees with the discrete rod
-    extrapolated to zero segment length within 0.05 mm at both section ends, a tenth of
-    the 0.5 mm a reduced model may be off by."""
-    robot = read_robot("tendon-two-section")
-    tau = np.array([0.078876, 1.79768, 1.123444, 3.904776, 11.91665, 2.178574])
-    _, poses = TendonStatics(robot).solve(np.zeros(3), tau)
-    limit = _rod_section_ends(robot, tau, np.zeros(3))
-    for k in range(2):
-        assert np.linalg.norm(poses[Station(k, 1.0)][1] - limit[:, k]) < 5e-5
-
-
-def test_a_slack_tendon_pulls_nothing() -> None:
-    """A negative tension (a state can stray there) acts as zero, with the exact clip
-    (``slack_smoothing=0``; this one-IMU robot's default clip is the smooth one, whose
-    slack tendon pulls half its width: ``test_load_hypotheses_mhe.py``)."""
-    robot = _one_section(Tendon(0, 0.0, 0.01), Tendon(0, math.pi, 0.01))
-    f = TendonFormulation(robot=robot, slack_smoothing=0.0)
-    x = np.zeros(f.nx)
-    x[3:6] = [0.02, 0.0, 0.0]
-    x[6:8] = [1.0, -3.0]
-    slack = x.copy()
-    slack[7] = 0.0
-    np.testing.assert_array_equal(f.output(x)[:9], f.output(slack)[:9])
-
-
-def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria() -> None:
-    """Tensions and a tip force that change in time with known derivatives, the force
-    accelerating: the model's IMU acceleration matches the second central difference of
-    the positions of the solved equilibria (a known answer the formulation does not
-    compute itself). The force's acceleration alone moves the IMUs by over 0.1 m/s^2
-    here; a model that takes the force at constant velocity misses it."""
-    robot = read_robot("tendon-two-section")
-    f = TendonFormulation(robot=robot, acceleration_from_force_rate=True)
-    statics = f.statics
-
-    def tau(t: float) -> np.ndarray:
-        return np.array([3.0 + 2.0 * math.sin(1.3 * t + i) ** 2 for i in range(6)])
-
-    force_ddot = np.array([-0.3, 0.2, 0.05])  # N/s^2
-
-    def force(t: float) -> np.ndarray:
-        return np.array([0.02 * t, -0.01 * t, 0.005 * t]) + force_ddot * t**2 / 2
-
-    t0, h = 0.7, 1e-3
-    positions = []
-    for t in (t0 - h, t0, t0 + h):
-        _, poses = statics.solve(force(t), tau(t))
-        positions.append(np.array([poses[Station(i.section, i.at)][1] for i in robot.imus]))
-    expected = (positions[0] - 2 * positions[1] + positions[2]) / h**2
-    tau_dot = (tau(t0 + h) - tau(t0 - h)) / (2 * h)
-    tau_ddot = (tau(t0 + h) - 2 * tau(t0) + tau(t0 - h)) / h**2
-    k0, poses = statics.solve(force(t0), tau(t0))
-    v, v_dot = ca.SX.sym("v", 12), ca.SX.sym("v_dot", 12)
-    force_dot = (force(t0 + h) - force(t0 - h)) / (2 * h)
-    v_dd = ca.SX.sym("v_ddot", 9)  # the force's and the tensions' second derivatives
-    poses_sym, res = statics.shoot(v[:3], v[3:6], v[6:])
-    accel = ca.Function(
-        "a",
-        [v, v_dot, v_dd],
-        [ca.horzcat(*f._imu_accelerations(v, v_dot, v_dd, res, poses_sym))],
-    )
-    # the base curvature's rate in the state is ignored: the equilibrium sets it
-    state, rates = np.r_[k0, force(t0), tau(t0)], np.r_[[9.0] * 3, force_dot, tau_dot]
-    got = np.asarray(accel(state, rates, np.r_[force_ddot, tau_ddot]), float).T
-    at_constant_velocity = np.asarray(accel(state, rates, np.r_[[0.0] * 3, tau_ddot]), float).T
-    assert np.abs(expected).max() > 0.5  # metres per second squared: it matters
-    assert np.abs(at_constant_velocity - expected).max() > 0.1
-    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-3 * np.abs(expected).max())
-
-
-# --- the formulation -------------------------------------------------------------------
-def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
-    """With ``estimate_force_acceleration`` the tip force's acceleration is a state,
-    and the force's transition and process noise are those of a triple integrator driven
-    by white jerk, computed independently here by Van Loan's matrix exponential; by
-    default that state is there with raw IMUs on a robot of two or more IMUs only."""
-    from scipy.linalg import expm
-
-    from continuum_mhe.errors import UserError
-
-    robot = read_robot("tendon-two-section")
-    f = TendonFormulation(
-        robot=robot, imu_model="direct", estimate_gyro_bias=True, estimate_force_acceleration=True
-    )
-    names = f.state_names
-    force = [names.index(f"f{c}") for c in "xyz"]
-    rate = [names.index(f"f{c}_dot") for c in "xyz"]
-    accel = [names.index(f"f{c}_ddot") for c in "xyz"]
-    dt, jerk = 0.02, f.force_jerk_psd
-    a = np.diag([1.0, 1.0], 1)  # (F, F', F'') of one component, F''' white
-    g = np.array([[0.0], [0.0], [1.0]])
-    van_loan = expm(np.block([[-a, g @ g.T * jerk], [np.zeros((3, 3)), a.T]]) * dt)
-    phi = van_loan[3:, 3:].T
-    q_expected = phi @ van_loan[:3, 3:]
-    x = np.random.default_rng(0).normal(size=f.nx)
-    x_sym, dt_sym = ca.SX.sym("x", f.nx), ca.SX.sym("dt")
-    step = ca.Function("f", [x_sym, dt_sym], [f.transition_sym(x_sym, ca.SX.zeros(f.nu), dt_sym)])
-    q = np.asarray(ca.Function("q", [dt_sym], [f.process_cov_sym(dt_sym)])(dt), float)
-    moved = np.asarray(step(x, dt), float).ravel()
-    for c in range(3):
-        chain = [force[c], rate[c], accel[c]]
-        np.testing.assert_allclose(moved[chain], phi @ x[chain], rtol=1e-12)
-        np.testing.assert_allclose(q[np.ix_(chain, chain)], q_expected, rtol=1e-9)
-
-    def has_force_acceleration(robot: Robot, imu_model: str) -> bool:
-        names = TendonFormulation(robot=robot, imu_model=imu_model).state_names  # type: ignore[arg-type]
-        return any(n.endswith("_ddot") for n in names)
-
-    # by default: raw IMUs on a robot with two or more IMUs; not one IMU, not tilt
-    assert has_force_acceleration(robot, "direct")
-    assert not has_force_acceleration(replace(robot, imus=robot.imus[-1:]), "direct")
-    assert not has_force_acceleration(robot, "tilt")
-    with pytest.raises(UserError, match="estimate_force_acceleration"):
-        TendonFormulation(robot=robot, estimate_force_acceleration=True)  # tilt IMUs
-
-
-@pytest.mark.parametrize("imu_errors", [False, True])
-@pytest.mark.parametrize("imu_model", ["tilt", "direct"])
-def test_the_residual_jacobian_matches_finite_differences(imu_model: str, imu_errors: bool) -> None:
-    """Also with the IMUs' own errors as states (misalignment, accelerometer bias, and
-    the gyro bias with raw IMUs) and the tension gain."""
-    robot = Robot(
-        (Section(0.15, 3.0, 5),),
-        (ImuPlacement(0, 0.6), ImuPlacement(0, 1.0)),
-        "z-up",
-        BACKBONE,
-        (Tendon(0, 0.3, 0.01), Tendon(0, 2.5, 0.008)),
-    )
-    f = TendonFormulation(
-        robot=robot,
-        imu_model=imu_model,  # type: ignore[arg-type]
-        estimate_misalignment=imu_errors,
-        estimate_accel_bias=imu_errors,
-        estimate_gyro_bias=imu_errors and imu_model == "direct",
-        estimate_tension_gain=imu_errors,
-    )
-    rng = np.random.default_rng(3)
-    x = np.zeros(f.nx)
-    x[:3] = rng.normal(0, 1.0, 3)
-    x[3:6] = rng.normal(0, 0.02, 3)
-    x[6:8] = [2.0, 1.0]
-    x[8:] = rng.normal(0, 0.5, f.nx - 8)
-    imu = rng.normal(0, 0.3, f.n_imu_measurements)
-    z = f.measurement_row(imu, np.array([2.1, 0.9]), np.array([0.3, -0.2]), np.array([-1.5, 0.8]))
-    r, J = (np.asarray(v, float) for v in f.functions.innovate(z, x))
-    for i in range(f.nx):
-        h = 1e-6 * max(1.0, abs(x[i]))
-        up, down = x.copy(), x.copy()
-        up[i] += h
-        down[i] -= h
-        fd = (np.asarray(f.functions.innovate(z, up)[0], float)
-              - np.asarray(f.functions.innovate(z, down)[0], float)) / (2 * h)  # fmt: skip
-        np.testing.assert_allclose(
-            J[:, i], fd.ravel(), rtol=1e-5, atol=1e-6 * max(1.0, np.abs(fd).max())
-        )
-
-
-def test_the_imu_error_states_turn_and_shift_the_specific_force_as_a_board_would() -> None:
-    """Raw IMUs at rest (no own acceleration): with a misalignment ``m`` and an
-    accelerometer bias ``c`` (m/s^2, board frame) as states, each IMU's predicted
-    direction is ``(Rb^T g up + c) / |...|`` with the board's frame ``Rb = R (I +
-    [m]x)``, ``R`` the disk frame from the statics; known values, computed here apart."""
-    robot = read_robot("tendon-two-section")
-    f = TendonFormulation(robot=robot, imu_model="direct", own_acceleration=False)
-    tau = np.array([2.0, 0.5, 0.0, 0.0, 1.5, 0.3])
-    force = np.array([0.02, -0.01, 0.01])
-    k0, poses = f.statics.solve(force, tau)
-    x = np.zeros(f.nx)
-    x[:3], x[3:6], x[6:12] = k0, force, tau
-    names = f.state_names
-    mis = np.array([[0.02, -0.01, 0.03], [-0.015, 0.01, -0.02]])
-    bias = np.array([[0.1, -0.2, 0.15], [-0.1, 0.05, 0.2]])
-    for i in range(2):
-        x[names.index(f"misx_{i + 1}") : names.index(f"misz_{i + 1}") + 1] = mis[i]
-        x[names.index(f"bax_{i + 1}") : names.index(f"baz_{i + 1}") + 1] = bias[i]
-    h = np.asarray(f.functions.observe(x), float).ravel()
-    for i, imu in enumerate(robot.imus):
-        R = poses[Station(imu.section, imu.at)][0]
-        m = mis[i]
-        skew = np.array([[0, -m[2], m[1]], [m[2], 0, -m[0]], [-m[1], m[0], 0]])
-        board = R @ (np.eye(3) + skew)
-        specific = board.T @ np.array([0.0, 0.0, 9.80665]) + bias[i]
-        np.testing.assert_allclose(
-            h[6 * i : 6 * i + 3], specific / np.linalg.norm(specific), atol=1e-9
-        )
-
-
+# --- the start and its restarts ---------------------------------------------------------
 def _equilibrium_state(f: TendonFormulation, tau: np.ndarray, force: np.ndarray) -> np.ndarray:
     """The state of the robot in equilibrium under the tensions ``tau`` and the tip
     force ``force``, at rest, its IMUs without errors."""
@@ -1008,535 +403,6 @@ def test_the_first_second_of_a_raw_recording_is_not_bent_by_the_imus_errors(
     assert np.linalg.norm(e - t, axis=1).mean() < 0.001
 
 
-# --- the tensions input ----------------------------------------------------------------
-def _small_robot(tmp_path: Path) -> Path:
-    path = tmp_path / "robot.toml"
-    path.write_text(TENDON_FILE.replace("disk = 5", "disk = 10"))
-    return path
-
-
-def _write_text_table(path: Path, columns: list[str], rows: list[list[object]]) -> None:
-    """A CSV table as a user's program may write it (``nan`` included)."""
-    lines = [",".join(columns), *(",".join(str(v) for v in row) for row in rows)]
-    path.write_text("\n".join(lines) + "\n")
-
-
-@functools.cache
-def _recording_rows() -> tuple[tuple[float, ...], ...]:
-    """The rows of :func:`_recording`'s readings (the same for every test: computed once
-    a process, the model's build and six statics solutions being most of its time)."""
-    with tempfile.TemporaryDirectory() as folder:
-        robot = read_robot(_small_robot(Path(folder)))
-    f = TendonFormulation(robot=robot)
-    t = np.arange(6) * 0.02
-    tau = 1.0 + 5 * t
-    rows = []
-    for tk, tauk in zip(t, tau):
-        k0, _ = f.statics.solve(np.zeros(3), np.array([tauk]))
-        x = np.zeros(f.nx)
-        x[:3], x[6] = k0, tauk
-        h = np.asarray(f.functions.observe(x), float).ravel()
-        rows.append((float(tk), *map(float, h[:2])))
-    return tuple(rows)
-
-
-def _recording(tmp_path: Path) -> tuple[Path, Path]:
-    """A few tilt samples of the one-section robot with its tendon pulled."""
-    _small_robot(tmp_path)
-    meas = tmp_path / "m.csv"
-    write_table(meas, ["t", "roll", "pitch"], [list(r) for r in _recording_rows()])
-    tensions = tmp_path / "tensions.csv"
-    write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [0.1, 1.5]])
-    return meas, tensions
-
-
-def test_estimate_reads_tensions_and_writes_the_tip_force(tmp_path: Path) -> None:
-    meas, tensions = _recording(tmp_path)
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
-            str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
-    assert main(argv) == 0
-    table = read_state_table(out)  # the project's reader: past the '#' lines
-    for col in ("fx", "fy", "fz", "psi_1", "x_1", "theta_1"):
-        assert col in table.names
-    assert table.std is not None
-    assert np.all(np.isfinite(table.std[:, table.names.index("fx")]))
-    # the readings are the model's at no tip force: the estimate is the statics' shape at
-    # each sample's tension (1 + 5 t N, interpolated from the file) and a force near 0
-    f = TendonFormulation(robot=read_robot(_small_robot(tmp_path)))
-    names = [o.name for o in f.outputs]
-    assert list(table.names) == names
-    want = []
-    np.testing.assert_allclose(table.t, np.arange(6) * 0.02)
-    for tk in table.t:
-        tau = 1.0 + 5.0 * tk
-        k0, _ = f.statics.solve(np.zeros(3), np.array([tau]))
-        x = np.zeros(f.nx)
-        x[:3], x[6] = k0, tau
-        want.append(np.asarray(f.output(x), float).ravel())
-    got = table.values
-    tip = [names.index(c) for c in ("x", "y", "z")]
-    np.testing.assert_allclose(got[:, tip], np.array(want)[:, tip], atol=5e-4)
-    force = [names.index(c) for c in ("fx", "fy", "fz")]
-    assert np.abs(got[:, force]).max() < 0.002  # its std: 0.02 N and more
-    # numpy's reader as docs/workflow.md gives it reads the same columns
-    lines = (ln for ln in out.open() if not ln.startswith("#"))
-    data = np.genfromtxt(lines, delimiter=",", names=True, dtype=None, encoding="utf-8")
-    np.testing.assert_array_equal(data["fx"], table.column("fx"))
-
-
-def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """``plot`` of a tendon robot's estimate: with ``--robot`` and ``--inputs`` the
-    backbone from the mechanics model; without them those its options line names
-    (said in a note), and where those are gone the section ends joined, said in a
-    note; ``--inputs`` on an estimate without a tip force: one line, nothing written."""
-    meas, tensions = _recording(tmp_path)
-    robot = _small_robot(tmp_path)
-    est = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
-            "-o", str(est), "--method", "ekf"]  # fmt: skip
-    assert main(argv) == 0
-    capsys.readouterr()
-    fig = tmp_path / "e.png"
-    argv = ["plot", str(est), "--robot", str(robot), "--inputs", str(tensions), "-o", str(fig)]
-    assert main(argv) == 0
-    assert fig.stat().st_size > 0 and "note" not in capsys.readouterr().err
-    # without --inputs: the tensions the estimate's options line names, said in a note
-    assert main(["plot", str(est), "-o", str(tmp_path / "recorded.png")]) == 0
-    err = capsys.readouterr().err
-    assert f"was estimated with --inputs {tensions}" in err and "section ends" not in err
-    moved = tensions.rename(tmp_path / "moved.csv")  # those tensions are gone
-    assert main(["plot", str(est), "-o", str(tmp_path / "ends.png")]) == 0
-    assert "drawn through the section ends" in capsys.readouterr().err
-    moved.rename(tensions)
-    # the tensions here but the robot file gone: only the notes of what is drawn
-    gone = robot.rename(tmp_path / "gone.toml")
-    assert main(["plot", str(est), "-o", str(tmp_path / "no_robot.png")]) == 0
-    err = capsys.readouterr().err
-    assert "cannot be read here" in err and "drawn through the section ends" in err
-    assert "drawn with those tensions" not in err
-    gone.rename(robot)
-    # a recording with its tension columns beside its IMU's (live --record's) gives them
-    # too, for plot and view
-    both = tmp_path / "recorded_with_tensions.csv"
-    write_table(both, ["t", "roll", "pitch", "tension_1"],
-                [[*r, 1.0 + 5 * r[0]] for r in _recording_rows()])  # fmt: skip
-    argv = ["plot", str(est), "--robot", str(robot), "--inputs", str(both), "-o", str(fig),
-            "--overwrite"]  # fmt: skip
-    assert main(argv) == 0 and "note" not in capsys.readouterr().err
-    argv = ["view", str(est), "--robot", str(robot), "--inputs", str(both), "--save",
-            str(tmp_path / "v.rrd")]  # fmt: skip
-    assert main(argv) == 0 and (tmp_path / "v.rrd").stat().st_size > 0
-    assert "note" not in capsys.readouterr().err
-    # --inputs alone: the robot the estimate's options line names draws the backbone
-    argv = ["plot", str(est), "--inputs", str(tensions), "-o", str(tmp_path / "rec.png")]
-    assert main(argv) == 0
-    err = capsys.readouterr().err
-    assert "(its options line): drawn on that robot" in err and "section ends" not in err
-    pcc = tmp_path / "pcc.csv"
-    table = read_state_table(est)
-    keep = [c for c in table.names if c not in ("fx", "fy", "fz")]
-    write_table(pcc, ["t", *keep], np.column_stack([table.t, *(table.column(c) for c in keep)]))
-    refused = tmp_path / "refused.png"
-    assert main(["plot", str(pcc), "--inputs", str(tensions), "-o", str(refused)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "no tip force columns" in err[0] and not refused.exists()
-    # --robot without tendons, no --inputs: the estimate's recorded tensions are not
-    # called the user's --inputs, and the line names what is wrong
-    plain = tmp_path / "plain.toml"
-    plain.write_text("[[section]]\nlength = 0.2\ntheta_max = 3.0\n[[imu]]\nsection = 1\n")
-    assert main(["plot", str(est), "--robot", str(plain), "-o", str(refused)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1] == (
-        f"continuum-mhe: error: {plain}: the robot has no [[tendon]], but {est} is a tendon "
-        f"robot's estimate (its tip force columns; estimated with --inputs {tensions}, its "
-        "options line): give that robot's file, or no --robot for the one it names"
-    )
-    assert not any("drawn with those tensions" in line for line in err)
-    assert not refused.exists()
-
-
-def test_plot_and_view_draw_an_estimate_with_its_recordings_tension_columns(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """An estimate of a recording that carries its tensions beside its IMU's columns
-    (no ``--inputs``): ``plot`` and ``view`` find them in the recording its first line
-    names, say so in a note, and draw what ``--inputs`` that recording draws; where the
-    recording is not found, or has no tension columns, the section ends joined."""
-    robot = _small_robot(tmp_path)
-    rec = tmp_path / "with_tensions.csv"
-    write_table(rec, ["t", "roll", "pitch", "tension_1"],
-                [[*r, 1.0 + 5 * r[0]] for r in _recording_rows()])  # fmt: skip
-    est = tmp_path / "e.csv"
-    argv = ["estimate", str(rec), "--robot", str(robot), "-o", str(est), "--method", "ekf"]
-    assert main(argv) == 0
-    assert est.read_text().splitlines()[0].endswith(f' estimate {rec.resolve()}"')
-    capsys.readouterr()
-    found, given = tmp_path / "found.png", tmp_path / "given.png"
-    assert main(["plot", str(est), "-o", str(found)]) == 0
-    err = capsys.readouterr().err
-    assert f"{est} was estimated from {rec.resolve()} (its first line): its backbone " in err
-    assert "section ends" not in err
-    assert main(["plot", str(est), "--inputs", str(rec), "-o", str(given)]) == 0
-    assert found.read_bytes() == given.read_bytes()
-    pytest.importorskip("rerun")
-    saved = tmp_path / "found.rrd"
-    assert main(["view", str(est), "--save", str(saved)]) == 0
-    assert f"{rec.resolve()} (its first line)" in capsys.readouterr().err
-    # a recording without tension columns, or none found: the section ends joined
-    rec.write_text("t,roll,pitch\n0,0,0\n")
-    assert main(["plot", str(est), "-o", str(tmp_path / "ends.png")]) == 0
-    assert "drawn through the section ends" in capsys.readouterr().err
-    rec.unlink()
-    # the estimate and its recording moved to another folder together: found beside it
-    moved = tmp_path / "moved"
-    moved.mkdir()
-    write_table(moved / rec.name, ["t", "roll", "pitch", "tension_1"],
-                [[*r, 1.0 + 5 * r[0]] for r in _recording_rows()])  # fmt: skip
-    est.rename(moved / est.name)
-    assert main(["plot", str(moved / est.name), "-o", str(tmp_path / "moved.png")]) == 0
-    assert "(its first line): its backbone" in capsys.readouterr().err
-    (moved / est.name).rename(est)
-    assert main(["plot", str(est), "-o", str(tmp_path / "gone.png")]) == 0
-    assert "drawn through the section ends" in capsys.readouterr().err
-
-
-def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """A tendon estimate whose tip force is off by (0.03, 0.04, 0) N and whose tip is off
-    by 1 mm in x: the force's rms error is 0.05 N, and the SRMSE (m + rad) is 0.001."""
-    from continuum_mhe.evaluation.metrics import compute_metrics
-
-    names = ["x", "y", "z", "psi_1", "fx", "fy", "fz"]
-    rng = np.random.default_rng(0)
-    truth = rng.normal(size=(20, len(names)))
-    est = truth + [0.001, 0.0, 0.0, 0.0, 0.03, 0.04, 0.0]
-    m = compute_metrics(est, truth, 0.2, names)
-    assert m.tip_force_rms_n == pytest.approx(0.05, rel=1e-12)
-    assert m.srmse == pytest.approx(0.001, rel=1e-9)
-    assert compute_metrics(est[:, :4], truth[:, :4], 0.2, names[:4]).tip_force_rms_n is None
-    t = np.arange(20) * 0.02
-    write_table(tmp_path / "e.csv", ["t", *names], np.column_stack([t, est]))
-    write_table(tmp_path / "t.csv", ["t", *names], np.column_stack([t, truth]))
-    assert main(["evaluate", str(tmp_path / "e.csv"), str(tmp_path / "t.csv")]) == 0
-    out = capsys.readouterr().out
-    assert "tip force error      rms 0.0500 N (RMSE fx, fy, fz 0.0300, 0.0400, 0.0000 N)" in out
-    assert "SRMSE                0.0010 (sum of the RMSEs of x, y, z, psi_1, m + rad)" in out
-
-
-@pytest.mark.parametrize(
-    ("rows", "columns", "message"),
-    [
-        ([[0.0, 1.0], [0.1, -0.5]], ["t", "tension_1"], "tension_1 = -0.5 N is negative"),
-        ([[0.0, 1.0, 1.0], [0.1, 1.0, 1.0]], ["t", "tension_1", "tension_2"],
-         "line 1: tension_2 not the robot's: expected the columns t,tension_1"),
-        ([[0.0, 1.0], [0.1, 1.0]], ["t", "tension_2"],  # the one missing is named
-         "line 1: tension_1 missing; tension_2 not the robot's: expected the columns"),
-        ([[0.0, 1.0], [0.1, 1.0]], ["t", "Tension_1 (N)"],  # as the file spells it
-         "line 1: tension_1 missing; Tension_1 (N) not the robot's: expected the columns"),
-        ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"], "the tensions must cover the recording"),
-        # milliseconds in t: the 0.1 s recording lies within the first two rows, and would
-        # be estimated on tensions held at their first values
-        ([[0.0, 1.0], [20.0, 1.1], [40.0, 1.2], [60.0, 1.3], [80.0, 1.4], [100.0, 1.5]],
-         ["t", "tension_1"], "its t spans 100 s in steps of 20 s, the recording 0.1 s: if t is "
-         "in milliseconds, name the column t_ms"),
-        # milliseconds at 2 kHz: rows 0.5 apart, which read in milliseconds cover the
-        # recording
-        ([[0.5 * i, 1.0 + 0.001 * i] for i in range(201)], ["t", "tension_1"],
-         "its t spans 100 s in steps of 0.5 s, the recording 0.1 s: if t is in "
-         "milliseconds, name the column t_ms"),
-        # microseconds in t
-        ([[0.0, 1.0], [20000.0, 1.1], [40000.0, 1.2], [60000.0, 1.3], [80000.0, 1.4],
-          [100000.0, 1.5]], ["t", "tension_1"], "name the column t_ms (it is read in "
-         "seconds; microseconds: divide them by 1000 first)"),
-        # microseconds in t_ms: the column is already t_ms
-        ([[0.0, 1.0], [20000.0, 1.1], [40000.0, 1.2], [60000.0, 1.3], [80000.0, 1.4],
-          [100000.0, 1.5]], ["t_ms", "tension_1"], "its t_ms spans 100 s in steps of 20 s, "
-         "the recording 0.1 s: if t_ms is in microseconds, give milliseconds; if it is in "
-         "milliseconds, cut the file"),
-        ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
-         "line 3: column tension_1 is nan (estimate --skip-bad (skip_bad=True in Python) "
-         "leaves the row out and interpolates across it; live, plot and view need the row "
-         "fixed or removed)"),
-        ([[0.0, 1.0], [0.05, ""], [0.1, 1.5]], ["t", "tension_1"],
-         "line 3: column tension_1 is empty (estimate --skip-bad (skip_bad=True in Python) "
-         "leaves the row out and interpolates across it; live, plot and view need the row "
-         "fixed or removed)"),
-    ],
-)  # fmt: skip
-def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], rows: list[list[object]],
-    columns: list[str], message: str,
-) -> None:  # fmt: skip
-    meas, tensions = _recording(tmp_path)
-    _write_text_table(tensions, columns, rows)
-    _assert_refused_in_one_line(tmp_path, capsys, meas, tensions, message)
-
-
-@pytest.mark.parametrize(
-    ("text", "message"),
-    [
-        ("", "line 1: file is empty, expected a header such as t,tension_1 (or t_ms,...)"),
-        ("0,1.0\n0.1,1.2\n", "line 1: no header line; the first line is data. Add a header "
-         "such as t,tension_1 (or t_ms,...)"),
-    ],
-)  # fmt: skip
-def test_a_tensions_file_without_a_header_is_told_the_tensions_header(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, message: str
-) -> None:
-    """An empty or header-less tensions file is told the header a tensions file needs
-    (not a measurement file's)."""
-    meas, tensions = _recording(tmp_path)
-    tensions.write_text(text)
-    _assert_refused_in_one_line(tmp_path, capsys, meas, tensions, message)
-
-
-def _assert_refused_in_one_line(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], meas: Path, tensions: Path, message: str
-) -> None:
-    """``estimate`` of ``meas`` with ``tensions``: exit 2, one line naming the tensions
-    file with ``message``, nothing written."""
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
-            str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and message in err[0] and str(tensions) in err[0]
-    assert not out.exists()
-
-
-#: Tension rows 0.0045 and 0.0055 s apart in turn (uneven: the noise estimate grids
-#: them) over the recording of :func:`_recording`, 0 to 0.1 s.
-_UNEVEN_TENSION_ROWS = [[round(0.005 * i + 0.0005 * (i % 2), 4), 1 + 0.01 * i] for i in range(21)]
-
-
-def test_one_tension_row_far_after_the_others_is_named_in_one_line(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """A row 1e9 s after the others (a logger's clock that jumped) is refused at once in
-    one line naming its line and the jump, not gridded over the whole span (which asks
-    for hundreds of GiB)."""
-    meas, tensions = _recording(tmp_path)
-    _write_text_table(tensions, ["t", "tension_1"], [*_UNEVEN_TENSION_ROWS, [1e9, 1.2]])
-    message = (
-        "line 23: its t jumps by 1e+09 s from the row before (0.1 to 1e+09 s; the rows "
-        "step by 0.0055 s): a logger's clock that jumped? Cut the file to the recording's "
-        "times"
-    )
-    _assert_refused_in_one_line(tmp_path, capsys, meas, tensions, message)
-
-
-def test_one_tension_row_far_before_the_recording_is_left_out(tmp_path: Path) -> None:
-    """A first row stamped 1e9 s before the others (a logger's clock not yet set) is
-    not one the recording uses: the estimate is written from the other rows' tensions."""
-    meas, tensions = _recording(tmp_path)
-    _write_text_table(tensions, ["t", "tension_1"], [[-1e9, 0.0], *_UNEVEN_TENSION_ROWS])
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
-            str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
-    assert main(argv) == 0
-    assert len(read_state_table(out).t) == len(_recording_rows())
-
-
-def test_tensions_at_a_slow_rate_in_seconds_are_read(tmp_path: Path) -> None:
-    """A tensions file that spans the recording with a second or more between rows
-    (tensions 1 s apart beside a 50 Hz recording) is no millisecond file: read in
-    seconds and interpolated, so the estimates are those of the same tensions given at
-    every sample's time (a held or ramped load given by a few rows is said nothing of:
-    the tensions are linear)."""
-    meas, tensions = _recording(tmp_path)
-    write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [1.0, 1.5]])
-    dense = tmp_path / "dense.csv"
-    t = np.arange(6) * 0.02
-    write_table(dense, ["t", "tension_1"], [[tk, 1.0 + 0.5 * tk] for tk in t])
-    from continuum_mhe.io.tensions import TensionsWarning
-
-    robot = str(_small_robot(tmp_path))
-    for given, out in ((tensions, tmp_path / "e.csv"), (dense, tmp_path / "d.csv")):
-        argv = ["estimate", str(meas), "--robot", robot, "--inputs", str(given), "-o", str(out),
-                "--method", "ekf"]  # fmt: skip
-        with warnings.catch_warnings():  # linear tensions: no warning of rows far apart
-            warnings.simplefilter("error", TensionsWarning)
-            assert main(argv) == 0
-    slow, every = read_state_table(tmp_path / "e.csv"), read_state_table(tmp_path / "d.csv")
-    assert list(slow.status) == list(every.status)
-    np.testing.assert_allclose(slow.values, every.values, rtol=0, atol=1e-9)
-
-
-def test_skip_bad_leaves_out_a_bad_tension_row_and_says_so(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """The error of a bad tension names --skip-bad: with it the row is left out (the
-    tensions interpolated across it, so the estimate is the one without the row) and
-    counted in a warning."""
-    meas, tensions = _recording(tmp_path)
-    robot = str(_small_robot(tmp_path))
-    write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [0.1, 1.5]])
-    clean = tmp_path / "clean.csv"
-    argv = ["estimate", str(meas), "--robot", robot, "--inputs", str(tensions), "-o"]
-    assert main([*argv, str(clean)]) == 0
-    _write_text_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]])
-    skipped = tmp_path / "skipped.csv"
-    with warnings.catch_warnings(record=True) as seen:
-        warnings.simplefilter("always")
-        assert main([*argv, str(skipped), "--skip-bad"]) == 0
-    said = [str(w.message) for w in seen if w.category is DropoutWarning]
-    assert said == [f"{tensions}: 1 tension row(s) with a bad value or time left out (--skip-bad; "
-                    "first: line 3: column tension_1 is nan): the tensions are interpolated "
-                    "across them"]  # fmt: skip
-    a, b = read_state_table(clean), read_state_table(skipped)
-    np.testing.assert_allclose(b.column("fx"), a.column("fx"), rtol=0, atol=1e-12)
-
-
-def test_tensions_of_inputs_beside_the_recordings_own_are_said_to_win(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """A recording with its own tension columns and --inputs: the --inputs tensions are
-    used, and a warning says so and how far the two differ (or that they are the same);
-    without --inputs the recording's own are used, with no warning."""
-    meas, tensions = _recording(tmp_path)
-    header, *rows = meas.read_text().splitlines()
-    both = tmp_path / "both.csv"  # its own tensions, not those of --inputs
-    both.write_text("\n".join([f"{header},tension_1", *(f"{r},9.0" for r in rows)]) + "\n")
-    argv = ["estimate", str(both), "--robot", str(_small_robot(tmp_path)), "-o"]
-    said = []
-    for extra in (["--inputs", str(tensions)], []):
-        with warnings.catch_warnings(record=True) as seen:
-            warnings.simplefilter("always")
-            assert main([*argv, str(tmp_path / f"e{len(extra)}.csv"), *extra]) == 0
-        said.append([str(w.message) for w in seen if w.category is OptionWarning])
-    assert said == [[f"{both}: the recording carries tension columns, but the tensions of "
-                     f"--inputs {tensions} are the ones used (they differ by up to 8 N)"],
-                    []]  # fmt: skip
-    same = tmp_path / "same.csv"  # its own columns, the tensions of --inputs at its times
-    same.write_text("\n".join([f"{header},tension_1",
-                               *(f"{r},{1.0 + 5 * float(r.split(',')[0])!r}" for r in rows)])
-                    + "\n")  # fmt: skip
-    with pytest.warns(OptionWarning, match=r"are the ones used \(the same tensions\)$"):
-        assert main(["estimate", str(same), "--robot", str(_small_robot(tmp_path)), "-o",
-                     str(tmp_path / "s.csv"), "--inputs", str(tensions)]) == 0  # fmt: skip
-    own, given = (read_state_table(tmp_path / f"e{k}.csv").column("fz") for k in (0, 2))
-    assert not np.allclose(own, given)  # the files' tensions differ, and so do the estimates
-
-
-def test_a_recordings_tension_columns_unused_by_a_robot_without_tendons_are_said(
-    tmp_path: Path,
-) -> None:
-    """A tendon robot's recording (its own tension columns, as ``live --record`` writes
-    them) estimated with a robot file without tendons: the estimate runs, and a warning
-    names the columns it leaves out (``--inputs`` on such a robot is refused)."""
-    meas, _ = _recording(tmp_path)
-    header, *rows = meas.read_text().splitlines()
-    rec = tmp_path / "rec.csv"
-    rec.write_text("\n".join([f"{header},tension_1", *(f"{r},2.0" for r in rows)]) + "\n")
-    plain = tmp_path / "plain.toml"
-    plain.write_text("[[section]]\nlength = 0.2\ntheta_max = 3.0\n[[imu]]\nsection = 1\n")
-    out = tmp_path / "e.csv"
-    with warnings.catch_warnings(record=True) as seen:
-        warnings.simplefilter("always")
-        assert main(["estimate", str(rec), "--robot", str(plain), "--method", "ekf",
-                     "-o", str(out)]) == 0  # fmt: skip
-    said = [str(w.message) for w in seen if w.category is OptionWarning]
-    assert said == [f"{rec}: its column tension_1 is not used: the robot ({plain}) has no "
-                    "[[tendon]] (a tendon robot's file, with [backbone] and its [[tendon]]s, "
-                    "takes them)"]  # fmt: skip
-    assert out.exists()
-    # without --robot: the command line's robot described; bad input: its one line alone
-    with warnings.catch_warnings(record=True) as seen:
-        warnings.simplefilter("always")
-        assert main(["estimate", str(rec), "--method", "ekf", "-o", str(tmp_path / "d.csv")]) == 0
-        assert main(["estimate", str(rec), "--robot", "two-section", "-o",
-                     str(tmp_path / "two.csv")]) == 2  # fmt: skip
-    said = [str(w.message) for w in seen if w.category is OptionWarning]
-    assert said == [f"{rec}: its column tension_1 is not used: the robot (1 section (0.2 m), "
-                    "IMUs at 1@1, z-up) has no [[tendon]] (a tendon robot's file, with "
-                    "[backbone] and its [[tendon]]s, takes them)"]  # fmt: skip
-
-
-def test_a_tendon_robot_needs_its_tensions(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    meas, _ = _recording(tmp_path)
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "-o", str(out)]
-    assert main(argv) == 2
-    assert "give their tensions with --inputs" in capsys.readouterr().err
-    assert not out.exists()
-
-
-def test_own_tension_columns_from_standard_input_are_said_unread(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """A recording read from standard input (or a pipe) is read once, after the
-    tensions: its own tension columns are not read, and the error says so instead of
-    asking for the columns it has."""
-    meas, _ = _recording(tmp_path)
-    lines = meas.read_text().splitlines()
-    header, rows = lines[0], lines[1:]
-    own = tmp_path / "own.csv"  # the recording with its tension column
-    own.write_text("\n".join([f"{header},tension_1", *(f"{r},1.0" for r in rows)]) + "\n")
-    robot = str(_small_robot(tmp_path))
-    out = tmp_path / "e.csv"
-    assert main(["estimate", str(own), "--robot", robot, "-o", str(out)]) == 0  # by name
-    out.unlink()
-    with own.open() as stdin:
-        monkeypatch.setattr(sys, "stdin", stdin)
-        assert main(["estimate", "-", "--robot", robot, "-o", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert "from standard input or a pipe they are not read" in err
-    assert not out.exists()
-
-
-def test_tensions_interpolate_linearly(tmp_path: Path) -> None:
-    path = tmp_path / "t.csv"
-    rows = [[0.0, 1.0, 0.0], [1.0, 3.0, 0.0], [2.0, 7.0, 0.0]]
-    write_table(path, ["t", "tension_1", "tension_2"], rows)
-    tensions = read_tensions(path, 2)
-    tau, rate, acceleration = tensions.at(0.25)
-    np.testing.assert_allclose(tau, [1.5, 0.0])
-    # central differences, one-sided of second order at the ends of a file slower than
-    # the IMUs: exact for the quadratic 1 + t + t^2, rates 1, 3, 5 N/s, their rate 2 N/s^2
-    np.testing.assert_allclose(rate, [1.5, 0.0])
-    np.testing.assert_allclose(acceleration, [2.0, 0.0])
-
-
-def test_tensions_stamped_in_milliseconds_are_said_and_read_as_t_ms(tmp_path: Path) -> None:
-    """A tensions file whose t is in milliseconds (0 to 80 in steps of 20 for a 50 Hz
-    log), read in seconds, would give an 8 s recording the first rows' tensions, its rows
-    86 mm off and ok: it is said, with the fix; as t_ms it reads."""
-    from continuum_mhe.io.csv_files import UnitWarning
-
-    rows = [[20.0 * i, 1.0 + i, 0.0] for i in range(5)]
-    path = tmp_path / "ms.csv"
-    write_table(path, ["t", "tension_1", "tension_2"], rows)
-    with pytest.warns(
-        UnitWarning, match="median of 20 s per sample; t is read in seconds: if it is in milli"
-    ):
-        read_tensions(path, 2)
-    write_table(path, ["t_ms", "tension_1", "tension_2"], rows)
-    np.testing.assert_allclose(read_tensions(path, 2).at(0.03)[0], [2.5, 0.0])
-
-
-def test_one_imu_does_not_determine_the_tip_force() -> None:
-    """Two of the tip force's three components per IMU (its gravity direction): one IMU,
-    raw or tilt, leaves the shape unobservable; two determine it."""
-    from continuum_mhe.errors import UnobservableShapeWarning
-    from continuum_mhe.estimators import CasadiExtendedKalmanFilter
-
-    one = _one_section(Tendon(0, 0.0, 0.01))
-    two = Robot(one.sections, (ImuPlacement(0, 0.5), ImuPlacement(0, 1.0)), "z-up", BACKBONE,
-                one.tendons)  # fmt: skip
-    for model in ("tilt", "direct"):
-        f1 = TendonFormulation(robot=one, imu_model=model)  # type: ignore[arg-type]
-        assert not f1.imus_determine_shape((0,))
-        assert TendonFormulation(robot=two, imu_model=model).imus_determine_shape((0, 1))  # type: ignore[arg-type]
-    with pytest.warns(UnobservableShapeWarning, match="two per IMU"):
-        CasadiExtendedKalmanFilter(TendonFormulation(robot=one))
-
-
 # --- the estimator a tendon robot gets --------------------------------------------------
 def test_a_tendon_robot_defaults_to_the_ekf_and_a_pcc_robot_to_the_mhe(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
@@ -1563,8 +429,8 @@ def test_a_tendon_robot_defaults_to_the_ekf_and_a_pcc_robot_to_the_mhe(
     assert method_from_args(chosen, tendon) == "ukf" and chosen.method_note is None
     assert capsys.readouterr().err == ""
     # the command line: the summary says it; a bad input is its one line alone
-    meas, tensions = _recording(tmp_path)
-    robot, out = _small_robot(tmp_path), tmp_path / "e.csv"
+    meas, tensions = small_robot_recording(tmp_path)
+    robot, out = small_robot(tmp_path), tmp_path / "e.csv"
     argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
             "-o", str(out)]  # fmt: skip
     assert main(argv) == 0
@@ -1581,11 +447,10 @@ def test_the_fast_mhe_on_a_tendon_robot_is_refused_in_one_line(
 ) -> None:
     """``--method mhe`` (the fast MHE) on a tendon robot: one line naming the robot file
     and the alternatives, exit 2, nothing written; the library refuses it too."""
-    from continuum_mhe.errors import UserError
     from continuum_mhe.estimators import MovingHorizonEstimator
 
-    meas, tensions = _recording(tmp_path)
-    out, robot = tmp_path / "e.csv", _small_robot(tmp_path)
+    meas, tensions = small_robot_recording(tmp_path)
+    out, robot = tmp_path / "e.csv", small_robot(tmp_path)
     argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
             "-o", str(out), "--method", "mhe"]  # fmt: skip
     assert main(argv) == 2
@@ -1604,7 +469,7 @@ def test_the_consistency_check_judges_the_readings_not_the_tip_condition() -> No
     off is."""
     from continuum_mhe.estimators.consistency import ConsistencyCheck
 
-    f = TendonFormulation(robot=_one_section(Tendon(0, 0.0, 0.01)))
+    f = TendonFormulation(robot=one_section_robot(Tendon(0, 0.0, 0.01)))
     tension = np.array([2.0])
     k0, _ = f.statics.solve(np.zeros(3), tension)
     x = np.zeros(f.nx)
@@ -1735,7 +600,6 @@ def test_estimate_follows_the_loaded_robot_and_its_tip_force(
 def test_the_force_random_walk_is_slower_for_a_robot_with_one_imu() -> None:
     """The tip force's white-noise acceleration defaults from the robot's IMUs, and a
     given value wins."""
-    from continuum_mhe.errors import UserError
     from continuum_mhe.model.tendon import FORCE_ACCEL_PSD, SINGLE_IMU_FORCE_ACCEL_PSD
 
     two = read_robot("tendon-two-section")
@@ -1853,7 +717,6 @@ def test_the_tip_force_prior_is_a_third_of_the_buckling_load() -> None:
     """The tip force's prior standard deviation defaults to a third of the Euler load of
     the straight backbone as a cantilever, ``pi^2 EI / (4 L^2)`` (the shipped robot: E =
     54 GPa, r = 0.7 mm, L = 0.4 m, 0.157 N); a given value wins and a bad one is refused."""
-    from continuum_mhe.errors import UserError
 
     robot = read_robot("tendon-two-section")
     ei = 54e9 * math.pi * 0.0007**4 / 4
@@ -1944,7 +807,6 @@ def test_the_estimators_refuse_a_model_that_ignores_the_robots_tendons(name: str
     to estimate."""
     from dataclasses import replace
 
-    from continuum_mhe.errors import UserError
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
     from continuum_mhe.model.registry import make_formulation
@@ -1967,7 +829,6 @@ def test_the_estimators_refuse_a_negative_tension_as_the_tensions_file_does() ->
     file's reader refuses one; the tensions' rates may be negative."""
     import re
 
-    from continuum_mhe.errors import UserError
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.results import Measurement
 
@@ -2081,7 +942,6 @@ def test_the_recording_generator_refuses_sections_without_disks_and_warns_in_one
     file's warning (a tendon angle that reads as radians) prints as the generator's one
     line, not as Python's file, line and source line."""
     import subprocess
-    import sys
 
     from continuum_mhe.io.robot_file import shipped_robots
 
@@ -2146,8 +1006,6 @@ def test_gyro_biases_left_out_on_a_tendon_robot_are_warned_of(tmp_path: Path) ->
     the biases estimated, no such warning."""
     import warnings
 
-    from continuum_mhe.io.input_options import OptionWarning
-
     raw = tmp_path / "raw.csv"
     raw.write_text("\n".join((DATA / "force-29_raw.csv").read_text().splitlines()[:41]) + "\n")
     base = ["estimate", str(raw), "--robot", "tendon-two-section", "--inputs",
@@ -2204,8 +1062,8 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
     equilibrium to draw: where no row drawn has one, one line naming the file and the
     row's time, exit 2, no figure (not reported as a bug, exit 70); where some do, the
     others are drawn and a warning names it."""
-    meas, tensions = _recording(tmp_path)
-    robot = str(_small_robot(tmp_path))
+    meas, tensions = small_robot_recording(tmp_path)
+    robot = str(small_robot(tmp_path))
     est = tmp_path / "e.csv"
     assert main(["estimate", str(meas), "--robot", robot, "--inputs", str(tensions),
                  "-o", str(est)]) == 0  # fmt: skip
@@ -2265,8 +1123,8 @@ def test_plot_and_view_refuse_tensions_in_millinewtons_as_estimate_does(
     """Tensions a thousand times too large given to ``plot`` and ``view`` (mN written as
     N): the line ``estimate`` gives for them (the bend they would make), exit 2, no
     figure and no view; with the right tensions both draw."""
-    meas, tensions = _recording(tmp_path)
-    robot = str(_small_robot(tmp_path))
+    meas, tensions = small_robot_recording(tmp_path)
+    robot = str(small_robot(tmp_path))
     est = tmp_path / "e.csv"
     assert main(["estimate", str(meas), "--robot", robot, "--inputs", str(tensions),
                  "-o", str(est)]) == 0  # fmt: skip
@@ -2411,7 +1269,6 @@ def test_tensions_in_millinewtons_given_as_arrays_are_refused_by_the_estimator()
     for N), handed to ``run`` as arrays: refused in one UserError naming the time and
     the turns the tensions would bend a section through, as a tensions file is; the
     rows as read run."""
-    from continuum_mhe.errors import UserError
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.estimators.base import tension_rows
 
@@ -2571,8 +1428,8 @@ def test_plot_says_when_the_models_backbone_misses_the_estimated_tip(tmp_path: P
 
     from continuum_mhe.evaluation.estimate_figure import FigureWarning
 
-    meas, tensions = _recording(tmp_path)
-    robot = str(_small_robot(tmp_path))
+    meas, tensions = small_robot_recording(tmp_path)
+    robot = str(small_robot(tmp_path))
     est = tmp_path / "e.csv"
     assert main(["estimate", str(meas), "--robot", robot, "--inputs", str(tensions),
                  "-o", str(est)]) == 0  # fmt: skip
@@ -2664,7 +1521,7 @@ def test_the_bend_past_theta_max_tally_reads_a_one_section_tendon_robots_columns
     from continuum_mhe.estimators.run_notices import BendsBeyondBound
     from continuum_mhe.model.registry import make_formulation
 
-    f = TendonFormulation(robot=read_robot(_small_robot(tmp_path)))
+    f = TendonFormulation(robot=read_robot(small_robot(tmp_path)))
     names = [o.name for o in f.outputs]
     assert "theta_1" in names and "theta" not in names
     bound = f.robot.sections[0].theta_max
@@ -2871,7 +1728,6 @@ def test_load_input_reads_a_tendon_robot_with_its_tensions_as_open_input_does() 
 def test_measurement_row_refuses_parts_of_the_wrong_size() -> None:
     """``measurement_row`` names the part that does not fit the robot, also where seven
     tensions with five rates would make a ``z`` of the right length."""
-    from continuum_mhe.errors import UserError
     from continuum_mhe.model.registry import make_formulation
 
     f = make_formulation("tendon", read_robot("tendon-two-section"), imu_model="direct")
@@ -3006,7 +1862,6 @@ def test_the_tension_gain_is_refused_for_a_robot_without_tendons(
     """``--estimate-tension-gain`` on a robot without tendons: one line, exit 2, nothing
     written; from an options file, named by its file and line; in the library, by
     ``InputOptions``."""
-    from continuum_mhe.errors import UserError
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import load_input
     from continuum_mhe.model.registry import make_formulation
@@ -3084,7 +1939,7 @@ def test_the_tension_gain_warning_says_when_the_sections_disagree() -> None:
 def test_the_tension_gain_with_tilt_imus_is_warned() -> None:
     """``--estimate-tension-gain`` with tilt readings: one OptionWarning that it
     misleads there and that raw IMUs take it; with raw readings none."""
-    from continuum_mhe.io.input_options import InputOptions, OptionWarning
+    from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.tensions import tendon_formulation_for
     from continuum_mhe.model.registry import make_formulation
 
@@ -3262,9 +2117,9 @@ def test_tension_columns_are_taken_by_name_in_any_order(tmp_path: Path) -> None:
     t = np.arange(6) * 0.1
     values = rng.uniform(0.0, 2.0, (6, 3))
     ordered, shuffled = tmp_path / "a.csv", tmp_path / "b.csv"
-    _write_text_table(ordered, ["t", "tension_1", "tension_2", "tension_3"],
+    write_text_table(ordered, ["t", "tension_1", "tension_2", "tension_3"],
                       np.column_stack([t, values]).tolist())  # fmt: skip
-    _write_text_table(shuffled, ["t", "tension_3", "tension_1", "tension_2"],
+    write_text_table(shuffled, ["t", "tension_3", "tension_1", "tension_2"],
                       np.column_stack([t, values[:, [2, 0, 1]]]).tolist())  # fmt: skip
     a, b = read_tensions(ordered, 3), read_tensions(shuffled, 3)
     np.testing.assert_array_equal(b.values, a.values)
@@ -3713,7 +2568,7 @@ def test_the_tip_push_against_known_answers() -> None:
     straight rod (a pull negative), and for a small force across it the force times the
     cantilever's tip slope ``F L^2 / (2 EI)``, negative (the tip turns towards the
     force)."""
-    robot = _one_section()
+    robot = one_section_robot()
     f = TendonFormulation(robot=robot)
     x = np.zeros(f.nx)
     x[5] = -0.2
@@ -3732,7 +2587,7 @@ def test_a_push_beyond_twice_the_buckling_load_is_drifted() -> None:
     drifted beyond twice the buckling load, not at one and a half."""
     from continuum_mhe.model.tendon import BUCKLED_PUSH_MULTIPLE
 
-    f = TendonFormulation(robot=_one_section())
+    f = TendonFormulation(robot=one_section_robot())
     x = np.zeros(f.nx)
     x[5] = -1.5 * f.buckling_load
     assert not f.drifted(x)
