@@ -207,7 +207,9 @@ void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   hold_ = 0.0;
   end_chain();
   forced_t_.clear();
-  consistency_.reset();
+  // a restart within a recording keeps the model error learned, as a gap's does: the
+  // model does not follow the robot better for it
+  if (!keep_counts) consistency_.reset();
   if (!keep_counts) has_last_ = false;  // a new recording: another robot's sensors, maybe
   // a caller that keeps no sensor states (a new recording, a failure that may have come
   // from them) keeps none for a drift reset either

@@ -97,6 +97,33 @@ def test_a_restart_keeps_the_model_error_the_readings_showed() -> None:
     assert after is not None and after[0] >= before and after[1] == "inconsistent"
 
 
+def test_a_callers_restart_within_the_recording_keeps_the_model_error() -> None:
+    """As a gap's restart: ``reset(keep_counts=True)`` in the middle of the recording of
+    the test above (a caller's restart of the same robot, as ``live`` makes) keeps the
+    model error learned and the rows after it ``inconsistent``; ``reset()`` (a new
+    recording) forgets it."""
+    rec = simulate("paper3d", duration=10.0, seed=2, noise_deg=6.0, noise_model="tangent")
+    f = make_formulation("bend", Robot.single(0.2))
+    for keep_counts in (True, False):
+        est = make_estimator("ekf", f)
+        est.reset()
+        before = after = None
+        for t, z in zip(rec.t, rec.z, strict=True):
+            if before is None and t >= 5.0:
+                before = est._consistency.model_error
+                est.reset(keep_counts=keep_counts)
+                assert (est._consistency.model_error == before) is keep_counts
+            e = est.step(Measurement(float(t), z))
+            if before is not None and after is None and e.status != "uncertain":
+                after = (est._consistency.model_error, e.status)
+        assert before is not None and before > 1.0
+        assert after is not None
+        if keep_counts:
+            assert after[0] >= before and after[1] == "inconsistent", after
+        else:
+            assert after[0] < before, after
+
+
 def _recording(
     length: float, seed: int, two: bool, noise_factor: float, reading_bias_std: float
 ) -> tuple[Robot, object]:

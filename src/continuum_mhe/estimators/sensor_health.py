@@ -454,8 +454,9 @@ class Estimator(Generic[InferenceT]):
         """Forget all samples and, unless ``keep_counts``, zero :attr:`diagnostics` (in
         place: a caller that holds it sees the new recording's counts) and the
         inference's own counts; the next ``step`` starts a new recording. (The
-        estimator's own restarts, within a recording, keep the counts; so does a caller
-        that restarts it within one, as ``live`` does.) ``keep_sensors`` (default
+        estimator's own restarts, within a recording, keep the counts and the model
+        error the readings showed; so does a caller that restarts it within one, as
+        ``live`` does.) ``keep_sensors`` (default
         ``keep_counts``; only with it, else a UserError): the next start keeps what the
         last estimate says of the sensors (the formulation's ``sensor_states``, as a restart after a
         gap does), the same sensors on the same robot; not after a failure that may
