@@ -1,11 +1,30 @@
-"""Shared test helpers for the command line's tests: a simulated recording and its truth,
-and an estimate file's notes and rows."""
+"""Shared test helpers for the command line's tests: files written as a user's program
+writes them, a measurement CSV of good rows, a simulated recording and its truth, and
+an estimate file's notes and rows."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from continuum_mhe.cli import main
+from continuum_mhe.simulation.scenarios import simulate
+
+
+def write_file(path: Path, text: str) -> Path:
+    """``text`` written to ``path`` in UTF-8; ``path``."""
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def good_rows(n: int = 40, dt: float = 0.05) -> list[str]:
+    """``n`` rows ``t,roll,pitch`` (s, rad) of a ``paper3d`` recording ``dt`` s apart."""
+    rec = simulate("paper3d", duration=(n - 1) * dt, dt=dt, seed=3)
+    return [f"{t:.3f},{r:.6f},{p:.6f}" for t, (r, p) in zip(rec.t, rec.z)]
+
+
+def meas_csv(tmp_path: Path, rows: list[str], header: str = "t,roll,pitch") -> Path:
+    """``rows`` under ``header``, written to ``tmp_path/meas.csv``."""
+    return write_file(tmp_path / "meas.csv", "\n".join([header, *rows]) + "\n")
 
 
 def simulated(tmp_path: Path, name: str, *extra: str) -> tuple[Path, Path]:
