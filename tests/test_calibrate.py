@@ -1003,6 +1003,30 @@ def test_a_tilt_rest_in_degrees_is_read_with_degrees_or_said(
     )
 
 
+def test_a_tilt_rest_of_a_robot_mounted_the_other_way_is_refused_naming_the_mounting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A hanging robot's tilt rest (roll near 180 degrees) with a z-up robot: refused in
+    one line naming the mounting, as a raw rest is and as ``estimate`` refuses the same
+    file (it was said as degrees given for radians: 3.1 read as degrees is near
+    straight); the same rest with a z-down robot file calibrates."""
+    path = tmp_path / "hang.csv"
+    _tilt_rest(path, 3.1, 0.01, 0.005)
+    up = tmp_path / "up.toml"
+    up.write_text('mounting = "z-up"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n')
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", str(up))
+    assert (code, out) == (2, "")
+    assert err == (
+        f"continuum-mhe: error: {path}: mounting: the robot is described as z-up, but at "
+        "rest gravity puts every IMU 178 degrees from where that mounting puts it: the "
+        'robot hangs from its base? set mounting = "z-down" in the robot file\n'
+    )
+    code, out, err = _calibrate_main(capsys, "--from", str(path))
+    assert code == 2 and err.endswith("the robot hangs from its base? --mounting z-down\n")
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--mounting", "z-down")
+    assert code == 0 and err == "" and "roll mean 177.6" in out, err
+
+
 def test_a_hanging_robots_tilt_rest_is_averaged_about_its_straight_pose(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

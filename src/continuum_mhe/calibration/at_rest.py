@@ -127,9 +127,10 @@ def rolls_kept(cal: Calibration, file_rolls: Sequence[float]) -> tuple[Calibrati
 
 
 def check_rest_mounting(
-    source: str, values: FloatArray, robot: Robot, robot_file: bool
+    source: str, values: FloatArray, robot: Robot, robot_file: bool, fmt: LineFormat = "raw"
 ) -> str | None:
-    """Refuse, in one line naming ``mounting``, raw readings at rest (n, 6 n_imus) in
+    """Refuse, in one line naming ``mounting``, readings at rest (n, 6 n_imus raw, or
+    n, 2 n_imus tilt: ``fmt``) in
     which gravity puts most IMUs (every one, or more than half of two or more) more than
     the estimate's own threshold (:data:`~continuum_mhe.io.input_options.MOUNTING_FLIPPED`)
     from their reading on the straight robot as the robot file describes it (the robot's
@@ -140,10 +141,21 @@ def check_rest_mounting(
     ``mounting`` (``robot_file``), else ``--mounting``. Fewer such IMUs get a warning,
     returned: each is calibrated as a board mounted upside down, which a robot mounted
     the other way reads as well; a board declared upside down (its ``mount_rpy``) is
-    not one of them."""
+    not one of them. Tilt readings are the disks' (``mount_rpy`` does not apply to
+    them, and no board is calibrated): the refusal names the mounting alone, and fewer
+    such IMUs are left to ``estimate``'s own check (None)."""
     up = 1.0 if robot.mounting == "z-up" else -1.0
     angles = []
     for i, place in enumerate(robot.imus):
+        if fmt != "raw":  # roll and pitch in rad, about their circular means
+            tilt = values[:, 2 * i : 2 * i + 2]
+            tilt = tilt[np.all(np.isfinite(tilt), axis=1)]
+            if not len(tilt):
+                return None
+            roll, pitch = angle_mean_std(tilt)[0]
+            cos = up * math.cos(float(roll)) * math.cos(float(pitch))
+            angles.append(math.acos(min(1.0, max(-1.0, cos))))
+            continue
         acc = values[:, 6 * i : 6 * i + 3]
         acc = acc[np.all(np.isfinite(acc), axis=1)]
         if not len(acc):
@@ -160,6 +172,16 @@ def check_rest_mounting(
     shown = [angles[i] for i in flipped]
     lo, hi = (round(math.degrees(a)) for a in (min(shown), max(shown)))
     spread = f"{lo}" if lo == hi else f"{lo} to {hi}"
+    if fmt != "raw":
+        if 2 * len(flipped) <= len(angles):
+            return None
+        who = ", ".join(str(i + 1) for i in flipped)
+        imus = "every IMU" if len(flipped) == len(angles) else f"IMUs {who} (of {len(angles)})"
+        raise InputError(
+            f"{source}: mounting: the robot is described as {robot.mounting}, but at rest "
+            f"gravity puts {imus} {spread} degrees from where that mounting puts it: the "
+            f"robot {pose}? {fix}"
+        )
     if len(flipped) == len(angles):
         boards, each = (
             ("its board is", "its") if len(angles) == 1 else ("its boards are", "each one's")

@@ -144,7 +144,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: {frozen}")
     if args.write_robot and fmt != "raw":
         raise InputError(f"{source}: --write-robot needs a raw recording (this one is {fmt})")
-    if fmt == "raw" and (flipped := check_rest_mounting(source, values, robot, bool(args.robot))):
+    flipped = check_rest_mounting(source, values, robot, bool(args.robot), fmt)
+    if flipped:  # raw: a board upside down, said (tilt ones are refused or left alone)
         if not args.bend:  # gravity does not tell a board turned over about x from one about y
             flipped += (
                 "; its yaw is the robot file's, right for a board turned over about its x "
