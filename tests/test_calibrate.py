@@ -394,7 +394,11 @@ def test_the_tilt_stillness_bound_follows_still_acc_std(
     path.write_text("t,roll,pitch\n" + "\n".join(rows) + "\n")
     code, _, err = _calibrate_main(capsys, "--from", str(path))
     assert code == 2 and "above the 0.0204 rad of a still robot" in err
-    assert err.endswith("raise --still-acc-std (bound: it / g)\n")
+    # a spread that scatters as noise, in degrees within the bound: degrees named too
+    assert err.endswith(
+        "raise --still-acc-std (bound: it / g); or are the angles in degrees? (read as "
+        "degrees, every spread is within the bound, 0.0301 degrees at most) pass --degrees\n"
+    )
     code, out, err = _calibrate_main(capsys, "--from", str(path), "--still-acc-std", "0.4")
     assert code == 0, err
     assert "IMU 1: roll mean 5.730 deg" in out
@@ -1025,6 +1029,32 @@ def test_a_tilt_rest_of_a_robot_mounted_the_other_way_is_refused_naming_the_moun
     assert code == 2 and err.endswith("the robot hangs from its base? --mounting z-down\n")
     code, out, err = _calibrate_main(capsys, "--from", str(path), "--mounting", "z-down")
     assert code == 0 and err == "" and "roll mean 177.6" in out, err
+
+
+def test_a_still_tilt_rest_in_degrees_is_said_to_be_degrees_not_a_motion_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A still IMU's tilt rest in degrees within radians' range (0.3 degrees of noise,
+    which read as radians spreads by 17 degrees) is refused as a motion that names
+    --degrees too; ``--degrees`` calibrates it; a robot's motion in radians (the
+    paper's, which steps smoothly from sample to sample) is refused without it."""
+    path = tmp_path / "rest_deg.csv"
+    _tilt_rest(path, 0.4, -0.2, 0.3)
+    code, out, err = _calibrate_main(capsys, "--from", str(path))
+    assert (code, out) == (2, "") and err.count("\n") == 1
+    assert "the robot moved: IMU 1's tilt spread" in err
+    assert err.endswith(
+        "; or are the angles in degrees? (read as degrees, every spread is within the bound, "
+        "0.311 degrees at most) pass --degrees\n"
+    ), err
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--degrees")
+    assert code == 0 and err == "" and "roll mean 0.4" in out, err
+    moving = tmp_path / "paper3d.csv"
+    assert main(["simulate", "paper3d", "-o", str(moving)]) == 0
+    capsys.readouterr()
+    code, out, err = _calibrate_main(capsys, "--from", str(moving))
+    assert code == 2 and "the robot moved: IMU 1's tilt spread" in err
+    assert "degrees" not in err, err
 
 
 def test_a_hanging_robots_tilt_rest_is_averaged_about_its_straight_pose(

@@ -636,33 +636,48 @@ def rest_gravity_note(values: FloatArray, fmt: LineFormat, n_imus: int) -> str |
     )
 
 
+#: A tilt axis whose sample-to-sample steps spread by at least this share of white
+#: noise's (sqrt(2) times its spread) scatters as noise; a robot's motion, smooth over
+#: many samples, steps by far less.
+NOISE_LIKE_STEP = 0.5
+
+
 def motion_at_rest(
     values: FloatArray,
     fmt: LineFormat,
     n_imus: int,
     acc_std: float = STILL_ACC_STD,
     gyro_std: float = STILL_GYRO_STD,
+    degrees_fix: str | None = None,
 ) -> str | None:
     """Why the samples ``values`` (n, k * n_imus) are not of a still robot, or None:
     the largest spread (standard deviation of one axis over the recording) beyond its
     bound (``acc_std`` m/s^2, ``gyro_std`` rad/s, and for tilt ``acc_std`` / g rad:
     :data:`STILL_ACC_STD`, :data:`STILL_GYRO_STD`, :data:`STILL_TILT_STD` by default),
     named with the IMU and axis, and the option that raises that bound. Tilt angles
-    are compared on the circle (a hanging robot's roll near +-pi is still)."""
+    are compared on the circle (a hanging robot's roll near +-pi is still). With
+    ``degrees_fix`` (what to do about tilt angles in degrees; None where they were read
+    as degrees already), a tilt recording whose every spread, read as degrees, lies
+    within the bound and whose every axis beyond it scatters from sample to sample as
+    noise does (not a motion's smooth course: :data:`NOISE_LIKE_STEP`) is said to be
+    possibly in degrees too (a still IMU's 0.3 degrees of noise, read as radians,
+    spreads by 17 degrees)."""
     k = VALUES_PER_IMU[fmt]
     checks: list[tuple[str, int, str, float, tuple[str, ...], str]]
+    tilt_std = acc_std / STANDARD_GRAVITY
     if fmt == "raw":
         checks = [
             ("accelerometer", 0, "m/s^2", acc_std, ("ax", "ay", "az"), "--still-acc-std"),
             ("gyro", 3, "rad/s", gyro_std, ("gx", "gy", "gz"), "--still-gyro-std"),
         ]
     else:
-        tilt_std = acc_std / STANDARD_GRAVITY
         checks = [
             ("tilt", 0, "rad", tilt_std, ("roll", "pitch"), "--still-acc-std (bound: it / g)")
         ]
     worst: tuple[float, str, str] | None = None
     accelerometers_moved = False
+    widest_tilt = 0.0  # rad, the largest tilt spread of any IMU and axis
+    noise_like = True  # every tilt axis beyond its bound steps as white noise does
     for i in range(n_imus):
         block = values[:, k * i : k * (i + 1)]
         block = block[np.all(np.isfinite(block), axis=1)]
@@ -672,6 +687,11 @@ def motion_at_rest(
             part = block[:, first : first + len(names)]
             if fmt == "tilt":  # about the circular mean (roll near +-pi: a hanging robot)
                 spread = angle_mean_std(part)[1]
+                widest_tilt = max(widest_tilt, float(spread.max()))
+                steps = np.angle(np.exp(1j * np.diff(part, axis=0))).std(axis=0, ddof=1)
+                noise_like &= bool(
+                    np.all((spread <= bound) | (steps >= NOISE_LIKE_STEP * math.sqrt(2) * spread))
+                )
             else:
                 spread = part.std(axis=0, ddof=1)
             j = int(np.argmax(spread))
@@ -696,10 +716,16 @@ def motion_at_rest(
             f"rad/s (gx, gy, gz times pi/180 = {math.pi / 180:.7f}); if the robot did "
             f"move, calibrate needs it straight and still; if it was still, raise {worst[2]}"
         )
+    degrees = ""
+    if fmt == "tilt" and degrees_fix and noise_like and math.radians(widest_tilt) <= tilt_std:
+        degrees = (
+            f"; or are the angles in degrees? (read as degrees, every spread is within the "
+            f"bound, {widest_tilt:.3g} degrees at most) {degrees_fix}"
+        )
     return (
         f"the robot moved: {worst[1]}; calibrate needs it straight and still "
         f"(a bend in a known plane goes to --bend BEND.csv); if the robot was still, raise "
-        f"{worst[2]}"
+        f"{worst[2]}{degrees}"
     )
 
 

@@ -136,7 +136,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: {unit}")
     if scaled := rest_gravity_note(values, fmt, robot.n_imus):
         print(f"{PROG}: note: {source}: {scaled}", file=sys.stderr)
-    moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
+    fix = "pass --degrees" if args.source else "the board must send radians"
+    moved = motion_at_rest(
+        values, fmt, robot.n_imus, args.still_acc_std, gyro_std, None if args.degrees else fix
+    )
     if moved:
         raise InputError(f"{source}: {moved}")
     frozen = frozen_at_rest(t, values, robot.n_imus) if fmt == "raw" else None
@@ -166,7 +169,6 @@ def run(args: argparse.Namespace) -> int:
         print(left_out, file=sys.stderr)
     for knock in knocks:
         print(f"{PROG}: warning: {source}: {knock}", file=sys.stderr)
-    fix = "pass --degrees" if args.source else "the board must send radians"
     tilted = rest_tilt_warning(cal, robot.mounting, fix, [imu.mount_rpy[2] for imu in robot.imus])
     if tilted:
         print(f"{PROG}: warning: {source}: {tilted}", file=sys.stderr)
