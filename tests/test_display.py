@@ -5,7 +5,9 @@ instead of waiting for a viewer that never comes up."""
 
 from __future__ import annotations
 
+import os
 import socket
+import subprocess
 import sys
 from pathlib import Path
 
@@ -78,3 +80,31 @@ def test_live_plot_names_a_display_that_does_not_answer(monkeypatch: pytest.Monk
     monkeypatch.setenv("DISPLAY", f":{FREE_DISPLAY}")
     why = plot_unavailable()
     assert why is not None and why.startswith(f"--plot needs a display (DISPLAY=:{FREE_DISPLAY}")
+
+
+def test_a_backend_that_mplbackend_does_not_name_is_said_or_not_used(tmp_path: Path) -> None:
+    """``MPLBACKEND`` naming no matplotlib backend (a typo) stops matplotlib's import:
+    ``plot`` draws off screen all the same (it does not use that backend), and
+    ``live --plot`` says why it shows no window in one line, as it does for a missing
+    display (each in a fresh interpreter: matplotlib reads the variable once, at its
+    import)."""
+    pytest.importorskip("matplotlib")
+    est, fig = tmp_path / "e.csv", tmp_path / "e.png"
+    est.write_text("t,x,y,z,theta,phi\n0,0,0,0.2,0,0\n0.05,0,0,0.2,0,0\n")
+    env = {**os.environ, "MPLBACKEND": "nonsense"}
+    res = subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.cli", "plot", str(est), "-o", str(fig)],
+        capture_output=True, text=True, env=env, timeout=120,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    assert fig.stat().st_size > 0 and res.stderr == f"wrote {fig}\n"
+    said = subprocess.run(
+        [sys.executable, "-c",
+         "from continuum_mhe.live.run import plot_unavailable; print(plot_unavailable())"],
+        capture_output=True, text=True, env=env, timeout=120,
+    )  # fmt: skip
+    assert said.returncode == 0, said.stderr
+    assert said.stdout == (
+        "--plot needs a matplotlib backend: MPLBACKEND='nonsense' names none (set "
+        "MPLBACKEND=TkAgg or QtAgg)\n"
+    )

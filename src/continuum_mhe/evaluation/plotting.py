@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+# The figures are drawn off screen (Agg): the backend that MPLBACKEND names is not used,
+# and one that names no backend would stop matplotlib's import
+_named_backend = os.environ.pop("MPLBACKEND", None)
+try:
+    import matplotlib
+finally:
+    if _named_backend is not None:
+        os.environ["MPLBACKEND"] = _named_backend
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402

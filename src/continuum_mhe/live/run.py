@@ -22,6 +22,7 @@ The command itself (its options, the estimator and the files): :mod:`continuum_m
 
 from __future__ import annotations
 
+import os
 import queue
 import time
 from collections import deque
@@ -260,6 +261,14 @@ def plot_unavailable() -> str | None:
         import matplotlib
     except ImportError:
         return "--plot needs matplotlib (pip install matplotlib)"
+    except ValueError as exc:  # its rcParams refuse a setting, such as MPLBACKEND's
+        named = os.environ.get("MPLBACKEND")
+        if named is not None and "backend" in str(exc):
+            return (
+                f"--plot needs a matplotlib backend: MPLBACKEND={named!r} names none "
+                "(set MPLBACKEND=TkAgg or QtAgg)"
+            )
+        return f"--plot: matplotlib does not start here ({exc})"
     if (why := display_problem()) is not None:
         return f"--plot needs a display ({why}: ssh -X, or a desktop session)"
     backend = str(matplotlib.get_backend()).lower()
