@@ -337,3 +337,26 @@ def test_a_section_of_metres_is_said_as_centimetres_read_as_metres(tmp_path: Pat
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_robot(str(path))
+
+
+def test_a_disk_route_mistake_names_its_line(tmp_path: Path) -> None:
+    """``tendon_route = "disks"`` on a robot without tendons names the key's line; on a
+    robot whose tendons pass a section without ``disks``, that section's line (where the
+    disks go): each refused in one line with its line number, as any robot-file problem."""
+    robot = tmp_path / "r.toml"
+    robot.write_text(
+        '# a robot\ntendon_route = "disks"\n[[section]]\nlength = 0.2\ndisks = 5\n'
+        "[[imu]]\nsection = 1\n"
+    )
+    with pytest.raises(
+        InputError, match=r'r\.toml: line 2: tendon_route = "disks" is for a robot with'
+    ):
+        read_robot(robot)
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    lines = shipped.read_text().splitlines()
+    sections = [i for i, ln in enumerate(lines) if ln.strip() == "[[section]]"]
+    no_disks = [ln for i, ln in enumerate(lines) if not (i > sections[1] and "disks" in ln)]
+    robot.write_text('tendon_route = "disks"\n' + "\n".join(no_disks) + "\n")
+    # the second [[section]] header, one line further down for the tendon_route line
+    with pytest.raises(InputError, match=rf"r\.toml: line {sections[1] + 2}: section 2: "):
+        read_robot(robot)

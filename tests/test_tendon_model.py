@@ -411,12 +411,14 @@ def test_a_disk_routed_robot_file_round_trips_and_its_mistakes_are_one_line(tmp_
     again = tmp_path / "again.toml"
     again.write_text(robot_toml(robot))
     assert read_robot(again) == robot
+    # the first [[section]]'s line in the file with tendon_route put first
+    first = 2 + [ln.strip() for ln in text.splitlines()].index("[[section]]")
     bad = [
         ('tendon_route = "chords"\n' + text, 'tendon_route: must be one of continuous, disks'),
         ('tendon_route = "disks"\n' + text.replace("disks = 10", "disks = 0", 1),
-         'tendon_route = "disks": section 1, which tendons pass, gives no disks'),
+         f'line {first}: section 1: no disks, which tendons pass with tendon_route = "disks"'),
         ('tendon_route = "disks"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n',
-         'tendon_route = "disks" is for a robot with [[tendon]]s'),
+         'line 1: tendon_route = "disks" is for a robot with [[tendon]]s'),
     ]  # fmt: skip
     for body, message in bad:
         path.write_text(body)

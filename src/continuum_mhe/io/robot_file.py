@@ -577,11 +577,13 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
 
 
 #: ``section 2: length: ...``, ``imu 1: unknown key 'x' ...``, ``backbone: ...``,
-#: ``top level: unknown key 'x' ...``: the table a robot-file message names, then the
-#: word after it (a key, where it is one); a message that starts with a quoted key
-#: (``'section' must be a list of tables``) names a top-level key.
+#: ``top level: unknown key 'x' ...``, ``tendon_route = ...``: the table a robot-file
+#: message names (none for a top-level key), then the word after it (a key, where it is
+#: one); a message that starts with a quoted key (``'section' must be a list of
+#: tables``) names a top-level key.
 _WHERE = re.compile(
-    r"(?:(section|imu|tendon) (\d+)|(backbone)|top level|(?=mounting)|(?='))(?::\s*|\s+)?'?(\w*)"
+    r"(?:(section|imu|tendon) (\d+)|(backbone)|top level|(?=mounting|tendon_route)|(?='))"
+    r"(?::\s*|\s+)?'?(\w*)"
 )
 _UNKNOWN_KEY = re.compile(r"unknown key '([^']+)'")
 _TABLE_HEADER = re.compile(r"\s*\[")

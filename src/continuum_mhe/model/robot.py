@@ -495,10 +495,10 @@ class Robot:
             for k, sec in enumerate(self.sections[: last + 1]):
                 if sec.disks < 1:
                     raise FieldError(
-                        "tendon_route",
-                        f'tendon_route = "disks": section {k + 1}, which tendons pass, '
-                        "gives no disks (the tendons run straight between them: give the "
-                        "section's disks)",
+                        "disks",
+                        f"section {k + 1}: no disks, which tendons pass with "
+                        'tendon_route = "disks" (they run straight from disk to disk: give '
+                        "the section's disks)",
                     )
 
     @property
