@@ -45,6 +45,27 @@ def test_imu_columns_numbered_from_zero_are_named(tmp_path, capsys, header, row,
         assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
 
 
+@pytest.mark.parametrize(
+    ("time", "hint"),
+    [
+        ("time", "(the time in seconds is named t: rename 'time' to t)"),
+        ("Time_ms", "(a time in milliseconds is named t_ms: rename 'Time_ms' to t_ms)"),
+        ("timestamp_ms", "(a time in milliseconds is named t_ms: rename 'timestamp_ms' to t_ms)"),
+    ],
+)
+def test_a_time_column_named_otherwise_is_told_its_name(tmp_path, capsys, time, hint) -> None:
+    """A recording whose time column is named ``time`` (seconds) or ``time_ms``
+    (milliseconds) is refused in one line naming the column to rename it to, ``t`` or
+    ``t_ms``: renamed to ``t``, milliseconds would be read as seconds."""
+    meas = tmp_path / "m.csv"
+    meas.write_text(f"{time},roll,pitch\n0,0.1,0.2\n50,0.1,0.2\n")
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{meas}: line 1: missing column(s) t (" in err
+    assert err.rstrip().endswith(hint), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
 def test_an_empty_field_of_a_one_imu_file_is_a_dropout_as_with_several(tmp_path) -> None:
     """An empty roll or pitch in a one-IMU file is a dropout, as the same field of a
     several-IMU file is a dropout of its IMU, in ``estimate`` and in

@@ -550,6 +550,11 @@ TIME_LIKE_NAMES = frozenset(
     {"time", "times", "timestamp", "stamp", "time_s", "t_s", "sec", "secs", "seconds"}
 )
 
+#: header names of a time column in milliseconds, which the files here name ``t_ms``
+MS_TIME_LIKE_NAMES = frozenset(
+    {"time_ms", "timestamp_ms", "stamp_ms", "ms", "millis", "t_millis", "time_millis"}
+)
+
 
 #: the columns that IMU readings have (tilt or raw, first IMU or only one)
 _READING_COLUMNS = frozenset({"roll", "pitch", "ax", "roll_1", "pitch_1", "ax_1"})
@@ -588,9 +593,15 @@ def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
             )
         elif not hint and "t" in missing:
             named = [c for c in rows.header if c.lower() in TIME_LIKE_NAMES]
+            in_ms = [c for c in rows.header if c.lower() in MS_TIME_LIKE_NAMES]
             if named:
                 hint = (
                     f" (the time in seconds is named t: rename {rows.as_written(named[0])!r} to t)"
+                )
+            elif in_ms:
+                hint = (
+                    " (a time in milliseconds is named t_ms: rename "
+                    f"{rows.as_written(in_ms[0])!r} to t_ms)"
                 )
         shown = ", ".join(missing)
         if len(missing) > MISSING_SHOWN:
