@@ -85,6 +85,31 @@ def test_the_order_warning_is_given_once_per_command(tmp_path: Path, capsys) -> 
         assert len(said) == 1 and "is nearer the base than imu 1" in said[0], command
 
 
+def test_the_order_warning_is_given_once_by_the_readers_of_an_estimate(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """evaluate and plot given ``--robot r.toml`` of an estimate whose options line names
+    the same file by its full path say the robot file's warning once: the recorded
+    file, read only to compare it with the given one, adds no second warning."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "spatial", "--robot", "two-section", "--duration", "1",
+                 "-o", "m.csv", "--truth", "t.csv"]) == 0  # fmt: skip
+    _robot(tmp_path / "r.toml", "section = 2", "section = 1")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["estimate", "m.csv", "-o", "e.csv", "--robot", "r.toml"]) == 0
+    assert str(tmp_path / "r.toml") in (tmp_path / "e.csv").read_text()  # its full path
+    for command in (
+        ["evaluate", "e.csv", "t.csv", "--robot", "r.toml"],
+        ["plot", "e.csv", "--truth", "t.csv", "--robot", "r.toml", "-o", "p.png"],
+    ):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("default")
+            assert main(command) == 0
+        said = [str(w.message) for w in seen if w.category is RobotFileWarning]
+        assert len(said) == 1 and "is nearer the base than imu 1" in said[0], (command, said)
+
+
 @pytest.mark.parametrize(("length", "at"), [(0.18, 0.18), (0.12, 0.12), (0.16, 0.1604)])
 def test_at_written_in_metres_warns(tmp_path: Path, length: float, at: float) -> None:
     """``at = 0.18`` on a 0.18 m section (the length in metres) warns, and is read as

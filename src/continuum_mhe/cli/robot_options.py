@@ -207,7 +207,9 @@ def other_recorded_robot(path: str, given: str, robot: Robot) -> str:
     if not isinstance(name, str) or name == given:
         return ""
     try:
-        recorded = read_robot(beside(path, name))
+        with warnings.catch_warnings():  # read only to compare: the given file is said
+            warnings.simplefilter("ignore")
+            recorded = read_robot(beside(path, name))
     except UserError:
         return ""
     if _geometry(recorded) == _geometry(robot):  # the same robot (a copy, another path)
