@@ -246,6 +246,15 @@ def test_the_inconsistency_line_counts_and_names_what_to_check() -> None:
     own = replace(raw, own_acceleration=True)  # its white jerk, not --accel-psd
     line = inconsistent_notice(5, 6, own)
     assert line is not None and "--accel-psd" not in line
+    # readings noisier in motion than assumed (5 degrees against the default 2 on a
+    # three-section robot: 260 of 401 rows inconsistent, 132 restarts; with --noise-deg 5
+    # none inconsistent): the noise they are judged against is named, with its value
+    assert "readings noisier in motion than --noise-deg 2 (degrees) assumes" in line
+    from continuum_mhe.settings import NoiseSettings
+
+    noisy = replace(f, noise=NoiseSettings(measurement_std=math.radians(0.5)))
+    line = inconsistent_notice(26, 100, noisy)
+    assert line is not None and "than --noise-deg 0.5 (degrees) assumes" in line
 
 
 def test_a_hanging_recording_with_a_z_up_robot_is_refused_naming_the_mounting(tmp_path, capsys):

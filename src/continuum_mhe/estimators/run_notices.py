@@ -5,6 +5,7 @@ one line that says what it means)."""
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Sequence
 from typing import Any
@@ -559,6 +560,10 @@ def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> 
         "mount_rpy, the sections' lengths and their order, the mounting; check-robot "
         "lists them)",
         "the readings' columns (each IMU's in the robot file's order) and units",
+        "readings noisier in motion than --noise-deg "
+        f"{math.degrees(formulation.noise.measurement_std):.3g} (degrees) assumes (a "
+        "vibrating robot, a noisier IMU: the summary's scatter of the readings over their "
+        "noise model's std says by how much; a larger --noise-deg widens the noise model)",
     ]
     if robot.has_mechanics:
         checks.append("the tensions (their scale, unit, tendon order and timing)")
