@@ -352,12 +352,23 @@ class DirectFormulation(BendFormulation):
         exactly, so left free it would take up the misalignment and the model error as
         well and leave the bends none (on the shipped spatial-tendon rod, calibrated,
         402 of the EKF's 484 ``ok`` rows would lie more than 4 standard deviations off
-        at the tip)."""
+        at the tip). With ``own_acceleration`` the bend accelerations and rates are held
+        to their priors too (``initial_bend_accel_std``, rad/s^2, and the noise's
+        ``initial_rate_std``, rad/s: the prior, clipped to this range, stays as given): a
+        constant error is no lasting acceleration, as the bends would
+        follow it, and the gyros hold the rates; left free they would take up part of it
+        along directions that nearly repeat the bends' and shift the bends' share by 3
+        to 5 times what it is without own acceleration, now more and now less (on the
+        same rod, 154 of 356 ``ok`` rows beyond 4 standard deviations)."""
         std = super().range_std()
         n0 = self.n_motion + self.n_bias
         std[n0 : n0 + self.n_twist] = self.initial_twist_std
         na = self.n_motion + self.n_gyro_bias
         std[na : na + self.n_accel_bias] = self.initial_accel_bias_std
+        if self.own_acceleration:
+            n2 = 2 * self.robot.n_sections
+            std[n2 : 2 * n2] = self.noise.initial_rate_std
+            std[2 * n2 : 3 * n2] = self.initial_bend_accel_std
         return std
 
     def gravity_directions_sym(self, x: Sym) -> list[Sym]:
