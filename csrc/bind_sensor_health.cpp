@@ -737,7 +737,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              double drift_reset, double whole_gap_reset,
              std::vector<std::pair<int, int>> free_pairs, std::vector<double> free_reach,
              std::vector<int> wrapped_outputs, std::vector<double> bound_std_limit,
-             bool judges_reach) {
+             bool judges_reach, nb::object free_of) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -830,8 +830,23 @@ void cmhe::bind_sensor_health(nb::module_& m) {
               nb::gil_scoped_acquire gil;
               return nb::cast<bool>(observable(nb::cast(imus)));
             };
-            self->health = std::make_unique<SensorHealth>(std::move(s), *self->used,
-                                                          *self->process, consistency, obs);
+            std::function<FreeBends(const std::vector<int>&)> free;
+            if (!free_of.is_none())
+              free = [free_of, nx](const std::vector<int>& imus) {
+                nb::gil_scoped_acquire gil;
+                FreeBends out;
+                for (nb::handle item : free_of(nb::cast(imus))) {
+                  const auto [i, j, reach] = nb::cast<std::tuple<int, int, double>>(item);
+                  if (i < 0 || i >= nx || j < 0 || j >= nx || !(std::isfinite(reach) && reach > 0.0))
+                    throw std::invalid_argument(
+                        "free_of: each free bend is (row, row, reach > 0) of the state");
+                  out.pairs.emplace_back(i, j);
+                  out.reach.push_back(reach);
+                }
+                return out;
+              };
+            self->health = std::make_unique<SensorHealth>(
+                std::move(s), *self->used, *self->process, consistency, obs, std::move(free));
           },
           nb::arg("inference"), nb::arg("consistency"), nb::arg("nx"), nb::arg("nu"),
           nb::arg("nz"), nb::arg("ny"), nb::arg("blocks"), nb::arg("imu_blocks"),
@@ -855,14 +870,15 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("free_reach") = std::vector<double>(),
           nb::arg("wrapped_outputs") = std::vector<int>(),
           nb::arg("bound_std_limit") = std::vector<double>(),
-          nb::arg("judges_reach") = false,
+          nb::arg("judges_reach") = false, nb::arg("free_of").none() = nb::none(),
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
           "block and of the IMUs'; ``whole_rows``: rows without which a sample is a dropout "
           "as a whole; settings in s and rad, NaN where off; "
           "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, "
-          "``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the "
+          "``observable(imus) -> bool``; ``free_of(imus) -> [(row, row, reach)]`` (None: "
+          "none): the bends those IMUs alone leave free, while the others are silent; ``checks``: the formulation's StateChecks (None: the "
           "inference's is_diverged, drifted and at_bound); ``change_rows``, ``change_scale``, "
           "``change_psd``, ``change_limit``, ``change_lag``: the estimate-change test of "
           "slowly varying states (rows, prior std, white-noise density per s, chi-square "

@@ -95,12 +95,14 @@ const double* ProcessModel::inputs(const double* z_prev, const double* z, double
 
 SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
                            ProcessModel& process, ConsistencyCheck& consistency,
-                           std::function<bool(const std::vector<int>&)> observable)
+                           std::function<bool(const std::vector<int>&)> observable,
+                           std::function<FreeBends(const std::vector<int>&)> free_of)
     : s_(std::move(settings)),
       inference_(inference),
       process_(process),
       consistency_(consistency),
-      observable_(std::move(observable)) {
+      observable_(std::move(observable)),
+      free_of_(std::move(free_of)) {
   const size_t nb = s_.imu_blocks.size();
   freeze_value_.assign(static_cast<size_t>(s_.nz), 0.0);
   freeze_since_.assign(nb, -INFINITY);
@@ -126,25 +128,12 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   bias_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   P_free_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   std_b_.resize(s_.ny);
-  if (!s_.free_pairs.empty()) {
-    // shapes spread evenly over each free section's reach (its disk of bend vectors,
-    // uniform in area): a Kronecker sequence, one pair of irrational steps per section
-    const size_t np = s_.free_pairs.size();
-    free_bends_.resize(FREE_SHAPES * np * 2);
-    for (size_t j = 0; j < FREE_SHAPES; ++j)
-      for (size_t p = 0; p < np; ++p) {
-        const double u = std::fmod((j + 0.5) * std::sqrt(2.0 + 4.0 * p), 1.0);
-        const double v = std::fmod((j + 0.5) * std::sqrt(3.0 + 4.0 * p), 1.0);
-        const double r = s_.free_reach[p] * std::sqrt(u), a = 2.0 * M_PI * v;
-        free_bends_[(j * np + p) * 2] = r * std::cos(a);
-        free_bends_[(j * np + p) * 2 + 1] = r * std::sin(a);
-      }
-    free_x_.resize(s_.nx);
-    free_y_.resize(s_.ny);
-    free_msd_.resize(s_.ny);
-    free_wrapped_.assign(s_.ny, 0);
-    for (int i : s_.wrapped_outputs) free_wrapped_[i] = 1;
-  }
+  static_free_ = FreeBends{s_.free_pairs, s_.free_reach};
+  free_x_.resize(s_.nx);
+  free_y_.resize(s_.ny);
+  free_msd_.resize(s_.ny);
+  free_wrapped_.assign(s_.ny, 0);
+  for (int i : s_.wrapped_outputs) free_wrapped_[i] = 1;
   prev_x_.resize(s_.nx);
   last_x_.resize(s_.nx);
   last_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
@@ -159,18 +148,33 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   reset(false, false);
 }
 
-void SensorHealth::widen_by_free_bends(const double* x, const double* y, double* ystd) {
+void SensorHealth::widen_by_free_bends(const double* x, const double* y, double* ystd,
+                                       const FreeBends& free) {
   // the root mean square of the outputs' moves from the estimate's over the free bends'
   // shapes, in quadrature with the standard deviation: the estimate is one of them,
   // and where the readings do not pin them the robot may be any other
   const int ny = s_.ny;
-  const size_t np = s_.free_pairs.size();
+  const size_t np = free.pairs.size();
+  if (np > free_slots_) {
+    // shapes spread evenly over each free section's reach (its disk of bend vectors,
+    // uniform in area): a Kronecker sequence, one pair of irrational steps per section
+    free_unit_.resize(FREE_SHAPES * np * 2);
+    for (size_t j = 0; j < FREE_SHAPES; ++j)
+      for (size_t p = 0; p < np; ++p) {
+        const double u = std::fmod((j + 0.5) * std::sqrt(2.0 + 4.0 * p), 1.0);
+        const double v = std::fmod((j + 0.5) * std::sqrt(3.0 + 4.0 * p), 1.0);
+        const double r = std::sqrt(u), a = 2.0 * M_PI * v;
+        free_unit_[(j * np + p) * 2] = r * std::cos(a);
+        free_unit_[(j * np + p) * 2 + 1] = r * std::sin(a);
+      }
+    free_slots_ = np;
+  }
   std::fill(free_msd_.begin(), free_msd_.end(), 0.0);
   for (size_t j = 0; j < FREE_SHAPES; ++j) {
     std::copy(x, x + s_.nx, free_x_.begin());
     for (size_t p = 0; p < np; ++p) {
-      free_x_[s_.free_pairs[p].first] = free_bends_[(j * np + p) * 2];
-      free_x_[s_.free_pairs[p].second] = free_bends_[(j * np + p) * 2 + 1];
+      free_x_[free.pairs[p].first] = free.reach[p] * free_unit_[(j * free_slots_ + p) * 2];
+      free_x_[free.pairs[p].second] = free.reach[p] * free_unit_[(j * free_slots_ + p) * 2 + 1];
     }
     inference_.output(free_x_.data(), free_y_.data());
     for (int i = 0; i < ny; ++i) {
@@ -181,6 +185,20 @@ void SensorHealth::widen_by_free_bends(const double* x, const double* y, double*
   }
   for (int i = 0; i < ny; ++i)
     ystd[i] = std::sqrt(ystd[i] * ystd[i] + free_msd_[i] / static_cast<double>(FREE_SHAPES));
+}
+
+const FreeBends& SensorHealth::free_now(double t) {
+  const size_t n = s_.imu_blocks.size();
+  if (!free_of_ || n < 2) return static_free_;
+  const double window = std::min(unobserved_window(), s_.silent_after);
+  std::vector<int> recent;
+  for (size_t k = 0; k < n; ++k)  // a frozen IMU pins nothing, however recent
+    if (!longer(t - imu_last_valid_[k], window, t) && !frozen_now_[k])
+      recent.push_back(static_cast<int>(k));
+  if (recent.size() == n || recent.empty()) return static_free_;  // all, or a gap
+  auto it = free_cache_.find(recent);
+  if (it == free_cache_.end()) it = free_cache_.emplace(recent, free_of_(recent)).first;
+  return it->second;
 }
 
 void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
@@ -917,7 +935,8 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (factor != 1.0)  // the model error the readings show (covariance matching)
       for (int i = 0; i < ny; ++i) ystd[i] *= factor;
     // the bends no reading pins (before the statuses that a wide tip makes uncertain)
-    if (!s_.free_pairs.empty()) widen_by_free_bends(x, y, ystd);
+    const FreeBends& free = free_now(t);
+    if (!free.pairs.empty()) widen_by_free_bends(x, y, ystd, free);
     // whether this row's tip standard deviation, its own or the one written, is beyond
     // the uncertain fraction (below)
     bool wide_row = false;
@@ -945,7 +964,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       inference_.output_std(x, P_free_.data(), ystd);
       if (factor != 1.0)
         for (int i = 0; i < ny; ++i) ystd[i] *= factor;
-      if (!s_.free_pairs.empty()) widen_by_free_bends(x, y, ystd);
+      if (!free.pairs.empty()) widen_by_free_bends(x, y, ystd, free);
       shift_factor = std::sqrt(std::max(1.0, consistency_.shift_inflation_at(x, P_free_.data()) /
                                                  std::max(1.0, consistency_.noise_scale())));
     }

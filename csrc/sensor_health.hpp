@@ -252,12 +252,22 @@ struct SampleResult {
   double ms = 0.0;
 };
 
+// The bends that no reading pins (PolicySettings::free_pairs, free_reach): their state
+// rows and reach (rad)
+struct FreeBends {
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<double> reach;
+};
+
 class SensorHealth {
  public:
-  // ``observable(imus)``: whether those IMUs (0-based, ascending) determine the shape
+  // ``observable(imus)``: whether those IMUs (0-based, ascending) determine the shape;
+  // ``free_of(imus)`` (may be empty): the bends those IMUs alone leave free, for the
+  // standard deviations while the others are silent
   SensorHealth(PolicySettings settings, PolicyInference& inference, ProcessModel& process,
-               ConsistencyCheck& consistency, std::function<bool(const std::vector<int>&)>
-                                                  observable);
+               ConsistencyCheck& consistency,
+               std::function<bool(const std::vector<int>&)> observable,
+               std::function<FreeBends(const std::vector<int>&)> free_of = {});
 
   // a new recording: forget every sample (and zero the diagnostics unless keep_counts)
   // a new recording, or (keep_counts) a restart within one; ``keep_sensors`` (with
@@ -345,6 +355,12 @@ class SensorHealth {
   ConsistencyCheck& consistency_;
   std::function<bool(const std::vector<int>&)> observable_;
   std::map<std::vector<int>, bool> observable_cache_;
+  std::function<FreeBends(const std::vector<int>&)> free_of_;
+  std::map<std::vector<int>, FreeBends> free_cache_;
+  FreeBends static_free_;  // the robot's own (every IMU reporting)
+  // the bends free at ``t``: the robot's own, or, while some IMUs are silent (no valid
+  // reading within the unobserved window, or frozen), those the others leave free
+  const FreeBends& free_now(double t);
   double last_t_ = -INFINITY, last_valid_t_ = -INFINITY, first_valid_t_ = -INFINITY;
   // the average step between valid samples, the jumps left out (NaN before the second)
   double step_avg_ = NAN;
@@ -397,12 +413,14 @@ class SensorHealth {
   // unobserved window (its first one too) and has not yet entered a start
   std::vector<char> imu_seen_, reads_now_, late_pending_;
   std::vector<double> z_, mask_, zero_mask_, bias_, std_b_, P_free_;
-  // the free bends' spread (free_pairs): the shapes' bends (FREE_SHAPES x pairs x 2),
-  // a state and its outputs
+  // the free bends' spread: the shapes' bends in units of their reach (FREE_SHAPES x
+  // free sections x 2, grown to the most sections free at once), a state and its outputs
   static constexpr size_t FREE_SHAPES = 64;
-  std::vector<double> free_bends_, free_x_, free_y_, free_msd_;
+  std::vector<double> free_unit_, free_x_, free_y_, free_msd_;
+  size_t free_slots_ = 0;
   std::vector<char> free_wrapped_;
-  void widen_by_free_bends(const double* x, const double* y, double* ystd);
+  void widen_by_free_bends(const double* x, const double* y, double* ystd,
+                           const FreeBends& free);
   // The constant reading errors' term of the standard deviations counts each reading
   // the estimate still holds: a reading missing now (a dropout) at its last value while
   // it was valid within the unobserved window since the last (re)start, since its

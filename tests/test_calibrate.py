@@ -1012,8 +1012,8 @@ def test_a_tilt_rest_of_a_robot_mounted_the_other_way_is_refused_naming_the_moun
 ) -> None:
     """A hanging robot's tilt rest (roll near 180 degrees) with a z-up robot: refused in
     one line naming the mounting, as a raw rest is and as ``estimate`` refuses the same
-    file (it was said as degrees given for radians: 3.1 read as degrees is near
-    straight); the same rest with a z-down robot file calibrates."""
+    file, not as degrees given for radians (3.1 read as degrees is near straight); the
+    same rest with a z-down robot file calibrates."""
     path = tmp_path / "hang.csv"
     _tilt_rest(path, 3.1, 0.01, 0.005)
     up = tmp_path / "up.toml"

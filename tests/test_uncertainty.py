@@ -573,6 +573,44 @@ def test_an_imu_that_barely_turns_with_its_section_leaves_no_row_ok_far_off() ->
     assert min(cal.coverage[c] for c in ("x", "y", "z")) >= 0.9, cal.coverage
 
 
+@pytest.mark.parametrize("method", ["ekf", "mhe"])
+def test_a_silent_imu_leaves_the_sections_it_pinned_the_spread_of_their_reach(
+    method: str,
+) -> None:
+    # two sections, IMU 2 silent for the first 4 s (a board that never reported yet):
+    # IMU 1 pins section 1, nothing pins section 2. Its covariance holds only what the
+    # motion model kept of the start (the EKF's tip x coverage over those rows 0.1 to
+    # 0.3); its standard deviations carry section 2's spread over its reach, computed
+    # here on the forward kinematics of the estimate's section 1 with section 2 drawn
+    # uniformly over its disk of bends. Once IMU 2 reports again, the spread goes.
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.pcc import pose_at
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("spatial", robot, duration=8.0, dt=0.02, seed=1)
+    z = rec.z.copy()
+    silent = rec.t < 4.0
+    z[silent, 2:4] = np.nan
+    est = make_estimator(method, make_formulation("bend", robot)).run(rec.t, z)
+    names = [o.name for o in est.outputs]
+    tip = [names.index(c) for c in ("x", "y", "z")]
+    assert est.output_std is not None
+    rng = np.random.default_rng(0)
+    reach = robot.sections[1].theta_max
+    radius, angle = reach * np.sqrt(rng.uniform(size=4000)), rng.uniform(0, 2 * np.pi, 4000)
+    bends = np.zeros((len(radius), 2, 2))
+    bends[:, 1] = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=1)
+    for k in np.flatnonzero(silent & (rec.t > 1.5))[::25]:
+        theta, phi = est.output[k, names.index("theta_1")], est.output[k, names.index("phi_1")]
+        bends[:, 0] = theta * np.cos(phi), theta * np.sin(phi)
+        msd = ((pose_at(bends, robot.lengths, 1)[1] - est.output[k, tip]) ** 2).mean(axis=0)
+        var = est.output_std[k, tip] ** 2
+        assert np.all(var >= 0.8 * msd), (k, var, msd)
+    back = rec.t > 6.0  # IMU 2 has reported again for 2 s: its section pinned
+    assert np.median(est.output_std[back][:, tip]) < 0.02
+
+
 # --- std columns and calibration -------------------------------------------------------------
 def test_std_columns_written_read_back_and_evaluated(tmp_path, capsys) -> None:
     rec = simulate("paper3d", duration=4)

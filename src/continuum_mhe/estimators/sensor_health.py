@@ -439,6 +439,9 @@ class Estimator(Generic[InferenceT]):
             free_pairs=[(i, j) for i, j, _ in free],
             free_reach=[reach for _, _, reach in free],
             wrapped_outputs=list(wrapped_indices(f.outputs)),
+            # while some IMUs are silent: the bends the others leave free (asked once
+            # for each set of silent IMUs)
+            free_of=lambda imus: f.free_bends(tuple(imus)),
         )
 
     def __copy__(self) -> NoReturn:

@@ -10,7 +10,7 @@ formulation provides)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import ClassVar
 
@@ -207,12 +207,15 @@ class BendFormulation(Formulation):
         cov = None if P is None else f64(P, dtype=np.float64)
         return bool(self._checks.is_diverged(f64(x, dtype=np.float64), cov))
 
-    def free_bends(self) -> tuple[tuple[int, int, float], ...]:
-        """``(i, j, reach)`` for each section whose bend the IMUs leave free
-        (:func:`~continuum_mhe.model.pcc.free_sections`): its bend coordinates' state
-        rows and its ``theta_max`` (rad)."""
-        sections = self.robot.sections
-        free = free_sections(self.robot, self.gravity_direction_std)
+    def free_bends(self, imus: tuple[int, ...] | None = None) -> tuple[tuple[int, int, float], ...]:
+        """``(i, j, reach)`` for each section whose bend the IMUs (``imus``, 0-based;
+        None: every IMU) leave free (:func:`~continuum_mhe.model.pcc.free_sections`):
+        its bend coordinates' state rows and its ``theta_max`` (rad)."""
+        robot = self.robot
+        sections = robot.sections
+        if imus is not None:
+            robot = replace(robot, imus=tuple(robot.imus[k] for k in imus))
+        free = free_sections(robot, self.gravity_direction_std)
         return tuple((2 * k, 2 * k + 1, sections[k].theta_max) for k in free)
 
     @property

@@ -377,13 +377,14 @@ class Formulation:
             sub = replace(robot, imus=tuple(robot.imus[k] for k in imus))
         return shape_rank(sub) == 2 * robot.n_sections
 
-    def free_bends(self) -> tuple[tuple[int, int, float], ...]:
-        """``(i, j, reach)`` for each section whose bend the IMUs leave free: the state
-        rows of its bend coordinates ``(a, b)`` and the radius of their range, its
-        ``theta_max`` (rad). No reading pins them, so an estimate may be any bend there:
-        the written standard deviations carry the outputs' spread over those bends
-        (the sensor-health policy). None here (a formulation whose IMUs may leave a
-        section's bend free overrides this)."""
+    def free_bends(self, imus: tuple[int, ...] | None = None) -> tuple[tuple[int, int, float], ...]:
+        """``(i, j, reach)`` for each section whose bend the IMUs (``imus``, 0-based:
+        those alone, the others silent; None: every IMU) leave free: the state rows of
+        its bend coordinates ``(a, b)`` and the radius of their range, its ``theta_max``
+        (rad). No reading pins them, so an estimate may be any bend there: the written
+        standard deviations carry the outputs' spread over those bends (the
+        sensor-health policy). None here (a formulation whose IMUs may leave a section's
+        bend free overrides this)."""
         return ()
 
     #: what makes an unobservable robot observable (the warning's hint)
