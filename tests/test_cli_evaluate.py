@@ -273,6 +273,48 @@ def test_evaluate_takes_the_length_the_estimate_records(
     assert robot is not None and robot.mounting == "z-down" and robot.lengths == (0.2,)
 
 
+@pytest.mark.parametrize("formulation", ["bend", "paper"])
+def test_an_estimates_robot_file_gone_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], formulation: str
+) -> None:
+    """An estimate whose options line names a robot file since moved: ``evaluate`` and
+    ``view`` (and ``plot`` of a paper-formulation estimate, whose rows give no lengths)
+    refuse it in one line naming the file and asking for --robot, nothing written (not a
+    note and then an error about the default 0.2 m section, nor, for one section, scores
+    on 0.2 m against the robot's 0.25 m); with --robot it is evaluated."""
+    robot = write_file(
+        tmp_path / "R.toml",
+        'mounting = "z-up"\n[[section]]\nlength = 0.25\ntheta_max = 3.0\n'
+        + ("" if formulation == "paper" else "[[section]]\nlength = 0.14\ntheta_max = 3.0\n")
+        + "[[imu]]\nsection = 1\nat = 1.0\n"
+        + ("" if formulation == "paper" else "[[imu]]\nsection = 2\nat = 1.0\n"),
+    )
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    scenario = "paper3d" if formulation == "paper" else "spatial"
+    argv = ["simulate", scenario, "--robot", str(robot), "--duration", "2"]
+    assert main([*argv, "-o", str(meas), "--truth", str(truth)]) == 0
+    argv = ["estimate", str(meas), "--robot", str(robot), "--method", "ekf"]
+    assert main([*argv, "--formulation", formulation, "-o", str(est)]) == 0
+    moved = robot.rename(tmp_path / "moved.toml")
+    capsys.readouterr()
+    commands = [
+        ["evaluate", str(est), str(truth)],
+        ["view", str(est), "--save", str(tmp_path / "v.rrd")],
+        *([["plot", str(est), "-o", str(tmp_path / "p.png")]] if formulation == "paper" else []),
+    ]
+    for argv in commands:
+        assert main(argv) == 2, argv
+        out, err = capsys.readouterr()
+        assert out == "" and err.count("\n") == 1, err
+        assert err.startswith(
+            f"continuum-mhe: error: {est}: it was estimated with the robot file {robot} (its "
+            "options line), which cannot be read here ("
+        ), err
+        assert err.endswith("give --robot with the robot it was estimated on\n"), err
+    assert not (tmp_path / "v.rrd").exists() and not (tmp_path / "p.png").exists()
+    assert main(["evaluate", str(est), str(truth), "--robot", str(moved)]) == 0
+
+
 def _shifted(truth: Path, out: Path, seconds: float) -> Path:
     """``truth`` with every ``t`` later by ``seconds``, written to ``out``."""
     rows = truth.read_text().splitlines()

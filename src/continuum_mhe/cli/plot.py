@@ -241,7 +241,8 @@ def _tendon_backbone(
     recorded = None if args.inputs else recorded_tensions(args.source)
     inputs = args.inputs or (recorded.path if recorded else None)
     if robot is None and inputs:  # the robot the estimate's options line names
-        robot = recorded_robot(args.source, "drawn on that robot")
+        # where it cannot be read, the section ends are joined (said in a note)
+        robot = recorded_robot(args.source, "drawn on that robot", needed=False)
         name = recorded_option(args.source, "robot")
     tendons = robot is not None and robot.backbone is not None and robot.n_tendons > 0
     if robot is not None and inputs and not tendons:

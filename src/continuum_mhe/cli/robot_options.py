@@ -106,9 +106,10 @@ def estimate_robot(
     the estimate's options line records) where one is given, or with ``--mounting``
     alone the recorded robot turned so; a ``--robot`` or
     ``--mounting`` that turns the recorded mounting over is warned of; else the robot
-    the estimate's options line records, where it can be read
-    (said in a note ending in ``use``, what the command does on it); else one section
-    of :data:`DEFAULT_LENGTH`. ``warned``: where a warning goes (printed when None)."""
+    the estimate's options line records (said in a note ending in ``use``, what the
+    command does on it; a recorded robot file that cannot be read is refused in one
+    line); else one section of :data:`DEFAULT_LENGTH`. ``warned``: where a warning goes
+    (printed when None)."""
     given = robot_given(args)
     robot = None if given else recorded_robot(path, use)
     if robot is not None:
@@ -228,10 +229,11 @@ def other_recorded_robot(path: str, given: str, robot: Robot) -> str:
     )
 
 
-def recorded_robot(path: str, use: str) -> Robot | None:
-    """The robot file the options line of the estimate ``path`` names, where it can be
-    read, or the one section of the ``length`` (``mounting``, ``theta-max``) it records
-    (said in a note), else None."""
+def recorded_robot(path: str, use: str, needed: bool = True) -> Robot | None:
+    """The robot file the options line of the estimate ``path`` names (said in a note),
+    or the one section of the ``length`` (``mounting``, ``theta-max``) it records (said
+    in a note), else None. A named robot file that cannot be read (moved, deleted) is
+    refused in one line where the command ``needed`` it; else said in a note, and None."""
     from continuum_mhe.errors import UserError
     from continuum_mhe.io.robot_file import read_robot
 
@@ -241,11 +243,14 @@ def recorded_robot(path: str, use: str) -> Robot | None:
     try:
         robot = read_robot(beside(path, name))
     except UserError as exc:
-        print(
-            f"{PROG}: note: {path} was estimated with --robot {name}, which cannot be read "
-            f"here ({exc}); give --robot",
-            file=sys.stderr,
+        line = (
+            f"{path}: it was estimated with the robot file {name} (its options line), "
+            f"which cannot be read here ({exc}): give --robot with the robot it was "
+            "estimated on"
         )
+        if needed:
+            raise InputError(line) from None
+        print(f"{PROG}: note: {line}", file=sys.stderr)
         return None
     print(
         f"{PROG}: note: {path} was estimated with --robot {name} (its options line): "
