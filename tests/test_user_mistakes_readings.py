@@ -176,9 +176,12 @@ def test_a_header_with_two_sets_of_the_same_columns_is_refused(
     assert not out.exists()
 
 
-def test_estimate_of_another_kind_of_file_says_which_kind(tmp_path, capsys) -> None:
-    """An estimate, a truth or a robot file given to ``estimate`` as the recording: one
-    line that says what the file is, exit 2, nothing written."""
+def test_a_recording_of_another_kind_says_which_kind_and_what_the_command_reads(
+    tmp_path, capsys
+) -> None:
+    """An estimate, a truth or a robot file given to ``estimate`` as the recording (an
+    estimate or truth to ``calibrate --from``): one line that says what the file is and
+    what the command run reads, exit 2, nothing written."""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert (
         main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth", str(truth)])
@@ -189,8 +192,8 @@ def test_estimate_of_another_kind_of_file_says_which_kind(tmp_path, capsys) -> N
     robot.write_text('mounting = "z-up"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n')
     out = tmp_path / "x.csv"
     for given, says in (
-        (truth, "an estimate or truth table, not IMU readings"),
-        (est, "an estimate or truth table, not IMU readings"),
+        (truth, "an estimate or truth table, not IMU readings: estimate reads a recording"),
+        (est, "an estimate or truth table, not IMU readings: estimate reads a recording"),
         (robot, "a robot file? it is given with --robot ROBOT.toml"),
     ):
         capsys.readouterr()
@@ -198,6 +201,16 @@ def test_estimate_of_another_kind_of_file_says_which_kind(tmp_path, capsys) -> N
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and says in err[0], err
         assert not out.exists()
+    # calibrate --from names what calibrate reads, not what estimate reads
+    for given in (truth, est):
+        assert main(["calibrate", "--from", str(given)]) == 2
+        out_text, err_text = capsys.readouterr()
+        assert out_text == "" and err_text.count("\n") == 1, err_text
+        assert (
+            "(an estimate or truth table, not IMU readings: calibrate reads a recording of the "
+            "IMUs on the still robot; continuum-mhe evaluate EST.csv TRUTH.csv scores an "
+            "estimate)\n"
+        ) in err_text
 
 
 def _cut_last_line(src: Path, dst: Path, chars: int = 5) -> None:

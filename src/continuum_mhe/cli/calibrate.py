@@ -38,6 +38,7 @@ from continuum_mhe.io.output_files import atomic_writer, check_output_target, re
 from continuum_mhe.io.robot_file import robot_source_text, with_imu_calibration
 from continuum_mhe.io.robot_logs import is_robot_log, refuse_bag_metadata
 from continuum_mhe.io.sample_rows import DROPOUT_HINT
+from continuum_mhe.io.text_rows import READINGS_READER
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX, Robot
 from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat
@@ -222,8 +223,13 @@ def radians_like_degrees(angle: float) -> bool:
 
 def _without_skip_bad(exc: InputError, robot: str) -> InputError:
     """A reading error as calibrate says it: it has no --skip-bad (the readings of
-    ``robot``, each of them, make the calibration)."""
-    return InputError(str(exc).replace(DROPOUT_HINT, f"calibrate needs every reading of {robot}"))
+    ``robot``, each of them, make the calibration), and a file of another kind (an
+    estimate or truth) is told what calibrate reads, not what estimate reads."""
+    return InputError(
+        str(exc)
+        .replace(DROPOUT_HINT, f"calibrate needs every reading of {robot}")
+        .replace(READINGS_READER, f"calibrate reads a recording of the IMUs on {robot}")
+    )
 
 
 def _write_robot(

@@ -559,6 +559,10 @@ MS_TIME_LIKE_NAMES = frozenset(
 #: the columns that IMU readings have (tilt or raw, first IMU or only one)
 _READING_COLUMNS = frozenset({"roll", "pitch", "ax", "roll_1", "pitch_1", "ax_1"})
 
+#: What reads IMU readings, in the hint where an estimate or truth is given for them:
+#: ``estimate``'s; ``calibrate`` puts its own in its place
+READINGS_READER = "estimate reads a recording of the IMUs"
+
 
 def _other_kind_of_file(header: Sequence[str], missing: Sequence[str]) -> str:
     """A hint where the table read for IMU readings is another kind of file: a robot
@@ -569,8 +573,8 @@ def _other_kind_of_file(header: Sequence[str], missing: Sequence[str]) -> str:
         return " (a robot file? it is given with --robot ROBOT.toml)"
     if _READING_COLUMNS & set(missing) and {"x", "y", "z"} <= set(header):
         return (
-            " (an estimate or truth table, not IMU readings: estimate reads a recording of "
-            "the IMUs; continuum-mhe evaluate EST.csv TRUTH.csv scores an estimate)"
+            f" (an estimate or truth table, not IMU readings: {READINGS_READER}; "
+            "continuum-mhe evaluate EST.csv TRUTH.csv scores an estimate)"
         )
     return ""
 
