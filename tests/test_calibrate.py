@@ -14,6 +14,7 @@ from live_helpers import alive
 
 from continuum_mhe.calibration.at_rest import calibrate, mounting_from_gravity
 from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 
@@ -1165,6 +1166,46 @@ def test_a_simulated_rest_calibrates_a_robot_of_three_sections(
     rpy = np.array([imu.mount_rpy for imu in got.imus])
     np.testing.assert_allclose(rpy[1, :2], [3.0, -2.0], atol=0.3)
     np.testing.assert_allclose(rpy[[0, 2], :2], 0.0, atol=0.3)
+
+
+def test_a_rest_whose_t_is_in_milliseconds_says_no_rate_and_the_same_results(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A raw rest recording whose ``t`` column holds milliseconds: the report line says
+    the times look like milliseconds and gives no rate (not "0.0 Hz" of steps read as
+    50 s), and every other line is the one the same recording in seconds gives; in
+    seconds its rate is said (20.0 Hz, the simulated 50 ms step)."""
+    rest = tmp_path / "rest.csv"
+    assert main(["simulate", "rest", "--robot", "two-section", "--imu", "raw", "--duration",
+                 "5", "-o", str(rest)]) == 0  # fmt: skip
+    lines = rest.read_text().splitlines()
+    first = next(i for i, ln in enumerate(lines) if ln.startswith("t,")) + 1
+    in_ms = tmp_path / "rest_ms.csv"
+    in_ms.write_text(
+        "\n".join(
+            lines[:first]
+            + [f"{1000 * float(ln.split(',')[0]):g},{ln.split(',', 1)[1]}" for ln in lines[first:]]
+        )
+        + "\n"
+    )
+    args = ("--robot", "two-section")
+    code, out, _ = _calibrate_main(capsys, "--from", str(rest), *args)
+    assert code == 0
+    seconds = out.splitlines()
+    with pytest.warns(UnitWarning, match="t advances by a median of 50 s per sample"):
+        code, out, _ = _calibrate_main(capsys, "--from", str(in_ms), *args)
+    assert code == 0
+    millis = out.splitlines()
+    assert seconds[0] == (
+        f"calibration from {rest}: 101 samples over 5.000 s of device time: 20.0 Hz (median "
+        "step 50.00 ms, longest 50.00 ms)"
+    )
+    assert millis[0] == (
+        f"calibration from {in_ms}: 101 samples whose times look like milliseconds (t steps "
+        "by a median of 50 per sample, read as seconds): no sample rate is said (name the "
+        "column t_ms for one); the means, noise and mountings below do not depend on the times"
+    )
+    assert millis[1:] == seconds[1:] and len(seconds) == 7
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -25,7 +25,7 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.calibration.bend import YawCalibration, yaws_from_bend
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.extras import MissingExtraError
-from continuum_mhe.io.csv_files import TOO_FAST_STEP_S
+from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, TOO_FAST_STEP_S
 from continuum_mhe.io.input_options import MOUNTING_FLIPPED, flipped_mounting
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.raw_imu import csv_input_kind, mount_rotation
@@ -752,11 +752,20 @@ def format_report(
     each IMU's yaw as the robot file gives it (gravity does not see it), kept in the
     mounting printed without a bend (else 0); ``mounting``: what a straight robot's
     tilt reads."""
-    lines = [
-        f"calibration from {source}: {cal.n} samples over {cal.span_s:.3f} s of device time: "
-        f"{cal.rate_hz:.1f} Hz (median step {cal.median_period_s * 1e3:.2f} ms, longest "
-        f"{cal.longest_step_s * 1e3:.2f} ms)"
-    ]
+    if cal.median_period_s > MS_LIKE_STEP_S:  # milliseconds read as seconds: no rate
+        timing = (
+            f"{cal.n} samples whose times look like milliseconds (t steps by a median of "
+            f"{cal.median_period_s:g} per sample, read as seconds): no sample rate is said "
+            "(name the column t_ms for one); the means, noise and mountings below do not "
+            "depend on the times"
+        )
+    else:
+        timing = (
+            f"{cal.n} samples over {cal.span_s:.3f} s of device time: {cal.rate_hz:.1f} Hz "
+            f"(median step {cal.median_period_s * 1e3:.2f} ms, longest "
+            f"{cal.longest_step_s * 1e3:.2f} ms)"
+        )
+    lines = [f"calibration from {source}: {timing}"]
     for i, imu in enumerate(cal.imus, start=1):
         m, s = imu.mean, imu.std
         if cal.fmt == "raw":
