@@ -511,6 +511,35 @@ def test_one_imu_upside_down_is_named_as_that_imus_mounting(tmp_path, capsys) ->
     assert not est.exists()
 
 
+def test_two_imus_reading_the_other_way_are_both_named_not_one_alone(tmp_path, capsys) -> None:
+    """An upright robot of three sections and four IMUs (one mid-section) bent 54 degrees
+    a section, described as z-down: IMU 1 and 2 read more than 90 degrees off z-down, IMU
+    3 and 4 within it. The refusal names both IMU 1 and 2 as reading the other way, not
+    "is IMU 1 alone mounted upside down?"."""
+    sections = "".join(f"[[section]]\nlength = {v}\ntheta_max = 3.0\n" for v in (0.12, 0.1, 0.08))
+    imus = "[[imu]]\nsection = 1\nat = 0.5\n" + "".join(
+        f"[[imu]]\nsection = {i}\n" for i in (1, 2, 3)
+    )
+    upright, hanging = tmp_path / "up.toml", tmp_path / "down.toml"
+    upright.write_text(f'mounting = "z-up"\n{sections}{imus}')
+    hanging.write_text(f'mounting = "z-down"\n{sections}{imus}')
+    meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
+    argv = ["simulate", "spatial", "--robot", str(upright), "--imu", "raw", "--duration", "2"]
+    assert main([*argv, "-o", str(meas)]) == 0
+    capsys.readouterr()
+    argv = ["estimate", str(meas), "--method", "ekf", "--robot", str(hanging), "-o", str(est)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the robot is described as z-down" in err, err
+    assert "alone" not in err, err
+    assert (
+        f'set mounting = "z-up" in the robot file {hanging} (IMU 3, 4 read upright, IMU 1, 2 '
+        "the other way: are IMU 1, 2 mounted upside down? their mount_rpy; or the IMUs in "
+        "another order?"
+    ) in err, err
+    assert not est.exists()
+
+
 def test_swapped_columns_of_a_board_declared_upside_down_name_the_order(tmp_path, capsys) -> None:
     """IMU 2's board mounted upside down (rolled 180 degrees), its robot file saying so
     (``mount_rpy = [180, 0, 0]``), and the two IMUs' columns swapped: both read upside

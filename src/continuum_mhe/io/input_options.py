@@ -639,18 +639,25 @@ def _check_base_mounting(
         f"puts IMU {k + 1} {math.degrees(angle):.0f} degrees from that mounting's straight "
         f"pose ({180 - math.degrees(angle):.0f} from {other}'s)"
     )
-    # IMUs that read within 90 degrees of the stated mounting: then this IMU alone may be
-    # the one mounted upside down
-    upright = [
-        j + 1
-        for j in range(robot.n_imus)
-        if j != k and (a := imu_start_angle(z, formulation, j)) is not None and a < math.pi / 2
-    ]
+    # IMUs that read within 90 degrees of the stated mounting: then the IMUs that read
+    # more than 90 degrees off it, this one and any other, may be the ones mounted
+    # upside down
+    starts = {j: imu_start_angle(z, formulation, j) for j in range(robot.n_imus) if j != k}
+    upright = [j + 1 for j, a in starts.items() if a is not None and a < math.pi / 2]
+    off = sorted([k + 1, *(j + 1 for j, a in starts.items() if a is not None and a >= math.pi / 2)])
     imu = robot.imus[k]
     reach = bend_reach(robot, k)
     alone = ""
     if upright:
         reads = "reads" if len(upright) == 1 else "read"
+        said = f"IMU {', '.join(map(str, upright))} {reads} upright"
+        if len(off) == 1:
+            boards, question = f"IMU {k + 1} alone", f"is IMU {k + 1} alone"
+            their = "its"
+        else:
+            said += f", IMU {', '.join(map(str, off))} the other way"
+            boards = f"IMU {', '.join(map(str, off))}"
+            question, their = f"are {boards}", "their"
         # a robot that starts bent this far, within its theta_max, reads so as well
         bent = (
             "; or a start bent this far, within the sections' theta_max? start the "
@@ -658,10 +665,7 @@ def _check_base_mounting(
             if angle <= reach + MOUNTING_MARGIN or robot.has_mechanics
             else ""
         )
-        alone = (
-            f" (IMU {', '.join(map(str, upright))} {reads} upright: is IMU {k + 1} alone "
-            f"mounted upside down? its mount_rpy; {ORDER_HINT}{bent})"
-        )
+        alone = f" ({said}: {question} mounted upside down? {their} mount_rpy; {ORDER_HINT}{bent})"
     # a board the robot file mounts upside down (its mount_rpy turns it past 90
     # degrees): another IMU's readings in its columns read upside down too
     turned = [
@@ -710,8 +714,8 @@ def _check_base_mounting(
         )
     if upright:  # a start bent this far is the likelier reading of a warning's angle
         alone = (
-            f" (IMU {', '.join(map(str, upright))} {reads} upright: a start bent this way, "
-            f"or IMU {k + 1} alone mounted upside down, its mount_rpy; {ORDER_HINT})"
+            f" ({said}: a start bent this way, or {boards} mounted upside down, "
+            f"{their} mount_rpy; {ORDER_HINT})"
         )
     warnings.warn(  # a bend past 90 degrees at the start, or the other mounting
         f"{where}: if the robot {pose}, {fix} (the estimates of a robot described the "
