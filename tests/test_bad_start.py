@@ -531,8 +531,11 @@ def test_an_imu_that_starts_late_restarts_the_estimate_with_it(
     """The first reading of an IMU the start had none of restarts the estimate (status
     ``reset``, counted and said), and from there on it is the estimate of the recording
     that starts there, within 0.5 mm; without the restart (``--gap-reset 0``) the MHE is
-    23 mm off at 0.6 s, its rows ``ok``, the gyros' biases having taken up the second
-    section's jump onto its first readings."""
+    far off for about a second (the gyros' biases having taken up the second section's
+    jump onto its first readings), and none of those rows is ``ok``: the start's rows,
+    without IMU 2, carry section 2's spread over its reach, the rows after a row that
+    wide stay ``uncertain`` for the unobserved window, and the rest are
+    ``inconsistent``."""
     late, whole, truth = imu_2_late
     got, want, off = tmp_path / "got.csv", tmp_path / "want.csv", tmp_path / "off.csv"
     for source, out, extra in (
@@ -551,7 +554,8 @@ def test_an_imu_that_starts_late_restarts_the_estimate_with_it(
     assert np.abs(err[3:] - err_want).max() < 5e-4
     if method == "mhe":
         _, err_off, status_off = _tip_errors(off, truth)
-        assert err_off[(status_off == "ok")].max() > 0.01
+        assert err_off.max() > 0.03
+        assert not np.any((status_off == "ok") & (err_off > 0.01))
 
 
 def _blanked(source: Path, out: Path, imu_rows: dict[int, range]) -> Path:
