@@ -62,6 +62,7 @@ from continuum_mhe.io.input_options import (
     formulation_for,
     imu_settings_for,
     note_mounting_checked,
+    warn_uncalibrated_madgwick,
     with_imu_model,
 )
 from continuum_mhe.io.raw_imu import (
@@ -256,6 +257,8 @@ def decide_model(
     f = formulation_for(options, base, raw_input, Path(name))
     if raw_input and not options.use_orientation and options.raw.needs_gyro and not has_gyro:
         raise InputError(f"{name}: {_gyro_user(options.raw)} needs gyro columns gx, gy, gz")
+    if raw_input and not options.use_orientation:
+        warn_uncalibrated_madgwick(options.raw, base.robot)
     return options, f
 
 
