@@ -509,46 +509,55 @@ def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria
 def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
     """With ``estimate_force_acceleration`` the tip force's acceleration is a state,
     and the force's transition and process noise are those of a triple integrator driven
-    by white jerk, computed independently here by Van Loan's matrix exponential; by
-    default that state is there with raw IMUs on a robot of two or more IMUs only."""
+    by white jerk and, where one is given, a white acceleration beside it, computed
+    independently here by Van Loan's matrix exponential; by default that state is there
+    with raw IMUs on a robot of two or more IMUs only."""
     from scipy.linalg import expm
 
     from continuum_mhe.errors import UserError
+    from continuum_mhe.model.tendon import FORCE_JERK_PSD
 
-    robot = read_robot("tendon-two-section")
-    f = TendonFormulation(
-        robot=robot, imu_model="direct", estimate_gyro_bias=True, estimate_force_acceleration=True
-    )
-    names = f.state_names
-    force = [names.index(f"f{c}") for c in "xyz"]
-    rate = [names.index(f"f{c}_dot") for c in "xyz"]
-    accel = [names.index(f"f{c}_ddot") for c in "xyz"]
-    dt, jerk = 0.02, f.force_jerk_psd
-    a = np.diag([1.0, 1.0], 1)  # (F, F', F'') of one component, F''' white
-    g = np.array([[0.0], [0.0], [1.0]])
-    van_loan = expm(np.block([[-a, g @ g.T * jerk], [np.zeros((3, 3)), a.T]]) * dt)
-    phi = van_loan[3:, 3:].T
-    q_expected = phi @ van_loan[:3, 3:]
-    x = np.random.default_rng(0).normal(size=f.nx)
-    x_sym, dt_sym = ca.SX.sym("x", f.nx), ca.SX.sym("dt")
-    step = ca.Function("f", [x_sym, dt_sym], [f.transition_sym(x_sym, ca.SX.zeros(f.nu), dt_sym)])
-    q = np.asarray(ca.Function("q", [dt_sym], [f.process_cov_sym(dt_sym)])(dt), float)
-    moved = np.asarray(step(x, dt), float).ravel()
-    for c in range(3):
-        chain = [force[c], rate[c], accel[c]]
-        np.testing.assert_allclose(moved[chain], phi @ x[chain], rtol=1e-12)
-        np.testing.assert_allclose(q[np.ix_(chain, chain)], q_expected, rtol=1e-9)
+    two = read_robot("tendon-two-section")
+    one = replace(two, imus=two.imus[-1:])
+    cases = ((two, {}, FORCE_JERK_PSD, 0.0),
+             (one, {"force_jerk_psd": 0.01, "force_accel_psd": 3e-3}, 0.01, 3e-3))  # fmt: skip
+    for robot, given, jerk, accel_psd in cases:
+        f = TendonFormulation(
+            robot=robot, imu_model="direct", estimate_gyro_bias=True,
+            estimate_force_acceleration=True, **given,  # type: ignore[arg-type]
+        )  # fmt: skip
+        assert (f.force_jerk_psd, f.force_psd) == (jerk, accel_psd)
+        names = f.state_names
+        force = [names.index(f"f{c}") for c in "xyz"]
+        rate = [names.index(f"f{c}_dot") for c in "xyz"]
+        accel = [names.index(f"f{c}_ddot") for c in "xyz"]
+        dt = 0.02
+        a = np.diag([1.0, 1.0], 1)  # (F, its rate, its acceleration) of one component
+        qc = np.diag([0.0, accel_psd, jerk])  # white acceleration and white jerk
+        van_loan = expm(np.block([[-a, qc], [np.zeros((3, 3)), a.T]]) * dt)
+        phi = van_loan[3:, 3:].T
+        q_expected = phi @ van_loan[:3, 3:]
+        x = np.random.default_rng(0).normal(size=f.nx)
+        x_sym, dt_sym = ca.SX.sym("x", f.nx), ca.SX.sym("dt")
+        transition = f.transition_sym(x_sym, ca.SX.zeros(f.nu), dt_sym)
+        step = ca.Function("f", [x_sym, dt_sym], [transition])
+        q = np.asarray(ca.Function("q", [dt_sym], [f.process_cov_sym(dt_sym)])(dt), float)
+        moved = np.asarray(step(x, dt), float).ravel()
+        for c in range(3):
+            chain = [force[c], rate[c], accel[c]]
+            np.testing.assert_allclose(moved[chain], phi @ x[chain], rtol=1e-12)
+            np.testing.assert_allclose(q[np.ix_(chain, chain)], q_expected, rtol=1e-9)
 
     def has_force_acceleration(robot: Robot, imu_model: str) -> bool:
         names = TendonFormulation(robot=robot, imu_model=imu_model).state_names  # type: ignore[arg-type]
         return any(n.endswith("_ddot") for n in names)
 
     # by default: raw IMUs on a robot with two or more IMUs; not one IMU, not tilt
-    assert has_force_acceleration(robot, "direct")
-    assert not has_force_acceleration(replace(robot, imus=robot.imus[-1:]), "direct")
-    assert not has_force_acceleration(robot, "tilt")
+    assert has_force_acceleration(two, "direct")
+    assert not has_force_acceleration(one, "direct")
+    assert not has_force_acceleration(two, "tilt")
     with pytest.raises(UserError, match="estimate_force_acceleration"):
-        TendonFormulation(robot=robot, estimate_force_acceleration=True)  # tilt IMUs
+        TendonFormulation(robot=two, estimate_force_acceleration=True)  # tilt IMUs
 
 
 @pytest.mark.parametrize("imu_errors", [False, True])

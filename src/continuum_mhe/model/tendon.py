@@ -20,8 +20,9 @@ tip IMU's gravity direction at 0.08 N on the shipped robot, is left to the IMUs'
 misalignment and bias states, which then turn the estimate about the vertical. With it
 as a state the model describes the readings at the true state to their noise; the
 filter then depends on its start's tip force (:meth:`TendonFormulation.initial_state`).
-A robot with one IMU lost the shape with it, and keeps the force at constant velocity
-(docs/tendon-studies.md, "Under load"). The IMUs' errors are states by default
+A robot with one IMU keeps the force at constant velocity: with ``F''`` its estimate
+free of load can diverge (docs/tendon-studies.md, "The tip IMU alone under load").
+The IMUs' errors are states by default
 because they, not the model, are what is left: a degree of misalignment, or 0.17
 m/s^2 of accelerometer bias, reads as a tip force that moves the tip of the shipped
 robot by about 5 mm; as the robot moves through several poses they separate from the
@@ -277,16 +278,17 @@ class TendonFormulation(Formulation):
         curvature_accel_psd: white-noise acceleration of the base curvature,
             (rad/m)^2/s^3 (large: the equilibrium, not the motion model, sets it).
         force_accel_psd: white-noise acceleration of the tip force, N^2/s^3 (None, the
-            default: :data:`FORCE_ACCEL_PSD`, or :data:`SINGLE_IMU_FORCE_ACCEL_PSD` for a
-            robot with one IMU; :attr:`force_psd` is the value used).
+            default: at constant velocity :data:`FORCE_ACCEL_PSD`, or
+            :data:`SINGLE_IMU_FORCE_ACCEL_PSD` for a robot with one IMU; with the
+            force's acceleration a state, none beside the jerk; a value given is added
+            to the jerk there; :attr:`force_psd` is the value used).
         estimate_force_acceleration: the tip force's acceleration ``F''`` (N/s^2, 3)
             as states, the force at constant acceleration driven by white jerk, ``F''``
             in the IMUs' own acceleration (needs the force's rate in the acceleration,
             :attr:`force_rate_moves_imus`). None, the default: on where the force's rate
             moves the IMUs (raw IMUs) and the robot has two or more IMUs;
             :attr:`n_force_acceleration` says what is used.
-        force_jerk_psd: the tip force's white-noise jerk there, N^2/s^5
-            (:attr:`force_accel_psd` is not used then).
+        force_jerk_psd: the tip force's white-noise jerk there, N^2/s^5.
         initial_force_acceleration_std: ``F''``'s prior standard deviation, N/s^2.
         initial_force_std: the tip force's prior standard deviation, N (None, the
             default: :data:`FORCE_PRIOR_BUCKLING_FRACTION` of the robot's buckling load;
@@ -391,7 +393,8 @@ class TendonFormulation(Formulation):
         if self.estimate_gyro_bias and self.imu_model != "direct":
             raise UserError("estimate_gyro_bias needs the direct (raw gyro) IMU model")
         resolved = {
-            "force_accel_psd": self.force_psd,
+            # (a default force_accel_psd may be 0: none beside the jerk)
+            "force_accel_psd": self.force_psd if self.force_accel_psd is not None else 1.0,
             "initial_force_std": self.force_prior_std,
             "max_force": self.max_force_used,
         }
@@ -456,9 +459,12 @@ class TendonFormulation(Formulation):
     @property
     def force_psd(self) -> float:
         """The tip force's white-noise acceleration used, N^2/s^3
-        (:attr:`force_accel_psd`, resolved from the robot's IMUs)."""
+        (:attr:`force_accel_psd`, resolved from the robot's IMUs and whether the force's
+        acceleration is a state)."""
         if self.force_accel_psd is not None:
             return self.force_accel_psd
+        if self.n_force_acceleration:
+            return 0.0
         return SINGLE_IMU_FORCE_ACCEL_PSD if self.robot.n_imus == 1 else FORCE_ACCEL_PSD
 
     @property
@@ -668,8 +674,7 @@ class TendonFormulation(Formulation):
         )
 
     def process_cov_sym(self, dt: Sym) -> Sym:
-        force = 0.0 if self.n_force_acceleration else self.force_psd
-        psd = [self.curvature_accel_psd] * 3 + [force] * 3
+        psd = [self.curvature_accel_psd] * 3 + [self.force_psd] * 3
         q = ca.diag(ca.DM(psd))
         k = self.robot.n_tendons
         t = self.tension_psd * dt * ca.SX.eye(k)
@@ -682,7 +687,7 @@ class TendonFormulation(Formulation):
             ]
         )
         if self.n_force_acceleration:
-            # the tip force driven by white jerk instead (a Wiener-process acceleration)
+            # the tip force driven by white jerk too (a Wiener-process acceleration)
             j = self.force_jerk_psd
             fi, fdi = [3, 4, 5], [9 + k, 10 + k, 11 + k]
             cov = ca.diagcat(cov, ca.SX.zeros(3, 3))
@@ -692,8 +697,9 @@ class TendonFormulation(Formulation):
             idx = (fi, fdi, [n - 3, n - 2, n - 1])
             for (a, b), c in blocks.items():
                 for i in range(3):
-                    cov[idx[a][i], idx[b][i]] = j * c
-                    cov[idx[b][i], idx[a][i]] = j * c
+                    cov[idx[a][i], idx[b][i]] += j * c
+                    if a != b:
+                        cov[idx[b][i], idx[a][i]] += j * c
 
         if self.estimate_gyro_bias:
             cov = ca.diagcat(cov, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
