@@ -188,17 +188,21 @@ void SensorHealth::widen_by_free_bends(const double* x, const double* y, double*
 }
 
 const FreeBends& SensorHealth::free_now(double t) {
-  const size_t n = s_.imu_blocks.size();
-  if (!free_of_ || n < 2) return static_free_;
-  const double window = std::min(unobserved_window(), s_.silent_after);
-  std::vector<int> recent;
-  for (size_t k = 0; k < n; ++k)  // a frozen IMU pins nothing, however recent
-    if (!longer(t - imu_last_valid_[k], window, t) && !frozen_now_[k])
-      recent.push_back(static_cast<int>(k));
-  if (recent.size() == n || recent.empty()) return static_free_;  // all, or a gap
-  auto it = free_cache_.find(recent);
-  if (it == free_cache_.end()) it = free_cache_.emplace(recent, free_of_(recent)).first;
+  if (!free_of_ || s_.imu_blocks.size() < 2) return static_free_;
+  // silent for the unobserved window: its covariance alone holds for a shorter dropout
+  if (!reporting_imus(t, unobserved_window())) return static_free_;  // all, or a gap
+  auto it = free_cache_.find(reporting_);
+  if (it == free_cache_.end()) it = free_cache_.emplace(reporting_, free_of_(reporting_)).first;
   return it->second;
+}
+
+bool SensorHealth::reporting_imus(double t, double window) {
+  const size_t n = s_.imu_blocks.size();
+  reporting_.clear();
+  for (size_t k = 0; k < n; ++k)  // a frozen IMU observes nothing, however recent
+    if (!longer(t - imu_last_valid_[k], window, t) && !frozen_now_[k])
+      reporting_.push_back(static_cast<int>(k));
+  return !reporting_.empty() && reporting_.size() < n;
 }
 
 void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
@@ -381,18 +385,13 @@ void SensorHealth::note_imus_seen() {
 
 bool SensorHealth::observed_now(double t) {
   if (!s_.shape_observable) return false;
-  const size_t n = s_.imu_blocks.size();
-  if (n == 1) return true;  // its silence is the whole robot's gap
-  const double window = std::min(unobserved_window(), s_.silent_after);
-  std::vector<int> recent;
-  for (size_t k = 0; k < n; ++k)  // a frozen IMU observes nothing, however recent
-    if (!longer(t - imu_last_valid_[k], window, t) && !frozen_now_[k])
-      recent.push_back(static_cast<int>(k));
-  if (recent.size() == n || recent.empty()) return true;  // all reporting, or none
-  auto it = observable_cache_.find(recent);
+  if (s_.imu_blocks.size() == 1) return true;  // its silence is the whole robot's gap
+  if (!reporting_imus(t, std::min(unobserved_window(), s_.silent_after)))
+    return true;  // all reporting, or none
+  auto it = observable_cache_.find(reporting_);
   if (it != observable_cache_.end()) return it->second;
-  const bool known = observable_(recent);
-  observable_cache_.emplace(recent, known);
+  const bool known = observable_(reporting_);
+  observable_cache_.emplace(reporting_, known);
   return known;
 }
 

@@ -361,6 +361,10 @@ class SensorHealth {
   // the bends free at ``t``: the robot's own, or, while some IMUs are silent (no valid
   // reading within the unobserved window, or frozen), those the others leave free
   const FreeBends& free_now(double t);
+  // the IMUs with a valid reading within ``window`` s of ``t`` and not frozen, into
+  // reporting_ (ascending); whether some, not all, are
+  bool reporting_imus(double t, double window);
+  std::vector<int> reporting_;
   double last_t_ = -INFINITY, last_valid_t_ = -INFINITY, first_valid_t_ = -INFINITY;
   // the average step between valid samples, the jumps left out (NaN before the second)
   double step_avg_ = NAN;

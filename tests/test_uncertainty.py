@@ -573,6 +573,22 @@ def test_an_imu_that_barely_turns_with_its_section_leaves_no_row_ok_far_off() ->
     assert min(cal.coverage[c] for c in ("x", "y", "z")) >= 0.9, cal.coverage
 
 
+def test_the_sections_a_set_of_imus_leaves_free() -> None:
+    """What the core asks while some IMUs are silent (``free_bends(imus)``), against the
+    robot's geometry: of two sections with an IMU at each end, IMU 1 alone pins section
+    1 and leaves section 2 free; IMU 2 alone (the tip's direction: the two bends' sum)
+    leaves both free; both IMUs, as every IMU (None), leave none. The rows are each
+    section's bend coordinates and the reach its theta_max."""
+    from continuum_mhe.io.robot_file import read_robot
+
+    robot = read_robot("two-section")
+    f = make_formulation("bend", robot)
+    reach = [s.theta_max for s in robot.sections]
+    assert f.free_bends((0,)) == ((2, 3, reach[1]),)
+    assert f.free_bends((1,)) == ((0, 1, reach[0]), (2, 3, reach[1]))
+    assert f.free_bends((0, 1)) == f.free_bends() == ()
+
+
 @pytest.mark.parametrize("method", ["ekf", "mhe"])
 def test_a_silent_imu_leaves_the_sections_it_pinned_the_spread_of_their_reach(
     method: str,
@@ -609,6 +625,34 @@ def test_a_silent_imu_leaves_the_sections_it_pinned_the_spread_of_their_reach(
         assert np.all(var >= 0.8 * msd), (k, var, msd)
     back = rec.t > 6.0  # IMU 2 has reported again for 2 s: its section pinned
     assert np.median(est.output_std[back][:, tip]) < 0.02
+
+
+def test_a_dropout_shorter_than_the_unobserved_window_frees_no_section(monkeypatch) -> None:
+    # IMU 2 silent for 0.6 s mid-recording: its covariance still holds section 2 (the
+    # motion model over 0.6 s), so the standard deviations and statuses are those of the
+    # same run with no section ever freed; a silence of 1.5 s, past the unobserved
+    # window (1 s), widens them
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.bend import BendFormulation
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("spatial", robot, duration=6.0, dt=0.02, seed=2)
+    f = make_formulation("bend", robot)
+    runs = {}
+    for gap in (0.6, 1.5):
+        z = rec.z.copy()
+        z[(rec.t >= 3.0) & (rec.t < 3.0 + gap), 2:4] = np.nan
+        runs[gap] = make_estimator("ekf", f).run(rec.t, z)
+    with monkeypatch.context() as m:
+        m.setattr(BendFormulation, "free_bends", lambda self, imus=None: ())
+        z = rec.z.copy()
+        z[(rec.t >= 3.0) & (rec.t < 3.6), 2:4] = np.nan
+        never = make_estimator("ekf", make_formulation("bend", robot)).run(rec.t, z)
+    assert_allclose(runs[0.6].output_std, never.output_std, rtol=1e-12)
+    assert list(runs[0.6].status) == list(never.status)
+    late = (rec.t > 4.1) & (rec.t < 4.5)  # IMU 2 silent for more than the window
+    assert np.all(runs[1.5].output_std[late, 0] > 0.05), runs[1.5].output_std[late, 0]
 
 
 # --- std columns and calibration -------------------------------------------------------------
