@@ -560,6 +560,30 @@ def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
         TendonFormulation(robot=two, estimate_force_acceleration=True)  # tilt IMUs
 
 
+def test_a_zero_force_accel_psd_is_the_default_where_the_force_acceleration_is_a_state() -> None:
+    """Where the tip force's acceleration is a state its jerk alone drives the force by
+    default (``force_psd`` 0): ``force_accel_psd=0`` says the same, the same process
+    noise; at constant velocity, where the force's white acceleration is all its noise,
+    0 is refused in one line, as a negative value is in both."""
+    two = read_robot("tendon-two-section")
+    raw = {"imu_model": "direct", "estimate_gyro_bias": True}
+
+    def q(f: TendonFormulation) -> np.ndarray:
+        dt = ca.SX.sym("dt")
+        return np.asarray(ca.Function("q", [dt], [f.process_cov_sym(dt)])(0.02), float)
+
+    default = TendonFormulation(robot=two, **raw)  # type: ignore[arg-type]
+    zero = TendonFormulation(robot=two, force_accel_psd=0.0, **raw)  # type: ignore[arg-type]
+    assert default.n_force_acceleration == zero.n_force_acceleration == 3
+    assert default.force_psd == zero.force_psd == 0.0
+    np.testing.assert_array_equal(q(zero), q(default))
+    with pytest.raises(UserError, match=r"^force_accel_psd must be a 0 or more finite number"):
+        TendonFormulation(robot=two, force_accel_psd=-1.0, **raw)  # type: ignore[arg-type]
+    one = replace(two, imus=two.imus[-1:])  # constant velocity
+    with pytest.raises(UserError, match=r"^force_accel_psd must be a positive finite number"):
+        TendonFormulation(robot=one, force_accel_psd=0.0, **raw)  # type: ignore[arg-type]
+
+
 @pytest.mark.parametrize("imu_errors", [False, True])
 @pytest.mark.parametrize("imu_model", ["tilt", "direct"])
 def test_the_residual_jacobian_matches_finite_differences(imu_model: str, imu_errors: bool) -> None:

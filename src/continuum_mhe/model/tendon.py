@@ -281,7 +281,7 @@ class TendonFormulation(Formulation):
             default: at constant velocity :data:`FORCE_ACCEL_PSD`, or
             :data:`SINGLE_IMU_FORCE_ACCEL_PSD` for a robot with one IMU; with the
             force's acceleration a state, none beside the jerk; a value given is added
-            to the jerk there; :attr:`force_psd` is the value used).
+            to the jerk there (0: none); :attr:`force_psd` is the value used).
         estimate_force_acceleration: the tip force's acceleration ``F''`` (N/s^2, 3)
             as states, the force at constant acceleration driven by white jerk, ``F''``
             in the IMUs' own acceleration (needs the force's rate in the acceleration,
@@ -393,8 +393,6 @@ class TendonFormulation(Formulation):
         if self.estimate_gyro_bias and self.imu_model != "direct":
             raise UserError("estimate_gyro_bias needs the direct (raw gyro) IMU model")
         resolved = {
-            # (a default force_accel_psd may be 0: none beside the jerk)
-            "force_accel_psd": self.force_psd if self.force_accel_psd is not None else 1.0,
             "initial_force_std": self.force_prior_std,
             "max_force": self.max_force_used,
         }
@@ -415,7 +413,6 @@ class TendonFormulation(Formulation):
             "tension_psd",
             "equilibrium_std",
             "curvature_accel_psd",
-            "force_accel_psd",
             "force_jerk_psd",
             "initial_force_acceleration_std",
             "initial_force_std",
@@ -426,6 +423,13 @@ class TendonFormulation(Formulation):
             v = resolved[label] if label in resolved else getattr(self, label)
             if not (math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
+        # a force_accel_psd given (None: force_psd's default); 0 where the force's
+        # acceleration is a state, its jerk alone driving the force (the default there)
+        psd, least = self.force_accel_psd, "0 or more" if self.n_force_acceleration else "positive"
+        if psd is not None and not (
+            math.isfinite(psd) and (psd > 0 or (psd == 0 and self.n_force_acceleration))
+        ):
+            raise UserError(f"force_accel_psd must be a {least} finite number, got {psd!r}")
         if not (math.isfinite(self.slack_width) and self.slack_width >= 0):
             raise UserError(
                 f"slack_smoothing must be a finite number of newtons, 0 or more, got "
