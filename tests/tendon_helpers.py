@@ -96,7 +96,9 @@ def small_robot_recording_rows() -> tuple[tuple[float, ...], ...]:
 
 
 def small_robot_recording(tmp_path: Path) -> tuple[Path, Path]:
-    """A few tilt samples of the one-section robot with its tendon pulled."""
+    """A few tilt samples of the one-section robot with its tendon pulled, and their
+    tensions: ``(tmp_path/m.csv, tmp_path/tensions.csv)``, the robot written beside
+    them as ``tmp_path/robot.toml`` (:func:`small_robot`)."""
     small_robot(tmp_path)
     meas = tmp_path / "m.csv"
     write_table(meas, ["t", "roll", "pitch"], [list(r) for r in small_robot_recording_rows()])

@@ -250,8 +250,10 @@ def decide_model(
 ) -> tuple[InputOptions, Formulation]:
     """The IMU model decided (:func:`~continuum_mhe.io.input_options.with_imu_model`:
     raw vectors with gyros take the direct model unless ``--imu-model`` says otherwise),
-    the formulation made (:func:`~continuum_mhe.io.input_options.formulation_for`), and
-    an IMU model or attitude filter that needs gyros refused without them."""
+    the formulation made (:func:`~continuum_mhe.io.input_options.formulation_for`),
+    an IMU model or attitude filter that needs gyros refused without them, and
+    ``--attitude madgwick`` on IMUs without a calibrated gyro bias warned of
+    (:func:`~continuum_mhe.io.input_options.warn_uncalibrated_madgwick`)."""
     raw_input = kind != "tilt-csv"
     options = with_imu_model(options, base, raw_input, has_gyro)
     f = formulation_for(options, base, raw_input, Path(name))
