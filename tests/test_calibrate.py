@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import re
 import threading
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -1206,6 +1207,32 @@ def test_a_rest_whose_t_is_in_milliseconds_says_no_rate_and_the_same_results(
         "column t_ms for one); the means, noise and mountings below do not depend on the times"
     )
     assert millis[1:] == seconds[1:] and len(seconds) == 7
+
+
+def test_a_rest_too_short_whose_t_is_in_milliseconds_is_refused_as_too_short(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A raw rest of 0.4 s (41 samples at 100 Hz, under the 0.5 s calibration needs)
+    whose ``t`` holds milliseconds spans 400 read as seconds: it is judged in
+    milliseconds and refused in one line, as the same rest in seconds is."""
+    rest = tmp_path / "rest.csv"
+    assert main(["simulate", "rest", "--robot", "two-section", "--imu", "raw", "--duration",
+                 "0.4", "--dt", "0.01", "-o", str(rest)]) == 0  # fmt: skip
+    capsys.readouterr()
+    lines = rest.read_text().splitlines()
+    first = next(i for i, ln in enumerate(lines) if ln.startswith("t,")) + 1
+    in_ms = tmp_path / "rest_ms.csv"
+    rows = [f"{1000 * float(ln.split(',')[0]):g},{ln.split(',', 1)[1]}" for ln in lines[first:]]
+    in_ms.write_text("\n".join(lines[:first] + rows) + "\n")
+    for path in (rest, in_ms):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnitWarning)
+            code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+        assert code == 2 and out == "", (path, out)
+        assert (
+            err.count("\n") == 1 and "calibration needs the robot still for at least 0.5 s" in err
+        )
+    assert "its times look like milliseconds: 0.4 s read so" in err, err
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -403,17 +403,24 @@ def calibrate(
     t: FloatArray, values: FloatArray, fmt: LineFormat, n_imus: int, mounting: Mounting
 ) -> Calibration:
     """Statistics of samples at rest: ``t`` (n,) s, ``values`` (n, k * n_imus); a
-    one-line :class:`InputError` for under :data:`MIN_REST_S` of them or an IMU with
-    under :data:`MIN_REST_SAMPLES` valid ones (its mean and spread would be noise)."""
+    one-line :class:`InputError` for under :data:`MIN_REST_S` of them (times whose
+    median step looks like milliseconds, :data:`~continuum_mhe.io.csv_files.
+    MS_LIKE_STEP_S`, judged as milliseconds) or an IMU with under
+    :data:`MIN_REST_SAMPLES` valid ones (its mean and spread would be noise)."""
     span = float(t[-1] - t[0]) if len(t) else 0.0
-    if len(t) < 2 or span < MIN_REST_S:
-        step = float(np.median(np.diff(t))) if len(t) > 1 else math.inf
-        cause = (  # the span is short because the times are in another unit
-            f": its samples are {step:.2g} s apart, faster than any IMU: times in another "
-            "unit (seconds in a t_ms column?)"
-            if step < TOO_FAST_STEP_S
-            else " (a few seconds)"
-        )
+    step = float(np.median(np.diff(t))) if len(t) > 1 else math.inf
+    # times that look like milliseconds read as seconds (warned of): their span in s
+    in_ms = len(t) > 1 and step > MS_LIKE_STEP_S
+    if len(t) < 2 or (span / 1000.0 if in_ms else span) < MIN_REST_S:
+        if in_ms:
+            cause = f" (its times look like milliseconds: {span / 1000.0:.3g} s read so)"
+        elif step < TOO_FAST_STEP_S:  # the span is short because the times are in another unit
+            cause = (
+                f": its samples are {step:.2g} s apart, faster than any IMU: times in "
+                "another unit (seconds in a t_ms column?)"
+            )
+        else:
+            cause = " (a few seconds)"
         raise InputError(
             f"{len(t)} sample(s) over {span:.3g} s: calibration needs the robot still for "
             f"at least {MIN_REST_S:g} s{cause}"
