@@ -966,6 +966,12 @@ class TensionStream:
         return out
 
 
+#: The smallest ``--gyro-std`` (rad/s) whose ``ok`` rows the shipped tendon recordings
+#: (raw IMUs, EKF) find inside their intervals: 0.005 keeps every recording's tip
+#: coverage over the ``ok`` rows at 0.90 or more; 0.003 takes twist-29's to 0.79.
+TENDON_GYRO_STD_CALIBRATED = 0.005
+
+
 def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFormulation:
     """The tendon formulation of ``base``'s robot, with ``base``'s IMU model (tilt, or
     raw with ``direct``) and noise. Its IMU-error states are the formulation's defaults
@@ -998,6 +1004,17 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
             "as bends and loads (on the shipped force-29, 352 of 401 rows drifted, the "
             "tip 94 mm off, against 0.73 mm with the biases estimated): leave it out "
             "unless the gyros' biases were removed",
+            OptionWarning,
+            stacklevel=2,
+        )
+    if direct and options.gyro_std < TENDON_GYRO_STD_CALIBRATED:
+        warnings.warn(
+            f"--gyro-std {options.gyro_std:g} rad/s on a tendon robot: below "
+            f"{TENDON_GYRO_STD_CALIBRATED:g} the standard deviations narrow faster than "
+            "the errors, and rows are ok outside their 95 % intervals (on the shipped "
+            "twist-29, 0.003: tip coverage x 0.79 over the ok rows; 0.001: 72 of 351 ok "
+            "rows more than 4 standard deviations off; docs/tendon-studies.md): leave "
+            "the default (0.01) unless the estimate is checked against a known shape",
             OptionWarning,
             stacklevel=2,
         )
