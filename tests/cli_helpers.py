@@ -1,9 +1,11 @@
 """Shared test helpers for the command line's tests: files written as a user's program
-writes them, a measurement CSV of good rows, a simulated recording and its truth, and
-an estimate file's notes and rows."""
+writes them, a measurement CSV of good rows, a simulated recording and its truth, an
+estimate file's notes and rows, and the shipped spatial-tendon rod calibrated and
+estimated as the README's five steps do."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from continuum_mhe.cli import main
@@ -42,3 +44,23 @@ def notes_and_rows(estimate: Path) -> tuple[list[str], list[str]]:
     lines = estimate.read_text().splitlines(keepends=True)
     notes = [ln for ln in lines if ln.startswith("#")]
     return notes, [ln for ln in lines if not ln.startswith("#")]
+
+
+#: the shipped two-section rod recordings
+ROD2 = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+
+
+def calibrated_spatial_tendon(tmp_path: Path, capsys, *options: str) -> tuple[Path, Path, dict]:  # type: ignore[no-untyped-def]
+    """The README's five steps on the shipped spatial-tendon rod: ``calibrate`` its rest
+    into ``tmp_path/cal.toml``, ``estimate`` its raw recording with the EKF and
+    ``options`` into ``tmp_path/e.csv``, ``evaluate --json`` against its truth:
+    ``(cal, estimate, report)``."""
+    cal, est = tmp_path / "cal.toml", tmp_path / "e.csv"
+    assert main(["calibrate", "--from", str(ROD2 / "spatial-tendon_rest.csv"), "--robot",
+                 "two-section", "--write-robot", str(cal)]) == 0  # fmt: skip
+    assert main(["estimate", str(ROD2 / "spatial-tendon_raw.csv"), "--robot", str(cal),
+                 "--method", "ekf", *options, "-o", str(est)]) == 0  # fmt: skip
+    capsys.readouterr()
+    truth = ROD2 / "spatial-tendon_truth.csv"
+    assert main(["evaluate", str(est), str(truth), "--robot", str(cal), "--json"]) == 0
+    return cal, est, json.loads(capsys.readouterr().out)

@@ -247,20 +247,9 @@ def test_estimated_accel_biases_do_not_take_up_the_readings_constant_errors(
     calibrated) the EKF's ``ok`` rows then lie within 4 standard deviations on every tip
     axis; with the biases free to take the errors up, 402 of 484 of them would not (30
     std)."""
-    import json
+    from cli_helpers import calibrated_spatial_tendon
 
-    from continuum_mhe.cli import main
-
-    rod = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
-    cal, est = tmp_path / "cal.toml", tmp_path / "e.csv"
-    assert main(["calibrate", "--from", str(rod / "spatial-tendon_rest.csv"), "--robot",
-                 "two-section", "--write-robot", str(cal)]) == 0  # fmt: skip
-    assert main(["estimate", str(rod / "spatial-tendon_raw.csv"), "--robot", str(cal),
-                 "--method", "ekf", "--estimate-accel-bias", "-o", str(est)]) == 0  # fmt: skip
-    capsys.readouterr()
-    truth = rod / "spatial-tendon_truth.csv"
-    assert main(["evaluate", str(est), str(truth), "--robot", str(cal), "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    cal, _, report = calibrated_spatial_tendon(tmp_path, capsys, "--estimate-accel-bias")
     ok = report["calibration_ok"]
     assert ok["tip_far_of"] > 400  # most rows still ok
     assert ok["tip_far"] <= 2, (ok["tip_far"], ok["tip_far_worst"])

@@ -280,28 +280,18 @@ def test_own_acceleration_ok_rows_of_the_shipped_rods_lie_within_their_intervals
     axis (with the motion states free to take up the readings' constant errors, 154 of
     356 would not, 27 std), and the estimates are those of the same run with the motion
     states left free there: the hold changes the standard deviations, not a prior."""
-    import json
-    from pathlib import Path
+    from cli_helpers import ROD2, calibrated_spatial_tendon
 
     from continuum_mhe.cli import main
     from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.model.bend import BendFormulation
     from continuum_mhe.model.direct import DirectFormulation
 
-    rod = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
-    cal, est = tmp_path / "cal.toml", tmp_path / "e.csv"
-    assert main(["calibrate", "--from", str(rod / "spatial-tendon_rest.csv"), "--robot",
-                 "two-section", "--write-robot", str(cal)]) == 0  # fmt: skip
-    assert main(["estimate", str(rod / "spatial-tendon_raw.csv"), "--robot", str(cal),
-                 "--method", "ekf", "--own-acceleration", "-o", str(est)]) == 0  # fmt: skip
-    capsys.readouterr()
-    truth = rod / "spatial-tendon_truth.csv"
-    assert main(["evaluate", str(est), str(truth), "--robot", str(cal), "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    cal, est, report = calibrated_spatial_tendon(tmp_path, capsys, "--own-acceleration")
     free = tmp_path / "free.csv"
     with monkeypatch.context() as m:  # the constant-error term's range: the bends' alone
         m.setattr(DirectFormulation, "range_std", BendFormulation.range_std)
-        assert main(["estimate", str(rod / "spatial-tendon_raw.csv"), "--robot", str(cal),
+        assert main(["estimate", str(ROD2 / "spatial-tendon_raw.csv"), "--robot", str(cal),
                      "--method", "ekf", "--own-acceleration", "-o", str(free)]) == 0  # fmt: skip
     held, left = read_state_table(est), read_state_table(free)
     np.testing.assert_allclose(held.values, left.values, rtol=0, atol=1e-12)

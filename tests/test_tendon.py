@@ -999,23 +999,30 @@ def test_an_imu_count_off_for_a_tendon_robot_asks_for_its_robot_file(
     assert "leave --robot out" not in line
 
 
+def _option_warnings(tmp_path: Path, scenario: str, extra: list[str]) -> list[str]:
+    """The OptionWarnings of ``estimate`` on the first 40 rows of the shipped
+    ``scenario``'s raw recording with its tensions and ``extra`` options."""
+    import warnings
+
+    raw = tmp_path / f"{scenario}_raw.csv"
+    rows = (DATA / f"{scenario}_raw.csv").read_text().splitlines()[:41]
+    raw.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "e.csv"
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main(["estimate", str(raw), "--robot", "tendon-two-section", "--inputs",
+                     str(DATA / f"{scenario}_tensions.csv"), *extra, "-o", str(out),
+                     "--overwrite"]) == 0  # fmt: skip
+    return [str(w.message) for w in seen if w.category is OptionWarning]
+
+
 def test_gyro_biases_left_out_on_a_tendon_robot_are_warned_of(tmp_path: Path) -> None:
     """``--no-estimate-gyro-bias`` with raw IMUs on a tendon robot is measurably worse
     (force-29: 94 mm against 0.73 mm, 352 rows drifted), and says so in a warning naming
     the option (the drifted warning pointed at the tensions and the robot file); with
     the biases estimated, no such warning."""
-    import warnings
-
-    raw = tmp_path / "raw.csv"
-    raw.write_text("\n".join((DATA / "force-29_raw.csv").read_text().splitlines()[:41]) + "\n")
-    base = ["estimate", str(raw), "--robot", "tendon-two-section", "--inputs",
-            str(DATA / "force-29_tensions.csv")]  # fmt: skip
     for extra, said in ((["--no-estimate-gyro-bias"], True), ([], False)):
-        with warnings.catch_warnings(record=True) as seen:
-            warnings.simplefilter("always")
-            out = tmp_path / f"e{said}.csv"
-            assert main([*base, *extra, "-o", str(out)]) == 0
-        lines = [str(w.message) for w in seen if w.category is OptionWarning]
+        lines = _option_warnings(tmp_path, "force-29", extra)
         hits = [ln for ln in lines if ln.startswith("--no-estimate-gyro-bias on a tendon robot")]
         assert len(hits) == (1 if said else 0), lines
 
@@ -1027,19 +1034,9 @@ def test_a_gyro_std_below_the_calibrated_one_on_a_tendon_robot_is_warned_of(
     outside their intervals (the shipped twist-29: 0.001 puts 72 of 351 ``ok`` rows more
     than 4 standard deviations off the truth, 0.003 tip coverage 0.79), and says so in a
     warning naming the option; 0.005 and the default are not warned of."""
-    import warnings
-
-    raw = tmp_path / "raw.csv"
-    raw.write_text("\n".join((DATA / "twist-29_raw.csv").read_text().splitlines()[:41]) + "\n")
-    base = ["estimate", str(raw), "--robot", "tendon-two-section", "--inputs",
-            str(DATA / "twist-29_tensions.csv")]  # fmt: skip
     for extra, said in ((["--gyro-std", "0.001"], True), (["--gyro-std", "0.005"], False),
                         ([], False)):  # fmt: skip
-        with warnings.catch_warnings(record=True) as seen:
-            warnings.simplefilter("always")
-            out = tmp_path / f"e{len(extra)}{said}.csv"
-            assert main([*base, *extra, "-o", str(out)]) == 0
-        lines = [str(w.message) for w in seen if w.category is OptionWarning]
+        lines = _option_warnings(tmp_path, "twist-29", extra)
         hits = [ln for ln in lines if ln.startswith("--gyro-std 0.001 rad/s on a tendon robot")]
         assert len(hits) == (1 if said else 0), lines
         assert not any(ln.startswith("--gyro-std") for ln in lines) or said, lines

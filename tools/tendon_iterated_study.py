@@ -86,6 +86,19 @@ def update(node, f, x_pred, P, z, mask, R, iterations, line_search=False):
 LAST = None
 
 
+def tip_and_force_columns(
+    f, names: list[str], truth: np.ndarray
+) -> tuple[list[int], list[int], np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+    """The tip's and the tip force's columns in ``f``'s outputs, and the truth's tip (m)
+    and tip force (N) rows (``names`` its columns)."""
+    cols = [o.name for o in f.outputs]
+    tip = [cols.index(c) for c in "xyz"]
+    force = [cols.index(c) for c in ("fx", "fy", "fz")]
+    true_tip = truth[:, [names.index(c) for c in "xyz"]]
+    true_force = truth[:, [names.index(c) for c in ("fx", "fy", "fz")]]
+    return tip, force, true_tip, true_force
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("folder", type=Path)
@@ -128,11 +141,7 @@ def main() -> None:
     node = NodeEvaluator(node_functions(f))
     q = ProcessNoiseCache(f)
     R = f.meas_cov()
-    cols = [o.name for o in f.outputs]
-    tip = [cols.index(c) for c in "xyz"]
-    force = [cols.index(c) for c in ("fx", "fy", "fz")]
-    true_tip = truth[:, [names.index(c) for c in "xyz"]]
-    true_force = truth[:, [names.index(c) for c in ("fx", "fy", "fz")]]
+    tip, force, true_tip, true_force = tip_and_force_columns(f, names, truth)
     x = P = Pc = None
     z_prev, t_prev = np.zeros(f.nz), 0.0
     Ra = R.copy()
@@ -175,7 +184,7 @@ def main() -> None:
         if ti < a.skip:
             continue
         y = node.output(x)
-        J = np.asarray(f.output_jacobian(x), dtype=float).reshape(len(cols), f.nx)
+        J = np.asarray(f.output_jacobian(x), dtype=float).reshape(f.ny, f.nx)
         C = J @ (P if a.actual_noise_deg is None else Pc) @ J.T
         e = y[tip] - true_tip[i]
         errs.append(np.linalg.norm(e))

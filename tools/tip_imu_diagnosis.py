@@ -72,11 +72,7 @@ def main() -> None:
     node = NodeEvaluator(node_functions(f))
     q = ProcessNoiseCache(f)
     R = f.meas_cov()
-    cols = [o.name for o in f.outputs]
-    tip = [cols.index(c) for c in "xyz"]
-    force = [cols.index(c) for c in ("fx", "fy", "fz")]
-    true_tip = truth[:, [names.index(c) for c in "xyz"]]
-    true_force = truth[:, [names.index(c) for c in ("fx", "fy", "fz")]]
+    tip, force, true_tip, true_force = its.tip_and_force_columns(f, names, truth)
     x = P = None
     z_prev, t_prev = np.zeros(f.nz), 0.0
     rows = []
@@ -102,7 +98,7 @@ def main() -> None:
             x, P = its.update(node, f, xp, Pp, z, mask, R, a.iterations, a.line_search)
         z_prev, t_prev = z, ti
         y = node.output(x)
-        J = np.asarray(f.output_jacobian(x), dtype=float).reshape(len(cols), f.nx)
+        J = np.asarray(f.output_jacobian(x), dtype=float).reshape(f.ny, f.nx)
         C = J @ P @ J.T
         e = y[tip] - true_tip[i]
         tt = true_tip[i]
