@@ -4,6 +4,7 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
+#include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
@@ -495,6 +496,15 @@ ProcessModel::QFunction q_function(nb::object fn, int nx) {
 }
 
 ProcessModel::InputFunction input_function(nb::object fn, int nz, int nu) {
+  if (nb::isinstance<CompiledInputs>(fn)) {
+    const CompiledInputs c = nb::cast<const CompiledInputs&>(fn);
+    if (c.nz != nz || c.nu != nu)
+      throw std::invalid_argument("the compiled inputs take " + std::to_string(c.nz) +
+                                  " readings and give " + std::to_string(c.nu) +
+                                  " inputs; expected " + std::to_string(nz) + " and " +
+                                  std::to_string(nu));
+    return c;
+  }
   return [fn, nz, nu](const double* z_prev, const double* z, double dt, double* u) {
     nb::gil_scoped_acquire gil;
     nb::object prev = z_prev ? nb::cast(copy_of(z_prev, {size_t(nz)})) : nb::none();
@@ -600,7 +610,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           [](StateChecks* self, int nx, std::vector<std::pair<int, int>> pairs,
              std::vector<double> diverged_r2, std::vector<double> at_bound_r,
              std::vector<int> rate_rows, double rate_limit, std::vector<int> std_rows,
-             double std_limit2) {
+             double std_limit2, std::shared_ptr<TapeFunction> flags) {
             if (diverged_r2.size() != pairs.size() || at_bound_r.size() != pairs.size())
               throw std::invalid_argument("one diverged_r2 and at_bound_r per pair");
             for (const auto& [i, j] : pairs)
@@ -609,17 +619,22 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             for (const auto* rows : {&rate_rows, &std_rows})
               for (int r : *rows)
                 if (r < 0 || r >= nx) throw std::invalid_argument("a row is outside the state");
+            if (flags && (flags->tape().input_sizes() != std::vector<int64_t>{nx} ||
+                          flags->output_size() != 3))
+              throw std::invalid_argument("flags takes the state (nx) and gives 3 values");
             new (self) StateChecks{nx, std::move(pairs), std::move(diverged_r2),
                                    std::move(at_bound_r), std::move(rate_rows), rate_limit,
-                                   std::move(std_rows), std_limit2};
+                                   std::move(std_rows), std_limit2, std::move(flags)};
           },
           nb::arg("nx"), nb::arg("pairs"), nb::arg("diverged_r2"), nb::arg("at_bound_r"),
           nb::arg("rate_rows"), nb::arg("rate_limit"), nb::arg("std_rows"),
-          nb::arg("std_limit2"),
+          nb::arg("std_limit2"), nb::arg("flags").none() = nb::none(),
           "``pairs``: the bend coordinates (i, j) of each section, with the squared radius "
           "beyond which it diverged and the radius at which it is at its bound; "
           "``rate_rows`` held to ``rate_limit`` in magnitude; ``std_rows`` whose variance "
-          "beyond ``std_limit2`` is a divergence.")
+          "beyond ``std_limit2`` is a divergence; ``flags(x) -> (diverged, at_bound, "
+          "drifted)``, a TapeFunction of the state whose nonzero values say so (none: "
+          "nothing drifts).")
       .def(
           "is_diverged",
           [](const StateChecks& c, In x, std::optional<In> P) {
@@ -634,7 +649,43 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             check_size(x, c.nx, "x");
             return c.at_bound(x.data());
           },
-          nb::arg("x"), "Whether a section's bend is at its bound.");
+          nb::arg("x"), "Whether a section's bend is at its bound.")
+      .def(
+          "drifted",
+          [](const StateChecks& c, In x) {
+            check_size(x, c.nx, "x");
+            return c.drifted(x.data());
+          },
+          nb::arg("x"), "Whether the state is not one the model holds (``flags``).");
+
+  nb::class_<CompiledInputs>(
+      m, "CompiledInputs",
+      "A model's inputs u(z_prev, z, dt) in compiled code (csrc/sensor_health.hpp): zero "
+      "where there is no previous reading or either reading has a value not finite.")
+      .def(
+          "__init__",
+          [](CompiledInputs* self, std::shared_ptr<TapeFunction> fn, int nz, int nu) {
+            if (!fn || fn->tape().input_sizes() != std::vector<int64_t>{nz, nz, 1} ||
+                fn->output_size() != nu)
+              throw std::invalid_argument("fn takes (z_prev (nz), z (nz), dt) and gives nu");
+            new (self) CompiledInputs{std::move(fn), nz, nu};
+          },
+          nb::arg("fn"), nb::arg("nz"), nb::arg("nu"),
+          "``fn(z_prev, z, dt) -> u``, a TapeFunction.")
+      .def_ro("nz", &CompiledInputs::nz, "Readings per sample.")
+      .def_ro("nu", &CompiledInputs::nu, "Inputs.")
+      .def(
+          "__call__",
+          [](const CompiledInputs& c, std::optional<In> z_prev, In z, double dt) {
+            check_size(z, c.nz, "z");
+            if (z_prev) check_size(*z_prev, c.nz, "z_prev");
+            std::vector<double> u(c.nu);
+            c(z_prev ? z_prev->data() : nullptr, z.data(), dt, u.data());
+            return u;
+          },
+          nb::arg("z_prev").none(), nb::arg("z"), nb::arg("dt"),
+          "u (nu,) from the previous reading ``z_prev`` (None: none) to ``z``, ``dt`` s "
+          "apart.");
 
   nb::class_<BoundProcessNoise>(
       m, "ProcessNoise",

@@ -38,9 +38,18 @@ bool any_positive(const std::vector<double>& v) {
 
 // --- StateChecks ------------------------------------------------------------------------
 
+bool StateChecks::flag(const double* x, int k) const {
+  if (!flags) return false;
+  double out[3];
+  const double* in[1] = {x};
+  flags->evaluate(in, out);
+  return out[k] != 0.0;
+}
+
 bool StateChecks::is_diverged(const double* x, const double* P) const {
   for (int i = 0; i < nx; ++i)
     if (!std::isfinite(x[i])) return true;
+  if (flag(x, 0)) return true;
   for (size_t k = 0; k < pairs.size(); ++k) {
     const double a = x[pairs[k].first], b = x[pairs[k].second];
     if (a * a + b * b > diverged_r2[k]) return true;
@@ -58,7 +67,23 @@ bool StateChecks::is_diverged(const double* x, const double* P) const {
 bool StateChecks::at_bound(const double* x) const {
   for (size_t k = 0; k < pairs.size(); ++k)
     if (std::hypot(x[pairs[k].first], x[pairs[k].second]) >= at_bound_r[k]) return true;
-  return false;
+  return flag(x, 1);
+}
+
+bool StateChecks::drifted(const double* x) const { return flag(x, 2); }
+
+// --- CompiledInputs ---------------------------------------------------------------------
+
+void CompiledInputs::operator()(const double* z_prev, const double* z, double dt,
+                                double* u) const {
+  bool finite = z_prev != nullptr;
+  for (int i = 0; finite && i < nz; ++i) finite = std::isfinite(z_prev[i]) && std::isfinite(z[i]);
+  if (!finite) {
+    std::fill(u, u + nu, 0.0);
+    return;
+  }
+  const double* in[3] = {z_prev, z, &dt};
+  fn->evaluate(in, u);
 }
 
 // --- ProcessModel -----------------------------------------------------------------------
@@ -585,6 +610,10 @@ bool SensorHealth::diverged(const double* x, const double* P) {
   return s_.checks ? s_.checks->is_diverged(x, P) : inference_.is_diverged(x, P);
 }
 
+bool SensorHealth::state_drifted(const double* x) {
+  return s_.checks ? s_.checks->drifted(x) : inference_.drifted(x);
+}
+
 bool SensorHealth::changed_too_fast(double t, const double* x, const double* P) {
   const auto& rows = s_.change_rows;
   const int m = static_cast<int>(rows.size()), nx = s_.nx;
@@ -813,10 +842,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // no estimate of that start is ok (drifted where the model's error states have left
     // their prior: that says more), until the next restart
     ++diagnostics.untrusted_start_samples;
-    if (status == ST_OK) status = inference_.drifted(x) ? ST_DRIFTED : ST_UNCERTAIN;
+    if (status == ST_OK) status = state_drifted(x) ? ST_DRIFTED : ST_UNCERTAIN;
   }
   if (check_start) start_remember(t, z, x, P, has_state, has_cov);
-  if (status == ST_OK && has_state && !s_.checks && inference_.drifted(x)) status = ST_DRIFTED;
+  if (status == ST_OK && has_state && state_drifted(x)) status = ST_DRIFTED;
   if (trusted(status) && !observed) {
     status = ST_UNCERTAIN;  // the data do not determine the shape
   } else if (trusted(status) && !returned_.empty()) {

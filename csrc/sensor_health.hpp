@@ -15,6 +15,7 @@
 #include <deque>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -22,6 +23,7 @@
 #include <vector>
 
 #include "consistency.hpp"
+#include "model_function.hpp"
 
 namespace cmhe {
 
@@ -120,11 +122,23 @@ class ProcessModel {
   std::vector<double> scratch_, u_;
 };
 
+// A model's inputs in compiled code: ``fn(z_prev, z, dt) -> u`` (inputs of nz, nz and 1
+// values, nu outputs); u is zero where there is no previous reading or either reading
+// has a value that is not finite (a dropout)
+struct CompiledInputs {
+  std::shared_ptr<const TapeFunction> fn;
+  int nz = 0, nu = 0;
+  void operator()(const double* z_prev, const double* z, double dt, double* u) const;
+};
+
 // A formulation's checks of a state as data (continuum_mhe.model.formulations:
 // ``is_diverged``, ``at_bound``): not finite; a pair of bend coordinates (i, j) with
 // ``x_i^2 + x_j^2`` beyond its ``diverged_r2``, or a rate row beyond ``rate_limit`` in
 // magnitude; a covariance not finite or with a ``std_rows`` variance beyond
-// ``std_limit2``. At its bound: ``hypot(x_i, x_j) >= at_bound_r`` of a pair.
+// ``std_limit2``. At its bound: ``hypot(x_i, x_j) >= at_bound_r`` of a pair. Beside
+// these, a formulation's own rules as a model function ``flags(x) -> (diverged,
+// at_bound, drifted)``, each nonzero where it holds (``drifted``: ``ok`` becomes
+// ``drifted``); without it nothing drifts.
 struct StateChecks {
   int nx = 0;
   std::vector<std::pair<int, int>> pairs;
@@ -133,8 +147,13 @@ struct StateChecks {
   double rate_limit = INFINITY;
   std::vector<int> std_rows;
   double std_limit2 = INFINITY;
+  std::shared_ptr<const TapeFunction> flags;  // none: no rules of its own
   bool is_diverged(const double* x, const double* P) const;  // P may be nullptr
   bool at_bound(const double* x) const;
+  bool drifted(const double* x) const;
+
+ private:
+  bool flag(const double* x, int k) const;  // flags(x)[k] nonzero (false without flags)
 };
 
 // The policy's fixed data (recovery settings: NaN where off)
@@ -320,6 +339,7 @@ class SensorHealth {
   bool consistency_check(double t, const double* z, const double* judged, const double* x,
                          const double* P, bool has_state, bool has_cov);
   bool diverged(const double* x, const double* P);
+  bool state_drifted(const double* x);  // the checks' drifted, else the inference's
   // Whether the change-test states moved between the estimate ``change_lag`` ago and
   // this one (x, P) beyond what their model allows: the change d against the covariance
   // the information gained and their random walk give it, ``P_then + Q(dt) - P_now``;

@@ -807,9 +807,9 @@ class StateChecks:
     A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at its bound.
     """
 
-    def __init__(self, nx: int, pairs: Sequence[tuple[int, int]], diverged_r2: Sequence[float], at_bound_r: Sequence[float], rate_rows: Sequence[int], rate_limit: float, std_rows: Sequence[int], std_limit2: float) -> None:
+    def __init__(self, nx: int, pairs: Sequence[tuple[int, int]], diverged_r2: Sequence[float], at_bound_r: Sequence[float], rate_rows: Sequence[int], rate_limit: float, std_rows: Sequence[int], std_limit2: float, flags: TapeFunction | None = None) -> None:
         """
-        ``pairs``: the bend coordinates (i, j) of each section, with the squared radius beyond which it diverged and the radius at which it is at its bound; ``rate_rows`` held to ``rate_limit`` in magnitude; ``std_rows`` whose variance beyond ``std_limit2`` is a divergence.
+        ``pairs``: the bend coordinates (i, j) of each section, with the squared radius beyond which it diverged and the radius at which it is at its bound; ``rate_rows`` held to ``rate_limit`` in magnitude; ``std_rows`` whose variance beyond ``std_limit2`` is a divergence; ``flags(x) -> (diverged, at_bound, drifted)``, a TapeFunction of the state whose nonzero values say so (none: nothing drifts).
         """
 
     def is_diverged(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)] | None) -> bool:
@@ -817,6 +817,30 @@ class StateChecks:
 
     def at_bound(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> bool:
         """Whether a section's bend is at its bound."""
+
+    def drifted(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> bool:
+        """Whether the state is not one the model holds (``flags``)."""
+
+class CompiledInputs:
+    """
+    A model's inputs u(z_prev, z, dt) in compiled code (csrc/sensor_health.hpp): zero where there is no previous reading or either reading has a value not finite.
+    """
+
+    def __init__(self, fn: TapeFunction, nz: int, nu: int) -> None:
+        """``fn(z_prev, z, dt) -> u``, a TapeFunction."""
+
+    @property
+    def nz(self) -> int:
+        """Readings per sample."""
+
+    @property
+    def nu(self) -> int:
+        """Inputs."""
+
+    def __call__(self, z_prev: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)] | None, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], dt: float) -> list[float]:
+        """
+        u (nu,) from the previous reading ``z_prev`` (None: none) to ``z``, ``dt`` s apart.
+        """
 
 class ProcessNoise:
     """

@@ -218,7 +218,7 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
             return None
         return _core.KalmanInference(
             self._node.core, _KalmanHooks(self), np.ascontiguousarray(self._R, dtype=float),
-            self._q.compiled, self.formulation.inputs,
+            self._q.compiled, self.formulation.input_function,
         )  # fmt: skip
 
     def output(self, state: FloatArray) -> FloatArray:
@@ -474,7 +474,7 @@ class UnscentedKalmanInference(_KalmanBase):
             return None
         return _core.KalmanInference(
             self._node.core, _KalmanHooks(self), f64(self._R), self._q.compiled,
-            self.formulation.inputs, self._unscented,
+            self.formulation.input_function, self._unscented,
         )  # fmt: skip
 
     def output(self, state: FloatArray) -> FloatArray:

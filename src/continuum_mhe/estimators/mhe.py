@@ -777,7 +777,7 @@ class MovingHorizonInference(Inference):
         f = self.formulation
         return _core.HorizonInference(
             self._window, _HorizonHooks(self), not self._hooks, self.flags_outliers,
-            OUTLIER_WEIGHT, self._process_weight.compiled, f.inputs,
+            OUTLIER_WEIGHT, self._process_weight.compiled, f.input_function,
         )  # fmt: skip
 
     def _keep(

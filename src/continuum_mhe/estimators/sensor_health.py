@@ -413,7 +413,7 @@ class Estimator(Generic[InferenceT]):
             degrees_like=DEGREES_LIKE,
             whole_rows=self._tension_block_rows,
             process_noise=self.process_noise,
-            inputs=f.inputs,
+            inputs=f.input_function,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
             checks=f.state_checks(),
             # a covariance's standard deviations (not the paper formulation's weight W,

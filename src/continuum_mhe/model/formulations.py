@@ -34,9 +34,10 @@ from __future__ import annotations
 
 import contextlib
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property, lru_cache
-from typing import ClassVar
+from typing import ClassVar, TypeAlias
 
 import casadi as ca
 import numpy as np
@@ -58,6 +59,12 @@ from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSettings
+
+#: A model's inputs as the compiled core takes them: ``(z_prev | None, z, dt) -> u``
+#: called back in Python, or taped (:meth:`Formulation.input_function`).
+InputFunction: TypeAlias = (
+    "Callable[[FloatArray | None, FloatArray, float], FloatArray] | _core.CompiledInputs"
+)
 
 
 @dataclass(frozen=True)
@@ -503,6 +510,14 @@ class Formulation:
     def inputs(self, z_prev: FloatArray | None, z: FloatArray, dt: float) -> FloatArray:
         """Input ``u`` driving the transition into the sample with measurement ``z``."""
         return np.zeros(self.nu)
+
+    @property
+    def input_function(self) -> InputFunction:
+        """:meth:`inputs` as the compiled core takes it: the method itself, called back
+        from the core (none is, where ``nu`` is 0); a formulation whose inputs are taped
+        gives their :class:`~continuum_mhe._core.CompiledInputs`, which the core evaluates
+        without Python."""
+        return self.inputs
 
     def project(self, x: FloatArray) -> FloatArray:
         """Closest feasible state (used only for flagged fallbacks)."""

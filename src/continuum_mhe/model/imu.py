@@ -166,6 +166,21 @@ def shape_from_tilt(
     return theta, phi
 
 
+def shape_from_tilt_sym(z: Sym, mounting: Mounting = "z-up") -> tuple[Sym, Sym]:
+    """:func:`shape_from_tilt` of one reading ``z = (roll, pitch)``, symbolically."""
+    r3 = _up_sign(mounting) * gravity_direction_from_tilt_sym(z)
+    theta = ca.acos(ca.fmin(ca.fmax(r3[2], -1.0), 1.0))
+    phi = ca.if_else(theta == 0.0, 0.0, ca.atan2(r3[1], r3[0]))
+    return theta, phi
+
+
+def wrap_angle_sym(x: Sym) -> Sym:
+    """:func:`wrap_angle`, symbolically: ``x`` wrapped to ``[-pi, pi)``."""
+    turn = 2 * math.pi
+    rest = ca.fmod(x + math.pi, turn)  # numpy's % of a positive divisor: fmod, then
+    return ca.if_else(rest < 0, rest + turn, rest) - math.pi  # made non-negative
+
+
 def gravity_direction_from_tilt(z: ArrayLike) -> FloatArray:
     """Unit specific-force direction (..., 3) in the tip frame from ``(roll, pitch)``
     (..., 2) in radians; any angles, e.g. a pitch past +-pi/2 (numpy)."""
