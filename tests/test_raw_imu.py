@@ -4,6 +4,7 @@ acceleration."""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from collections.abc import Callable
@@ -283,7 +284,7 @@ def test_estimate_cli_on_raw_csv(tmp_path: Path, moving_tip: dict[str, np.ndarra
         ",".join(repr(float(v)) for v in (ti, *a, *g)) for ti, a, g in zip(t, acc, gyr)
     ]
     raw = _write(tmp_path / "raw.csv", "\n".join(rows) + "\n")
-    for model, extra in (("tilt", ["--attitude", "madgwick"]), ("direct", [])):
+    for model, extra in (("tilt", ["--attitude", "mahony"]), ("direct", [])):
         out = tmp_path / f"est_{model}.csv"
         assert (
             main(
@@ -938,17 +939,21 @@ def test_one_imu_of_several_in_g_is_named(
     assert not out.exists()
 
 
-def test_madgwick_without_calibrated_gyro_biases_is_warned(tmp_path: Path) -> None:
-    """``--attitude madgwick`` on IMUs without a calibrated ``gyro_bias`` says that the
-    filter's attitude drifts with the bias (the shipped planar-s rod's IMU 1, whose bias
-    across gravity exceeds the filter's correction rate, drifts 22 degrees from the
-    accelerometer's tilt in 12 s, and every row is ``ok``); not once every IMU has one,
-    nor with mahony, which estimates the bias."""
-    import warnings
-
+def test_madgwick_without_calibrated_gyro_biases_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--attitude madgwick`` on IMUs without a calibrated ``gyro_bias`` is refused in
+    one line (exit 2) naming the IMUs, calibration and mahony: the filter estimates no
+    bias, and the shipped planar-s rod's IMU 1, whose bias across gravity exceeds the
+    filter's correction rate, turns its tilt further every second while every row stays
+    ``ok``. ``live`` and an options file (an estimate's options line) naming it are
+    refused alike. With
+    every IMU's bias calibrated it runs, and on the whole planar-s rod no ``ok`` row is
+    more than 4 standard deviations off at the tip; mahony, which estimates the bias,
+    runs uncalibrated."""
     from ahrs.filters import Madgwick
 
-    from continuum_mhe.io.input_options import MADGWICK_CORRECTION_RATE, OptionWarning
+    from continuum_mhe.io.input_options import MADGWICK_CORRECTION_RATE
 
     assert MADGWICK_CORRECTION_RATE == pytest.approx(2 * Madgwick().gain_imu)
     rod = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
@@ -963,22 +968,39 @@ def test_madgwick_without_calibrated_gyro_biases_is_warned(tmp_path: Path) -> No
     one_bare = tmp_path / "one.toml"
     one_bare.write_text(calibrated.read_text().replace(imu.format(2), "[[imu]]\nsection = 2\n"))
     out = tmp_path / "est.csv"
-    said = {}
-    for name, robot, attitude in (
-        ("bare", "two-section", "madgwick"),
-        ("one bare", str(one_bare), "madgwick"),
-        ("calibrated", str(calibrated), "madgwick"),
-        ("mahony", "two-section", "mahony"),
-    ):
-        argv = ["estimate", str(raw), "--robot", robot, "--imu-model", "tilt", "--attitude",
-                attitude, "--method", "ekf", "-o", str(out), "--overwrite"]  # fmt: skip
-        with warnings.catch_warnings(record=True) as seen:
-            warnings.simplefilter("always")
-            assert main(argv) == 0
-        said[name] = [str(w.message) for w in seen if w.category is OptionWarning]
-    assert [len(said[k]) for k in said] == [1, 1, 0, 0], said
-    assert said["bare"][0].startswith(
-        "--attitude madgwick without a calibrated gyro_bias for IMU 1, 2 in the robot file"
+
+    def estimate(source: Path, robot: str, *options: str) -> tuple[int, str]:
+        argv = ["estimate", str(source), "--robot", robot, *options, "--method", "ekf",
+                "-o", str(out), "--overwrite"]  # fmt: skip
+        code = main(argv)
+        return code, capsys.readouterr().err
+
+    tilt = ("--imu-model", "tilt", "--attitude")
+    code, err = estimate(raw, "two-section", *tilt, "madgwick")
+    assert code == 2 and err.count("\n") == 1 and not out.exists(), err
+    assert err.startswith(
+        f"continuum-mhe: error: {raw}: --attitude madgwick needs a calibrated gyro_bias for "
+        "IMU 1, 2 in the robot file: the Madgwick filter estimates no gyro bias"
     )
-    assert "for IMU 2 in the robot file" in said["one bare"][0]
-    assert "continuum-mhe calibrate" in said["bare"][0] and "mahony" in said["bare"][0]
+    assert "continuum-mhe calibrate" in err and "--attitude mahony" in err
+    code, err = estimate(raw, str(one_bare), "--attitude", "madgwick")  # tilt by the attitude
+    assert code == 2 and err.count("\n") == 1 and "for IMU 2 in the robot file" in err, err
+    live = ["live", "--port", str(tmp_path / "none"), "--format", "raw", "--robot"]
+    assert main([*live, "two-section", *tilt, "madgwick"]) == 2  # before the port opens
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "madgwick needs a calibrated gyro_bias for IMU 1, 2" in err
+    assert estimate(raw, "two-section", *tilt, "mahony")[0] == 0
+    assert estimate(raw, str(calibrated), *tilt, "madgwick")[0] == 0
+    recorded = tmp_path / "recorded.csv"
+    out.rename(recorded)  # its options line: attitude = "madgwick"
+    code, err = estimate(raw, "two-section", "--config", str(recorded))
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--attitude madgwick (from the options file) needs a calibrated gyro_bias" in err
+    cal = tmp_path / "planar-s.toml"
+    assert main(["calibrate", "--from", str(rod / "planar-s_rest.csv"), "--robot",
+                 "two-section", "--write-robot", str(cal)]) == 0  # fmt: skip
+    assert estimate(rod / "planar-s_raw.csv", str(cal), *tilt, "madgwick")[0] == 0
+    truth = rod / "planar-s_truth.csv"
+    assert main(["evaluate", str(out), str(truth), "--robot", str(cal), "--json"]) == 0
+    ok = json.loads(capsys.readouterr().out)["calibration_ok"]
+    assert ok["tip_far_of"] > 590 and ok["tip_far"] == 0, ok  # measured: 0 of 600

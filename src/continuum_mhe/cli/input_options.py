@@ -61,10 +61,13 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         choices=ATTITUDES,
         default="accel",
         help="for --imu-model tilt: accel (accelerometer only, default), or madgwick / "
-        "mahony gyro fusion from the ahrs package; both measurably worse than the default "
-        "direct model (planar-S rod, EKF: madgwick 33 mm, mahony 5.8 mm, direct 3.8 mm "
-        "mean tip error; docs/options.md), but for mahony on the spatial rod, where every "
-        "estimator loses the bend's branch (MHE: 60.63 against 68.51 mm)",
+        "mahony gyro fusion from the ahrs package. madgwick estimates no gyro bias: it is "
+        "refused unless the robot file gives every IMU a calibrated gyro_bias (calibrate "
+        "--from REST.csv --write-robot); mahony estimates the bias. Both measurably worse "
+        "than the default direct model (planar-S rod, EKF mean tip error: mahony 5.8 mm "
+        "against 3.8 mm; calibrated madgwick 3.7, mahony 2.8, direct 2.2 mm; "
+        "docs/options.md), but for mahony on the spatial rod, where every estimator loses "
+        "the bend's branch (MHE: 60.63 against 68.51 mm)",
     )
     g.add_argument(
         "--mount-rpy",

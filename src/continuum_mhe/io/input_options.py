@@ -205,30 +205,33 @@ def formulation_for(
 MADGWICK_CORRECTION_RATE = 2 * 0.033
 
 
-def warn_uncalibrated_madgwick(raw: RawImuSettings, robot: Robot) -> None:
-    """One :class:`OptionWarning` where ``--attitude madgwick`` fuses the gyros of IMUs
-    without a calibrated ``gyro_bias`` in the robot file: the Madgwick filter estimates
-    no gyro bias, and one across gravity beyond :data:`MADGWICK_CORRECTION_RATE` turns
-    its attitude further and further. The tilt model fits two sections' bends to two
-    IMUs' readings exactly, so the readings' fit does not show it, and the rows stay
-    ``ok`` however far off."""
-    if raw.imu_model != "tilt" or raw.attitude != "madgwick":
+def refuse_uncalibrated_madgwick(name: str, options: InputOptions, robot: Robot) -> None:
+    """Refuse ``--attitude madgwick`` (one line naming ``name`` and the IMUs) where an
+    IMU has no calibrated ``gyro_bias`` in the robot file. The Madgwick filter estimates
+    no gyro bias: one across gravity beyond :data:`MADGWICK_CORRECTION_RATE` turns its
+    roll and pitch by the excess every second, without bound, so no widening of the
+    readings' noise covers it. The tilt model fits two sections' bends to two IMUs'
+    readings exactly, so the readings' fit does not show it, and the rows would stay
+    ``ok`` however far off. Mahony estimates the bias, and a calibrated bias is
+    subtracted before either filter."""
+    raw = options.raw
+    if raw.imu_model == "direct" or raw.attitude != "madgwick":  # None: tilt, decided later
         return
     bare = [str(i) for i, imu in enumerate(robot.imus, start=1) if not any(imu.gyro_bias)]
     if not bare:
         return
     which = f"IMU {', '.join(bare)}" if robot.n_imus > 1 else "the IMU"
-    warnings.warn(
-        f"--attitude madgwick without a calibrated gyro_bias for {which} in the robot "
-        "file: the Madgwick filter estimates no gyro bias, and one beyond "
+    given = "--attitude madgwick" + (
+        " (from the options file)" if "attitude" in options.from_profile else ""
+    )
+    raise InputError(
+        f"{name}: {given} needs a calibrated gyro_bias for {which} in the robot file: "
+        "the Madgwick filter estimates no gyro bias, and one beyond "
         f"{MADGWICK_CORRECTION_RATE:.3f} rad/s across gravity turns its roll and pitch "
-        "further and further, an error no reading shows and the standard deviations do "
-        "not carry (the shipped planar-s rod: 33 mm at the tip, 405 of 600 ok rows more "
-        "than 4 standard deviations off, against 3.7 mm calibrated); calibrate at rest "
-        "first (continuum-mhe calibrate --from REST.csv --write-robot), or use --attitude "
-        "mahony, which estimates the bias",
-        OptionWarning,
-        stacklevel=4,
+        "further every second, an error no reading shows and no standard deviation "
+        "carries (the shipped planar-s rod: 33 mm at the tip, 405 of 600 ok rows more than "
+        "4 standard deviations off); calibrate at rest first (continuum-mhe calibrate "
+        "--from REST.csv --write-robot), or use --attitude mahony, which estimates the bias"
     )
 
 

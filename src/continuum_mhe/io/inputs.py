@@ -62,7 +62,7 @@ from continuum_mhe.io.input_options import (
     formulation_for,
     imu_settings_for,
     note_mounting_checked,
-    warn_uncalibrated_madgwick,
+    refuse_uncalibrated_madgwick,
     with_imu_model,
 )
 from continuum_mhe.io.raw_imu import (
@@ -252,15 +252,15 @@ def decide_model(
     raw vectors with gyros take the direct model unless ``--imu-model`` says otherwise),
     the formulation made (:func:`~continuum_mhe.io.input_options.formulation_for`),
     an IMU model or attitude filter that needs gyros refused without them, and
-    ``--attitude madgwick`` on IMUs without a calibrated gyro bias warned of
-    (:func:`~continuum_mhe.io.input_options.warn_uncalibrated_madgwick`)."""
+    ``--attitude madgwick`` on IMUs without a calibrated gyro bias refused
+    (:func:`~continuum_mhe.io.input_options.refuse_uncalibrated_madgwick`)."""
     raw_input = kind != "tilt-csv"
+    if raw_input and has_gyro and not options.use_orientation:  # before any warning
+        refuse_uncalibrated_madgwick(name, options, base.robot)
     options = with_imu_model(options, base, raw_input, has_gyro)
     f = formulation_for(options, base, raw_input, Path(name))
     if raw_input and not options.use_orientation and options.raw.needs_gyro and not has_gyro:
         raise InputError(f"{name}: {_gyro_user(options.raw)} needs gyro columns gx, gy, gz")
-    if raw_input and not options.use_orientation:
-        warn_uncalibrated_madgwick(options.raw, base.robot)
     return options, f
 
 

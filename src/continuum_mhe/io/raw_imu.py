@@ -77,7 +77,10 @@ class RawImuSettings:
             input ``"tilt"``; :func:`continuum_mhe.io.input_options.with_imu_model`).
             A converter treats None as ``"tilt"``.
         attitude: for ``tilt``: ``"accel"`` (accelerometer only), ``"madgwick"`` or
-            ``"mahony"`` (gyro fusion by the ``ahrs`` package; needs the gyro).
+            ``"mahony"`` (gyro fusion by the ``ahrs`` package; needs the gyro). Madgwick
+            estimates no gyro bias: reading an input refuses it without a calibrated
+            ``gyro_bias`` for every IMU
+            (:func:`~continuum_mhe.io.input_options.refuse_uncalibrated_madgwick`).
         mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X:
             ``v_tip = Rz(yaw) Ry(pitch) Rx(roll) v_sensor``. Zero when the sensor
             axes already match the tip frame.
