@@ -1072,13 +1072,16 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     drift_since_ = NAN;
     drift_armed_ = true;
   }
+  const double probation = std::isnan(s_.bad_start) ? unobserved_window()
+                                                    : std::max(s_.bad_start, unobserved_window());
   if (status == ST_DRIFTED) {
+    // rows drifted again within the probation time after such a restart: the model
+    // still does not follow, and the rows after them are no more trusted than the
+    // restart's (a drifted row ends the restart's hold only where it comes later)
+    if (t - drifted_t_ > probation) restarted_since_drift_ = false;
     drifted_t_ = t;
-    restarted_since_drift_ = false;
   } else if (restarted_since_drift_ && trusted(status) && s_.checks_start) {
-    const double window = std::isnan(s_.bad_start) ? unobserved_window()
-                                                   : std::max(s_.bad_start, unobserved_window());
-    if (0.0 <= t - drifted_t_ && t - drifted_t_ <= window) status = ST_UNCERTAIN;
+    if (0.0 <= t - drifted_t_ && t - drifted_t_ <= probation) status = ST_UNCERTAIN;
   }
   out.outlier = has_state && inference_.outlier();
   // the reject reset's run; a sample without readings neither ends nor extends it. An

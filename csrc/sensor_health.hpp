@@ -415,7 +415,8 @@ class SensorHealth {
   bool start_untrusted_ = false;  // the inference did not trust the current start
   bool start_judged_ = false;     // ... asked, at the start's first IMU reading
   // the last drifted row's time (-inf: none), kept across restarts, and whether the
-  // estimator restarted after it
+  // estimator restarted after it or after a drifted row within the probation time before
+  // it (rows drifted again soon after a restart keep the hold on the rows after them)
   double drifted_t_ = -INFINITY;
   // the samples since the last valid one that lacked the whole rows, and whether one
   // lacked every reading otherwise (a plain gap)
