@@ -275,6 +275,39 @@ def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> N
     est.continue_run(fast, direct_measurements(np.tile(acc, (1500, 1)), turn))
 
 
+@pytest.mark.parametrize("method", ["mhe", "ekf"])
+def test_refused_samples_do_not_count_toward_the_gyro_unit_check(method) -> None:
+    """Samples the estimator refuses (a time not after the one before, handed to ``step``
+    one by one, or inside a ``continue_run`` block, which is then refused whole) are not
+    estimated, and their gyros do not enter the median of the unit check: rad/s readings,
+    each followed by two repeats of its time whose gyros read in deg/s (a resent packet,
+    refused), run through; so does the rad/s stream after a refused block in deg/s.
+    Counted, the deg/s readings would make the median read as deg/s."""
+    from continuum_mhe import SampleTimeError
+    from continuum_mhe.io.raw_units import UNIT_CHECK_SAMPLES
+    from continuum_mhe.model.direct import direct_measurements
+
+    n = UNIT_CHECK_SAMPLES + 20
+    t = np.arange(n) * 0.02
+    acc = np.array([[0.3, -0.2, 9.79]])
+    rad_s = np.tile(direct_measurements(acc, np.radians([[30.0, 5.0, 0.0]])), (n, 1))
+    deg_s = rad_s.copy()
+    deg_s[:, 3:] = np.degrees(deg_s[:, 3:])
+    est = make_estimator(method, make_formulation("direct"))
+    for k in range(n):
+        est.step(Measurement(float(t[k]), rad_s[k]))
+        for _ in range(2):
+            with pytest.raises(SampleTimeError, match="later than the previous"):
+                est.step(Measurement(float(t[k]), deg_s[k]))
+    est.reset()
+    back = t[:90].copy()
+    back[-1] = back[-2]  # the block's last time repeats the one before: refused whole
+    with pytest.raises(SampleTimeError, match="later than the previous"):
+        est.continue_run(back, deg_s[:90])
+    est.continue_run(t[:60], rad_s[:60])  # 1.18 s: with the refused block's, fewer than half
+    assert np.isfinite(est.continue_run(t[60:], rad_s[60:]).output).all()
+
+
 def test_each_raw_imus_first_full_reading_is_checked_by_step() -> None:
     """With one IMU silent from the start, the other's readings in m/s^2 are still
     refused at its first reading (the check does not wait for a sample with every IMU)."""

@@ -587,7 +587,7 @@ class Estimator(Generic[InferenceT]):
                 IMU's
                 specific force that is not a unit vector (each IMU's first full reading
                 after a reset is checked) or a gyro in deg/s (the median of each IMU's
-                first full readings after a reset, at least
+                first full readings after a reset, of samples not refused, at least
                 :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SAMPLES` over at least a
                 second: the samples before are estimated; ``run`` checks the whole
                 recording; both a :class:`~.reading_units.ReadingUnitsError`, raised
@@ -625,6 +625,9 @@ class Estimator(Generic[InferenceT]):
         if self._tension_rows:
             z = self._check_tensions(z[None, :], times, stacklevel=3)[0]
         if not self._units.done:
+            # a sample the policy refuses is no reading of the stream: its refusal first,
+            # before the unit check counts it
+            self._refuse_before_stepping(times, z[None, :])
             problem = self._units.see(times, z[None, :])
             if problem is not None:
                 raise ReadingUnitsError(problem)
@@ -968,11 +971,11 @@ class Estimator(Generic[InferenceT]):
             raise UserError(
                 "continue_run: starts needs block (the samples stepped from each start)"
             )
+        self._refuse_before_stepping(t, z)  # before the unit check counts what it refuses
         if check_units and not self._units.done:
             problem = self._units.see(t, z)
             if problem is not None:
                 raise ReadingUnitsError(problem)
-        self._refuse_before_stepping(t, z)
         self._warn_step_problem(t, "continue_run")
         if check_mounting_start:  # (at once where its samples are in and checked)
             self.mounting_watch.see(z, "continue_run")
