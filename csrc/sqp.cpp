@@ -374,6 +374,7 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
   double prev = kInf;       // previous full step (inf after a shortened one)
   bool prev_exact = false;  // ... and whether it was an exact Newton step
   Index prev_active = 1;    // ... and its QP's number of active constraints
+  double rate = 0.0;        // the largest |d_k| / |d_k-1|^2 over consecutive full steps
   for (Index it = 1; it <= opt.max_iter; ++it) {
     if (!std::isfinite(cost)) return {LINE_SEARCH_FAILED, it, step, cost, cur};
     QPResult qp = solve_qp<NX>(n, nx, X(cur), Dp(cur), Ep(cur), gp(cur), fs, opt.max_qp_iter,
@@ -391,13 +392,14 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
     for (Index i = 0; i < n; ++i)
       for (Index j = 0; j < nx; ++j) step = std::max(step, std::fabs(d[i * nx + j]) * scale[j]);
     const int tr = 1 - cur;
+    if (prev < kInf) rate = std::max(rate, step / (prev * prev));
     const bool contracted = qp.active == 0 && prev < kInf && step <= 0.5 * prev;
     double err = kInf;  // the estimated error of X_k + d_k
     if (contracted) {
       err = step * step / (prev - step);
       if (!step_exact) err *= kContractionSafety;
       if (opt.quadratic && exact && prev_exact && prev_active == 0)  // two Newton steps
-        err = std::min(err, kQuadraticSafety * (step * (step * step)) / (prev * prev));
+        err = std::min(err, kQuadraticSafety * rate * (step * step));
     }
     // a Gauss-Newton step's size says less of the error left (its rate may be slow)
     const double step_tol = step_exact ? opt.step_tol : opt.step_tol / kContractionSafety;
