@@ -118,7 +118,19 @@ void cmhe::bind_filter(nb::module_& m) {
           "``(x+, P+, y, std)``.")
       .def_prop_ro("log_likelihood", [](NodeModel& n) { return n.log_likelihood; },
                    "The last EKF step's innovation log-density, ``-(r^T S^-1 r + log|S|) / 2`` "
-                   "(its constant left out); NaN where the step had no valid reading.")
+                   "(its constant left out); NaN where the step had no valid reading. With "
+                   "``likelihood_given`` rows: the other components' density given those "
+                   "(the whole density less theirs), NaN where theirs has no Cholesky factor.")
+      .def_prop_rw(
+          "likelihood_given", [](NodeModel& n) { return n.likelihood_given; },
+          [](NodeModel& n, std::vector<int64_t> rows) {
+            for (int64_t i : rows)
+              if (i < 0 || i >= n.nz())
+                throw std::out_of_range("likelihood_given: a row outside the measurement");
+            n.likelihood_given = std::move(rows);
+          },
+          "The measurement components (0-based rows) on which ``log_likelihood`` is "
+          "conditioned; empty (the default): the whole innovation's density.")
       .def_prop_ro("step_seconds", [](NodeModel& n) { return n.step_seconds; },
                    "Wall time of the last ``ekf_step_outputs`` call's arithmetic (the "
                    "step, the outputs and their standard deviations; not its arrays' "

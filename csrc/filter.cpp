@@ -233,8 +233,37 @@ bool NodeModel::ekf_step(double* x, double* P, const double* u, double dt, const
   log_likelihood = NAN;
   if (!any_valid(mask, nz)) return true;
   evaluate(x, u, dt, z, mask);
-  return ekf_update(x, P, out_.data() + k + nz * nx, out_.data() + k, R, nx, nz,
-                    &log_likelihood);
+  const double *H = out_.data() + k, *r = H + nz * nx;
+  double given = 0.0;
+  const bool conditioned = likelihood_given.empty() || given_log_density(P, r, H, R, &given);
+  const bool updated = ekf_update(x, P, r, H, R, nx, nz, &log_likelihood);
+  log_likelihood = conditioned ? log_likelihood - given : NAN;
+  return updated;
+}
+
+bool NodeModel::given_log_density(const double* P, const double* r, const double* H,
+                                  const double* R, double* out) const {
+  const int nx = nx_, nz = nz_, nb = static_cast<int>(likelihood_given.size());
+  std::vector<double> Hb(nb * nx), HP(nb * nx), S(nb * nb), L(nb * nb);
+  for (int a = 0; a < nb; ++a)
+    for (int j = 0; j < nx; ++j) Hb[a * nx + j] = H[likelihood_given[a] * nx + j];
+  small::mul(Hb.data(), P, HP.data(), nb, nx, nx);
+  small::mul_t(HP.data(), Hb.data(), S.data(), nb, nx, nb);
+  for (int a = 0; a < nb; ++a)
+    for (int b = 0; b < nb; ++b) S[a * nb + b] += R[likelihood_given[a] * nz + likelihood_given[b]];
+  if (!small::cholesky(S.data(), L.data(), nb)) return false;
+  // -(r_b^T S_bb^-1 r_b + log|S_bb|) / 2 by forward substitution, w = L^-1 r_b
+  double q = 0.0, half_log_det = 0.0;
+  std::vector<double> w(nb);
+  for (int a = 0; a < nb; ++a) {
+    double t = r[likelihood_given[a]];
+    for (int b = 0; b < a; ++b) t -= L[a * nb + b] * w[b];
+    w[a] = t / L[a * nb + a];
+    q += w[a] * w[a];
+    half_log_det += std::log(L[a * nb + a]);
+  }
+  *out = -0.5 * q - half_log_det;
+  return true;
 }
 
 void NodeModel::output(const double* x, double* y) {

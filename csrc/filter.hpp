@@ -85,10 +85,20 @@ class NodeModel {
   // outputs and their standard deviations; not its arrays' conversion), s
   double step_seconds = 0.0;
   // the last ``ekf_step``'s innovation log-density (``ekf_update``); NaN where it had no
-  // valid reading
+  // valid reading. With ``likelihood_given`` rows: the density of the other components
+  // given those rows (the whole density less the given rows' own), NaN where the given
+  // rows' innovation covariance has no Cholesky factor
   double log_likelihood = NAN;
+  // the rows (measurement components) on which ``log_likelihood`` is conditioned; none:
+  // the whole innovation's density
+  std::vector<int64_t> likelihood_given;
 
  private:
+  // the innovation log-density of the ``likelihood_given`` rows alone, with the residual
+  // ``r`` and ``H`` at the predicted state and its covariance ``P``; false where their
+  // innovation covariance has no Cholesky factor
+  bool given_log_density(const double* P, const double* r, const double* H, const double* R,
+                         double* out) const;
   void set_sample(const double* u, double dt, const double* z, const double* mask);
   // x into x_, then the node functions' inputs (x, u, dt, z, mask) of the sample set
   std::array<const double*, 5> inputs(const double* x);

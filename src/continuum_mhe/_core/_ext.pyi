@@ -305,8 +305,17 @@ class NodeModel:
     @property
     def log_likelihood(self) -> float:
         """
-        The last EKF step's innovation log-density, ``-(r^T S^-1 r + log|S|) / 2`` (its constant left out); NaN where the step had no valid reading.
+        The last EKF step's innovation log-density, ``-(r^T S^-1 r + log|S|) / 2`` (its constant left out); NaN where the step had no valid reading. With ``likelihood_given`` rows: the other components' density given those (the whole density less theirs), NaN where theirs has no Cholesky factor.
         """
+
+    @property
+    def likelihood_given(self) -> list[int]:
+        """
+        The measurement components (0-based rows) on which ``log_likelihood`` is conditioned; empty (the default): the whole innovation's density.
+        """
+
+    @likelihood_given.setter
+    def likelihood_given(self, arg: Sequence[int], /) -> None: ...
 
     @property
     def step_seconds(self) -> float:

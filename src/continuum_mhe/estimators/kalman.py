@@ -15,6 +15,7 @@ The ``*Inference`` classes are the filters alone (inference objects);
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -178,9 +179,22 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
         #: (state, outputs, output std, covariance) of the last compiled call
         self._outputs_of: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
         #: the last :meth:`infer`'s innovation log-density ``-(r^T S^-1 r + log|S|) / 2``
-        #: (NaN for a start, and for a sample without a valid reading)
+        #: (NaN for a start, and for a sample without a valid reading); with
+        #: :attr:`likelihood_given`, the other components' density given those
         self.log_likelihood = math.nan
         super().__init__(formulation)
+
+    @property
+    def likelihood_given(self) -> tuple[int, ...]:
+        """The measurement components (rows of ``z``) on which :attr:`log_likelihood` is
+        conditioned: it is then the density of the others given them (the whole density
+        less theirs; NaN where theirs has no Cholesky factor). Empty, the default: the
+        whole innovation's density."""
+        return tuple(int(i) for i in self._node.core.likelihood_given)
+
+    @likelihood_given.setter
+    def likelihood_given(self, rows: Sequence[int]) -> None:
+        self._node.core.likelihood_given = [int(i) for i in rows]
 
     def _update(
         self, x: FloatArray, P: FloatArray, z: FloatArray, mask: FloatArray

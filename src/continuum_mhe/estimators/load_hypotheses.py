@@ -17,8 +17,15 @@ sample (the EKF: two compiled EKFs; the MHE on IPOPT: two windows):
 Each step's innovation log-density (``log N(r; 0, S)``: the compiled EKF step's
 ``log_likelihood``; for the MHE, the EKF step from each hypothesis' previous answer to
 the new reading, so that the windows are weighed as the filters are) of the two is
-compared; their difference, summed with a memory of
-:data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free of load (held
+compared; for a formulation with :attr:`Formulation.evidence_given
+<continuum_mhe.model.formulations.Formulation.evidence_given>` rows (a tendon robot with
+one IMU: its tensions and its tip condition), the density of the other components (the
+IMUs') given those. The tip condition is a pseudo-measurement of the model, always
+zero, no reading of a load: its predicted density grows without bound where the tip
+moment's sensitivity to the base curvature falls (a force near buckling), and weighed
+in it lets a loaded hypothesis gone astray take the estimate of a robot free of load
+(docs/tendon-studies.md, "The tip IMU alone under load"). Their difference, summed
+with a memory of :data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free of load (held
 where neither hypothesis has a valid reading, and only decaying where one has no density).
 Against prior odds of ``exp(EVIDENCE_MARGIN)`` to 1 for a load, the estimate is the free-of-load
 hypothesis' where the evidence exceeds :data:`EVIDENCE_MARGIN`, else the loaded one's;
@@ -226,6 +233,11 @@ class LoadHypothesesInference(Inference):
             self.settings = mhe
             self.holds_bounds = True
             self.flags_outliers = loaded.flags_outliers
+        # each reading weighs the hypotheses by the density of its components given
+        # the formulation's evidence_given ones (a one-IMU tendon robot's: the IMUs given
+        # the tensions and the tip condition)
+        given = formulation.evidence_given
+        self.loaded.likelihood_given = self.unloaded.likelihood_given = given
         self.evidence = 0.0
         self.unloaded_chosen = False
         self._chosen: _Hypothesis = self.loaded

@@ -424,8 +424,13 @@ class MovingHorizonInference(Inference):
         #: the previous answer predicted to it (its state and covariance, one EKF step:
         #: ``-(r^T S^-1 r + log|S|) / 2``, as the compiled EKF's); NaN for a start, a
         #: sample without a valid reading, and a previous answer without a covariance or
-        #: with a status outside :data:`EVIDENCE_STATUSES`
+        #: with a status outside :data:`EVIDENCE_STATUSES`; with :attr:`likelihood_given`,
+        #: the other components' density given those (as the compiled EKF's)
         self.log_likelihood = math.nan
+        #: the measurement components on which :attr:`log_likelihood` is conditioned
+        #: (:attr:`CompiledExtendedKalmanInference.likelihood_given
+        #: <continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference.likelihood_given>`)
+        self.likelihood_given: tuple[int, ...] = ()
         self._likelihood_node: NodeEvaluator | None = None
         self.restart()
 
@@ -706,6 +711,7 @@ class MovingHorizonInference(Inference):
             node = self._node or NodeEvaluator(node_functions(self.formulation))
             self._likelihood_node = node
         f64 = np.ascontiguousarray
+        node.core.likelihood_given = list(self.likelihood_given)
         node.ekf_step_outputs(
             f64(previous.state, dtype=float), f64(previous.covariance, dtype=float), u, dt,
             m.z, mask, f64(self._R, dtype=float), f64(Q, dtype=float),

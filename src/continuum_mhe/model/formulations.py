@@ -454,6 +454,14 @@ class Formulation:
         return ()
 
     @property
+    def evidence_given(self) -> tuple[int, ...]:
+        """The measurement components on which the load hypotheses' evidence is
+        conditioned (:mod:`continuum_mhe.estimators.load_hypotheses`): each reading weighs
+        them by the density of the other components given these; none here (the whole
+        reading's density)."""
+        return ()
+
+    @property
     def load_outputs(self) -> tuple[int, ...]:
         """The outputs that are the load of :attr:`load_states` (a tendon robot's ``fx,
         fy, fz``), indices into :attr:`outputs`; none here."""
