@@ -25,10 +25,11 @@ zero, no reading of a load: its predicted density grows without bound where the 
 moment's sensitivity to the base curvature falls (a force near buckling), and weighed
 in it lets a loaded hypothesis gone astray take the estimate of a robot free of load
 (docs/tendon-studies.md, "The tip IMU alone under load"). Their difference, summed
-with a memory of :data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free of load (held
-where neither hypothesis has a valid reading, and only decaying where one has no density).
-Against prior odds of ``exp(EVIDENCE_MARGIN)`` to 1 for a load, the estimate is the free-of-load
-hypothesis' where the evidence exceeds :data:`EVIDENCE_MARGIN`, else the loaded one's;
+with a memory of :data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free
+of load (held where neither hypothesis has a valid reading, and only decaying where one
+has no density). Against prior odds of ``exp(EVIDENCE_MARGIN)`` to 1 for a load, the
+estimate is the free-of-load hypothesis' where the evidence exceeds
+:data:`EVIDENCE_MARGIN`, else the loaded one's;
 its covariance is the two hypotheses' mixture about it, weighted by those posterior
 odds, so that the standard deviations carry what the other hypothesis would make of
 the readings. A load that appears makes the free-of-load hypothesis' predictions miss the
