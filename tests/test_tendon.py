@@ -661,6 +661,60 @@ def test_one_raw_imu_at_the_tip_holds_the_tip_force_and_the_shape() -> None:
     assert float(np.mean(np.linalg.norm(tip - true_tip, axis=1)[t >= 1.0])) < 2e-3
 
 
+def test_one_raw_imu_follows_a_turning_tip_force_by_its_acceleration() -> None:
+    """The shipped robot with its tip IMU alone (raw, with the tensions) on ``twist-29``
+    (a tip force of up to 0.29 N that turns), the command line's EKF: by default the tip
+    force's acceleration is a state (its jerk 0.01 N^2/s^5, a white acceleration of 3e-3
+    N^2/s^3 beside it), and the tip lies 7.76 mm off on average after the first second,
+    the force 0.016 N rms; at constant velocity (``estimate_force_acceleration=False``,
+    the two-IMU force noise's one-IMU value) 20.66 mm and 0.085 N, the force's
+    acceleration taken up by the IMU's misalignment (docs/tendon-studies.md, "The tip IMU
+    alone under load")."""
+    from dataclasses import replace
+
+    from continuum_mhe.errors import UnobservableShapeWarning
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
+    from continuum_mhe.io.tensions import tendon_formulation_for
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.settings import NoiseSettings
+    from continuum_mhe.model.tendon import (
+        SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD,
+        SINGLE_IMU_FORCE_JERK_PSD,
+    )
+
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+    robot = read_robot("tendon-two-section")
+    robot = replace(robot, imus=robot.imus[1:])
+    base = make_formulation("direct", robot, NoiseSettings(measurement_std=math.radians(2.0)))
+    f = tendon_formulation_for(base, InputOptions())
+    assert isinstance(f, TendonFormulation) and f.n_force_acceleration == 3
+    assert (f.jerk_psd, f.force_psd) == (
+        SINGLE_IMU_FORCE_JERK_PSD, SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD
+    )  # fmt: skip
+    raw = np.loadtxt(data / "twist-29_raw.csv", delimiter=",", skiprows=1)
+    t = raw[:, 0]
+    z_imu = raw_to_measurements(t, raw[:, 7:10], raw[:, 10:13], RawImuSettings(imu_model="direct"))
+    tensions = read_tensions(data / "twist-29_tensions.csv", robot.n_tendons)
+    z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
+    truth = read_state_table(data / "twist-29_truth.csv")
+    true_tip = np.column_stack([truth.column(c) for c in ("x", "y", "z")])
+    later = t >= 1.0
+    errors = {}
+    for name, g in [
+        ("default", f),
+        ("constant velocity", replace(f, estimate_force_acceleration=False)),
+    ]:
+        with pytest.warns(UnobservableShapeWarning):
+            est = make_estimator("ekf", g)
+        series = est.run(t, z)
+        cols = [o.name for o in g.outputs]
+        tip = np.asarray(series.output, float)[:, [cols.index(c) for c in ("x", "y", "z")]]
+        errors[name] = float(np.mean(np.linalg.norm(tip - true_tip, axis=1)[later])) * 1e3
+    assert errors["default"] < 10.0 < 15.0 < errors["constant velocity"], errors
+
+
 def test_the_start_takes_a_gyro_reading_as_its_bias_not_as_a_force() -> None:
     """Noise-free raw readings of a known tip force, tensions and gyro biases (two
     IMUs, the rod at rest): the start recovers the force and each gyro's bias (a wide

@@ -509,24 +509,29 @@ def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria
 def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
     """With ``estimate_force_acceleration`` the tip force's acceleration is a state,
     and the force's transition and process noise are those of a triple integrator driven
-    by white jerk and, where one is given, a white acceleration beside it, computed
-    independently here by Van Loan's matrix exponential; by default that state is there
-    with raw IMUs on a robot of two or more IMUs only."""
+    by white jerk and a white acceleration beside it (by default none with two IMUs;
+    with one, the one-IMU defaults, as given), computed independently here by Van Loan's
+    matrix exponential; by default that state is there with raw IMUs only."""
     from scipy.linalg import expm
 
     from continuum_mhe.errors import UserError
-    from continuum_mhe.model.tendon import FORCE_JERK_PSD
+    from continuum_mhe.model.tendon import (
+        FORCE_JERK_PSD,
+        SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD,
+        SINGLE_IMU_FORCE_JERK_PSD,
+    )
 
     two = read_robot("tendon-two-section")
     one = replace(two, imus=two.imus[-1:])
     cases = ((two, {}, FORCE_JERK_PSD, 0.0),
-             (one, {"force_jerk_psd": 0.01, "force_accel_psd": 3e-3}, 0.01, 3e-3))  # fmt: skip
+             (one, {}, SINGLE_IMU_FORCE_JERK_PSD, SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD),
+             (one, {"force_jerk_psd": 0.5, "force_accel_psd": 0.02}, 0.5, 0.02))  # fmt: skip
     for robot, given, jerk, accel_psd in cases:
         f = TendonFormulation(
             robot=robot, imu_model="direct", estimate_gyro_bias=True,
             estimate_force_acceleration=True, **given,  # type: ignore[arg-type]
         )  # fmt: skip
-        assert (f.force_jerk_psd, f.force_psd) == (jerk, accel_psd)
+        assert (f.jerk_psd, f.force_psd) == (jerk, accel_psd)
         names = f.state_names
         force = [names.index(f"f{c}") for c in "xyz"]
         rate = [names.index(f"f{c}_dot") for c in "xyz"]
@@ -552,10 +557,11 @@ def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
         names = TendonFormulation(robot=robot, imu_model=imu_model).state_names  # type: ignore[arg-type]
         return any(n.endswith("_ddot") for n in names)
 
-    # by default: raw IMUs on a robot with two or more IMUs; not one IMU, not tilt
+    # by default: raw IMUs (one or more); not tilt
     assert has_force_acceleration(two, "direct")
-    assert not has_force_acceleration(one, "direct")
+    assert has_force_acceleration(one, "direct")
     assert not has_force_acceleration(two, "tilt")
+    assert not has_force_acceleration(one, "tilt")
     with pytest.raises(UserError, match="estimate_force_acceleration"):
         TendonFormulation(robot=two, estimate_force_acceleration=True)  # tilt IMUs
 
@@ -579,9 +585,10 @@ def test_a_zero_force_accel_psd_is_the_default_where_the_force_acceleration_is_a
     np.testing.assert_array_equal(q(zero), q(default))
     with pytest.raises(UserError, match=r"^force_accel_psd must be a 0 or more finite number"):
         TendonFormulation(robot=two, force_accel_psd=-1.0, **raw)  # type: ignore[arg-type]
-    one = replace(two, imus=two.imus[-1:])  # constant velocity
-    with pytest.raises(UserError, match=r"^force_accel_psd must be a positive finite number"):
-        TendonFormulation(robot=one, force_accel_psd=0.0, **raw)  # type: ignore[arg-type]
+    # at constant velocity (tilt IMUs, or the acceleration left out)
+    for kwargs in ({"robot": two}, {"estimate_force_acceleration": False, "robot": two, **raw}):
+        with pytest.raises(UserError, match=r"^force_accel_psd must be a positive finite number"):
+            TendonFormulation(force_accel_psd=0.0, **kwargs)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("imu_errors", [False, True])
