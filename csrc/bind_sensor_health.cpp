@@ -604,7 +604,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
   nb::class_<StateChecks>(
       m, "StateChecks",
       "A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at "
-      "its bound.")
+      "its bound, drifted.")
       .def(
           "__init__",
           [](StateChecks* self, int nx, std::vector<std::pair<int, int>> pairs,

@@ -182,7 +182,7 @@ struct PolicySettings {
   double unobserved_after = 1.0;    // s, an IMU's silence that unobserves it (gap reset off)
   double degrees_like = 0.0;        // rad, a tilt reading beyond it is in degrees
   // the formulation's checks of a state, when it states them as data (else the
-  // inference's is_diverged, drifted and at_bound; with them nothing drifts)
+  // inference's is_diverged, drifted and at_bound; with them a state drifts by their flags)
   std::optional<StateChecks> checks;
   // rows without which a sample is a dropout as a whole (a tendon robot's tensions and
   // their derivatives: its IMUs' model needs them)

@@ -243,3 +243,5 @@ def test_rows_drifted_again_soon_after_a_restart_keep_its_hold() -> None:
     sigmas = np.max(np.abs(off) / np.asarray(series.output_std, float)[:, cols], axis=1)
     assert np.count_nonzero(status == "ok") >= 8
     assert not np.any((status == "ok") & (sigmas > 4.0)), t[(status == "ok") & (sigmas > 4.0)]
+    held = (t >= 4.46) & (t <= 4.7)
+    assert np.count_nonzero(held) == 13 and np.all(status[held] == "uncertain"), status[held]

@@ -10,9 +10,10 @@ tensions and the tip condition) split into the innovations' Mahalanobis term and
 log-determinant term, and the rest's (the tensions' and the tip condition's rows); the
 loaded hypothesis' tip-force error and its standard deviation (N, norms) and the
 normalised innovation squared of the IMU rows, given the other rows, of each hypothesis
-(6 where consistent, raw IMUs); the smallest singular value over the interval of each
-hypothesis' tip condition's Jacobian in the base curvature (about 1 for the straight
-robot; near 0 near buckling, where the tip condition's predicted spread narrows). Then
+(6 where consistent, one raw IMU; 12 with two); the smallest singular value over the
+interval of each hypothesis' tip condition's Jacobian in the base curvature (about 1 for
+the straight robot; near 0 near buckling, where the tip condition's predicted spread
+narrows). Then
 one JSON line over the samples after ``--skip``.
 
 ``--whole``: the hypotheses weighed by the whole measurement's density (the tensions'

@@ -813,7 +813,7 @@ class PolicyDiagnostics:
 
 class StateChecks:
     """
-    A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at its bound.
+    A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at its bound, drifted.
     """
 
     def __init__(self, nx: int, pairs: Sequence[tuple[int, int]], diverged_r2: Sequence[float], at_bound_r: Sequence[float], rate_rows: Sequence[int], rate_limit: float, std_rows: Sequence[int], std_limit2: float, flags: TapeFunction | None = None) -> None:

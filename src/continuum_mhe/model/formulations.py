@@ -556,8 +556,9 @@ class Formulation:
         return False
 
     def state_checks(self) -> _core.StateChecks | None:
-        """The checks of a state (:meth:`is_diverged`, :meth:`at_bound`; nothing
-        drifts) as data for the compiled core, or None: the core asks these methods."""
+        """The checks of a state (:meth:`is_diverged`, :meth:`at_bound` and, by their
+        ``flags``, :meth:`drifted`) as data for the compiled core, or None: the core asks
+        these methods."""
         return None
 
     def change_test(self) -> ChangeTest | None:

@@ -20,9 +20,10 @@ tip IMU's gravity direction at 0.08 N on the shipped robot, is left to the IMUs'
 misalignment and bias states, which then turn the estimate about the vertical. With it
 as a state the model describes the readings at the true state to their noise; the
 filter then depends on its start's tip force (:meth:`TendonFormulation.initial_state`).
-A robot with one IMU keeps the force at constant velocity: with ``F''`` its estimate
-under load is better on most recordings but worse on some, and no setting tried is
-better on all (docs/tendon-studies.md, "The tip IMU alone under load").
+A robot with one raw IMU takes ``F''`` too, at a slower jerk with a white acceleration
+beside it (:data:`SINGLE_IMU_FORCE_JERK_PSD`, :data:`SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD`):
+under load better than constant velocity on 13 of 16 recordings, worse on 3, and no
+setting tried is better on all (docs/tendon-studies.md, "The tip IMU alone under load").
 The IMUs' errors are states by default
 because they, not the model, are what is left: a degree of misalignment, or 0.17
 m/s^2 of accelerometer bias, reads as a tip force that moves the tip of the shipped
@@ -125,8 +126,9 @@ KEPT_START_BUCKLING_MULTIPLE = 3.0
 #: The tip force's prior standard deviation, N, in the start fit of the robot free of
 #: load (:meth:`TendonFormulation.unloaded_start`): the force held at zero.
 UNLOADED_FIT_FORCE_STD = 1e-9
-#: The tip force's white-noise acceleration by default, N^2/s^3: with two or more IMUs,
-#: and with one. One IMU's gravity direction and gyro hold a faster force only loosely:
+#: The tip force's white-noise acceleration by default at constant velocity (tilt IMUs,
+#: or ``estimate_force_acceleration=False``), N^2/s^3: with two or more IMUs, and with
+#: one. One IMU's gravity direction and gyro hold a faster force only loosely:
 #: with the shipped robot's tip IMU alone, the Kalman covariance along the true states of
 #: the unloaded recording keeps each horizontal component's standard deviation at about
 #: 0.09 N at 1 N^2/s^3 and 0.012 N at 1e-3. The default EKF weighs the robot free of load
@@ -334,8 +336,9 @@ class TendonFormulation(Formulation):
             its predicted density grows without bound near buckling, where a loaded
             hypothesis gone astray then takes the estimate of a robot free of load. None,
             the default: on for a robot with one IMU (whose loaded hypothesis can stray
-            that far; with two IMUs the shipped recordings' numbers barely move either
-            way: docs/tendon-studies.md, "The tip IMU alone under load").
+            that far; with two IMUs the shipped raw recordings are unchanged by it and
+            the tilt ones' twisting recordings 7 to 12 mm better, measured on seed 0
+            alone: docs/tendon-studies.md, "The tip IMU alone under load").
     """
 
     name: FormulationName = "tendon"
