@@ -26,25 +26,20 @@ and the tip condition's rows too) instead of the IMU readings' given the rest.
 from __future__ import annotations
 
 import argparse
-import ast
 import json
 import math
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tendon_study import _table, imu_readings
+from tendon_study import _table, imu_readings, study_formulation
 
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
 from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
-from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
-from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.model.settings import NoiseSettings
+from continuum_mhe.io.tensions import read_tensions
 
 
 def _log_density(r: np.ndarray, S: np.ndarray) -> tuple[float, float]:
@@ -101,17 +96,9 @@ def main() -> None:
         help="weigh the hypotheses by the whole measurement's density",
     )  # fmt: skip
     a = p.parse_args()
-    robot = read_robot(a.robot)
-    used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
-    robot = replace(robot, imus=tuple(robot.imus[k] for k in used))
-    base = make_formulation(
-        a.imu if a.imu == "direct" else "bend",
-        robot,
-        NoiseSettings(measurement_std=math.radians(2.0)),
-    )
-    f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
-    f = replace(f, **{k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in a.set)})
-    tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
+    options = InputOptions(gyro_std=DEFAULT_GYRO_STD)
+    f, used = study_formulation(a.robot, a.imu, a.tip_imu_only, 2.0, options, a.set)
+    tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", f.robot.n_tendons)
     t, z_imu = imu_readings(a.folder, a.scenario, a.imu, used)
     names, truth = _table(a.folder / f"{a.scenario}_truth.csv")
     z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])

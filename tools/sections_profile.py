@@ -20,12 +20,10 @@ import os
 import subprocess
 
 import numpy as np
+from sections_ratio import sections_case
 
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.settings import MHESettings
-from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
 N = 30
 WARM, COUNTED = 40, 80
@@ -45,14 +43,7 @@ def main() -> None:
     p.add_argument("method", choices=("mhe", "ekf"), help="the estimator profiled")
     a = p.parse_args()
     k, method = a.sections, a.method
-    robot = Robot(
-        tuple(Section(0.3 / k, 3.0) for _ in range(k)), tuple(ImuPlacement(i) for i in range(k))
-    )
-    if k == 1:
-        f, rec = make_formulation("bend"), simulate("paper3d", duration=20, seed=0)
-    else:
-        f = make_formulation("bend", robot)
-        rec = simulate_robot("spatial", robot, duration=20, seed=0)
+    f, rec = sections_case(k)
     est = make_estimator(method, f, MHESettings(horizon=N))
     t, z = np.ascontiguousarray(rec.t), np.ascontiguousarray(rec.z)
     est.run(t[:WARM], z[:WARM])

@@ -17,12 +17,27 @@ import time
 import numpy as np
 
 from continuum_mhe.estimators import make_estimator
+from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.settings import MHESettings
-from continuum_mhe.simulation.scenarios import simulate, simulate_robot
+from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
 
 N = 30
+
+
+def sections_case(k: int, duration: float = 20.0) -> tuple[Formulation, Recording]:
+    """The ``bend`` formulation of ``k`` sections and its recording (seed 0, 2 degrees of
+    noise): one section, the paper's robot on ``paper3d``; more, sections of ``0.3 / k``
+    m (``theta_max`` 3 rad) with a tilt IMU at each end, on ``spatial``."""
+    if k == 1:
+        return make_formulation("bend"), simulate("paper3d", duration=duration, seed=0)
+    robot = Robot(
+        tuple(Section(0.3 / k, 3.0) for _ in range(k)), tuple(ImuPlacement(i) for i in range(k))
+    )
+    return make_formulation("bend", robot), simulate_robot(
+        "spatial", robot, duration=duration, seed=0
+    )
 
 
 def main() -> None:
@@ -31,13 +46,7 @@ def main() -> None:
     a = p.parse_args()
     rounds = a.rounds
     for k in (1, 2, 3):
-        sections = tuple(Section(0.3 / k, 3.0) for _ in range(k))
-        robot = Robot(sections, tuple(ImuPlacement(i) for i in range(k)))
-        if k == 1:
-            f, rec = make_formulation("bend"), simulate("paper3d", duration=20, seed=0)
-        else:
-            f = make_formulation("bend", robot)
-            rec = simulate_robot("spatial", robot, duration=20, seed=0)
+        f, rec = sections_case(k)
         steps: dict[str, list[np.ndarray]] = {"mhe": [], "ekf": []}
         wall: dict[str, list[float]] = {"mhe": [], "ekf": []}
         for _ in range(rounds):

@@ -26,15 +26,13 @@ import collections
 from dataclasses import replace
 
 import numpy as np
+from sections_ratio import sections_case
 
 import continuum_mhe._core as _core
 from continuum_mhe.estimators import fast as fm
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.results import Measurement
 from continuum_mhe.settings import MHE_LOSSES, MHESettings
-from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
 N = 30
 
@@ -45,15 +43,7 @@ def main() -> None:
     p.add_argument("--duration", type=float, default=20.0, help="s (default 20)")
     p.add_argument("--loss", choices=MHE_LOSSES, default="l2", help="default l2")
     a = p.parse_args()
-    k = a.sections
-    if k == 1:
-        f = make_formulation("bend")
-        rec = simulate("paper3d", duration=a.duration, noise_deg=2.0, seed=0)
-    else:
-        robot = Robot(tuple(Section(0.3 / k, 3.0) for _ in range(k)),
-                      tuple(ImuPlacement(i) for i in range(k)))  # fmt: skip
-        f = make_formulation("bend", robot)
-        rec = simulate_robot("spatial", robot, duration=a.duration, seed=0)
+    f, rec = sections_case(a.sections, a.duration)
     est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver="fast", loss=a.loss))
     inference = est.inference
     model, window, options = inference._fast, inference._window, inference.fast_options

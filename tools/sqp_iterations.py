@@ -19,14 +19,12 @@ import argparse
 import collections
 
 import numpy as np
+from sections_ratio import sections_case
 
 from continuum_mhe.estimators.fast import FastOptions
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.results import Measurement
 from continuum_mhe.settings import MHESettings
-from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
 N = 30
 
@@ -39,16 +37,7 @@ def main() -> None:
     p.add_argument("--sections", type=int, choices=(1, 2, 3), default=1)
     p.add_argument("--gauss-newton", action="store_true", help="FastOptions(newton=False)")
     a = p.parse_args()
-    duration = a.duration
-    if a.sections == 1:
-        f = make_formulation("bend")
-        rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
-    else:
-        k = a.sections
-        robot = Robot(tuple(Section(0.3 / k, 3.0) for _ in range(k)),
-                      tuple(ImuPlacement(i) for i in range(k)))  # fmt: skip
-        f = make_formulation("bend", robot)
-        rec = simulate_robot("spatial", robot, duration=duration, seed=0)
+    f, rec = sections_case(a.sections, a.duration)
     est = MovingHorizonEstimator(
         f, MHESettings(horizon=N, solver="fast"),
         fast_options=FastOptions(newton=not a.gauss_newton),

@@ -39,7 +39,7 @@ from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.model.settings import NoiseSettings
+from continuum_mhe.model.settings import FormulationName, NoiseSettings
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.model.tendon_statics import Station
 from continuum_mhe.settings import MHESettings
@@ -48,6 +48,30 @@ from continuum_mhe.settings import MHESettings
 def _table(path: Path) -> tuple[list[str], np.ndarray]:
     lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
     return lines[0].split(","), np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+
+
+def study_formulation(
+    robot_file: str,
+    imu: str,
+    tip_imu_only: bool,
+    noise_deg: float,
+    options: InputOptions,
+    settings: Sequence[str] = (),
+) -> tuple[TendonFormulation, list[int]]:
+    """The tendon formulation of ``robot_file`` (its IMUs, or the tip IMU alone), ``imu``
+    readings (``direct`` or ``tilt``) of ``noise_deg`` degrees, with ``options`` and the
+    ``NAME=VALUE`` ``settings`` replaced in it; and the robot file's IMUs used (0-based)."""
+    robot = read_robot(robot_file)
+    used = [robot.n_imus - 1] if tip_imu_only else list(range(robot.n_imus))
+    robot = replace(robot, imus=tuple(robot.imus[k] for k in used))
+    name: FormulationName = "direct" if imu == "direct" else "bend"
+    base = make_formulation(
+        name,
+        robot,
+        NoiseSettings(measurement_std=math.radians(noise_deg)),
+    )
+    changes = {k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in settings)}
+    return replace(tendon_formulation_for(base, options), **changes), used
 
 
 def imu_readings(
@@ -122,20 +146,11 @@ def main() -> None:
     a = p.parse_args()
     if a.ukf_alpha is not None and a.method != "ukf":
         p.error("--ukf-alpha is the UKF's (--method ukf)")
-    robot = read_robot(a.robot)
-    used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
-    robot = replace(robot, imus=tuple(robot.imus[k] for k in used))
-    base = make_formulation(
-        a.imu if a.imu == "direct" else "bend",
-        robot,
-        NoiseSettings(measurement_std=math.radians(a.noise_deg)),
-    )
     options = InputOptions(
         gyro_std=a.gyro_std, estimate_gyro_bias=False if a.no_gyro_bias else None
     )
-    changes = {k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in a.set)}
-    f = replace(tendon_formulation_for(base, options), **changes)
-    tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
+    f, used = study_formulation(a.robot, a.imu, a.tip_imu_only, a.noise_deg, options, a.set)
+    tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", f.robot.n_tendons)
     t, z_imu = imu_readings(a.folder, a.scenario, a.imu, used)
     n = len(t) if a.samples is None else a.samples
     t, z_imu = t[:n], z_imu[:n]
