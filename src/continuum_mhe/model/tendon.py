@@ -336,9 +336,10 @@ class TendonFormulation(Formulation):
             its predicted density grows without bound near buckling, where a loaded
             hypothesis gone astray then takes the estimate of a robot free of load. None,
             the default: on for a robot with one IMU (whose loaded hypothesis can stray
-            that far; with two IMUs the shipped raw recordings are unchanged by it and
-            the tilt ones' twisting recordings 7 to 12 mm better, measured on seed 0
-            alone: docs/tendon-studies.md, "The tip IMU alone under load").
+            that far; with two IMUs the shipped raw recordings are unchanged by it, and
+            with tilt IMUs it is better on some twisting recordings and worse on others
+            over seeds 0 to 4: docs/tendon-studies.md, "The tip IMU alone under
+            load").
     """
 
     name: FormulationName = "tendon"
