@@ -665,11 +665,13 @@ def test_one_raw_imu_follows_a_turning_tip_force_by_its_acceleration() -> None:
     """The shipped robot with its tip IMU alone (raw, with the tensions) on ``twist-29``
     (a tip force of up to 0.29 N that turns), the command line's EKF: by default the tip
     force's acceleration is a state (its jerk 0.01 N^2/s^5, a white acceleration of 3e-3
-    N^2/s^3 beside it), and the tip lies 7.76 mm off on average after the first second,
-    the force 0.016 N rms; at constant velocity (``estimate_force_acceleration=False``,
-    the two-IMU force noise's one-IMU value) 20.66 mm and 0.085 N, the force's
-    acceleration taken up by the IMU's misalignment (docs/tendon-studies.md, "The tip IMU
-    alone under load")."""
+    N^2/s^3 beside it) and the gyro's noise is taken as 0.005 rad/s, and the tip lies
+    5.90 mm off on average after the first second, the force 0.015 N rms; at constant
+    velocity (``estimate_force_acceleration=False``, the two-IMU force noise's one-IMU
+    value) 19.41 mm and 0.089 N, the force's acceleration taken up by the IMU's
+    misalignment; with the two-IMU robot's gyro noise (0.01 rad/s) 7.76 mm, the gyro's
+    rate, which tells the force's motion from the IMU's constant errors, held too loosely
+    (docs/tendon-studies.md, "The tip IMU alone under load")."""
     from dataclasses import replace
 
     from continuum_mhe.errors import UnobservableShapeWarning
@@ -677,11 +679,13 @@ def test_one_raw_imu_follows_a_turning_tip_force_by_its_acceleration() -> None:
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
     from continuum_mhe.io.tensions import tendon_formulation_for
+    from continuum_mhe.model.direct import DEFAULT_GYRO_STD
     from continuum_mhe.model.registry import make_formulation
     from continuum_mhe.model.settings import NoiseSettings
     from continuum_mhe.model.tendon import (
         SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD,
         SINGLE_IMU_FORCE_JERK_PSD,
+        SINGLE_IMU_GYRO_STD,
     )
 
     data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
@@ -693,6 +697,7 @@ def test_one_raw_imu_follows_a_turning_tip_force_by_its_acceleration() -> None:
     assert (f.jerk_psd, f.force_psd) == (
         SINGLE_IMU_FORCE_JERK_PSD, SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD
     )  # fmt: skip
+    assert f.gyro_noise_std == SINGLE_IMU_GYRO_STD < DEFAULT_GYRO_STD
     raw = np.loadtxt(data / "twist-29_raw.csv", delimiter=",", skiprows=1)
     t = raw[:, 0]
     z_imu = raw_to_measurements(t, raw[:, 7:10], raw[:, 10:13], RawImuSettings(imu_model="direct"))
@@ -705,6 +710,7 @@ def test_one_raw_imu_follows_a_turning_tip_force_by_its_acceleration() -> None:
     for name, g in [
         ("default", f),
         ("constant velocity", replace(f, estimate_force_acceleration=False)),
+        ("two-IMU gyro noise", replace(f, gyro_std=DEFAULT_GYRO_STD)),
     ]:
         with pytest.warns(UnobservableShapeWarning):
             est = make_estimator("ekf", g)
@@ -713,6 +719,34 @@ def test_one_raw_imu_follows_a_turning_tip_force_by_its_acceleration() -> None:
         tip = np.asarray(series.output, float)[:, [cols.index(c) for c in ("x", "y", "z")]]
         errors[name] = float(np.mean(np.linalg.norm(tip - true_tip, axis=1)[later])) * 1e3
     assert errors["default"] < 10.0 < 15.0 < errors["constant velocity"], errors
+    assert errors["default"] < errors["two-IMU gyro noise"] - 1.0, errors
+
+
+def test_the_gyro_noise_is_resolved_from_the_robot_s_imus() -> None:
+    """``gyro_std`` None (the default) is :data:`SINGLE_IMU_GYRO_STD` for a robot with one
+    IMU and the command line's 0.01 rad/s with two; a value given stays, and so does the
+    command line's ``--gyro-std`` given (even at 0.01) or another options value."""
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.tensions import tendon_formulation_for
+    from continuum_mhe.model.direct import DEFAULT_GYRO_STD
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.tendon import SINGLE_IMU_GYRO_STD
+
+    two = read_robot("tendon-two-section")
+    one = replace(two, imus=two.imus[1:])
+    for robot, want in ((one, SINGLE_IMU_GYRO_STD), (two, DEFAULT_GYRO_STD)):
+        f = TendonFormulation(robot=robot, imu_model="direct", estimate_gyro_bias=True)
+        assert f.gyro_std is None and f.gyro_noise_std == want
+        assert f.meas_cov()[5, 5] == pytest.approx(want**2)  # the first IMU's gz row
+        assert replace(f, gyro_std=0.02).gyro_noise_std == 0.02
+        base = make_formulation("direct", robot)
+        assert tendon_formulation_for(base, InputOptions()).gyro_noise_std == want
+        for options in (InputOptions(gyro_std=0.02),
+                        InputOptions(gyro_std=DEFAULT_GYRO_STD, gyro_std_given=True)):  # fmt: skip
+            f = tendon_formulation_for(base, options)
+            assert f.gyro_noise_std == options.gyro_std
+    with pytest.raises(UserError, match="gyro_std must be a positive finite number"):
+        TendonFormulation(robot=one, imu_model="direct", gyro_std=0.0)
 
 
 def test_the_start_takes_a_gyro_reading_as_its_bias_not_as_a_force() -> None:

@@ -149,7 +149,7 @@ def main() -> None:
         fa = replace(
             f,
             accel_direction_std=math.radians(a.actual_noise_deg),
-            gyro_std=a.actual_gyro_std or f.gyro_std,
+            gyro_std=a.actual_gyro_std or f.gyro_noise_std,
         )
         if a.imu == "tilt":
             fa = replace(f, noise=NoiseSettings(measurement_std=math.radians(a.actual_noise_deg)))

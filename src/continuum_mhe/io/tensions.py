@@ -48,7 +48,7 @@ from continuum_mhe.errors import (
     time_text,
 )
 from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_time_units
-from continuum_mhe.io.input_options import InputOptions, OptionWarning
+from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions, OptionWarning
 from continuum_mhe.io.sample_rows import RowProblems, read_samples
 from continuum_mhe.io.slack_readings import take_slack_readings
 from continuum_mhe.io.tension_derivatives import (
@@ -1022,7 +1022,12 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
         robot=base.robot,
         noise=base.noise,
         imu_model="direct" if direct else "tilt",
-        gyro_std=options.gyro_std,
+        # the options' default noise resolved from the robot's IMUs (one IMU: less)
+        gyro_std=(
+            options.gyro_std
+            if options.gyro_std_given or options.gyro_std != DEFAULT_GYRO_STD
+            else None
+        ),
         estimate_gyro_bias=direct and options.estimate_gyro_bias is not False,
         estimate_accel_bias=options.estimate_accel_bias or TendonFormulation.estimate_accel_bias,
         estimate_tension_gain=options.estimate_tension_gain,

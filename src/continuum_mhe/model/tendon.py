@@ -216,6 +216,16 @@ CHANGE_PROBABILITY = 0.999
 FORCE_JERK_PSD = 1.0
 SINGLE_IMU_FORCE_JERK_PSD = 0.01
 SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD = 3e-3
+#: The gyros' white noise, rad/s, assumed by default for a robot with one raw IMU
+#: (:attr:`TendonFormulation.gyro_std`, resolved; with two or more the command line's
+#: :data:`~continuum_mhe.model.direct.DEFAULT_GYRO_STD`). With one IMU its gyro is what
+#: tells the tip force's motion from the IMU's constant errors (its misalignment and
+#: gyro bias take up what the gyro is not trusted with); 0.005, the least gyro noise
+#: the tendon recordings' standard deviations are calibrated at with two IMUs, and still
+#: three times a MEMS gyro's own (0.1 deg/s), lowers the mean tip error under load over
+#: seeds 0 to 4 from 6.13 to 5.00 mm, free of load alike (docs/tendon-studies.md, "The
+#: tip IMU alone under load").
+SINGLE_IMU_GYRO_STD = 0.005
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
 #: The tension gains' prior standard deviation by default
@@ -257,7 +267,10 @@ class TendonFormulation(Formulation):
 
     Attributes:
         imu_model: ``"tilt"`` (roll, pitch per IMU) or ``"direct"`` (``f/|f|`` and gyro).
-        gyro_std: gyro noise, rad/s (``direct``).
+        gyro_std: gyro noise, rad/s (``direct``; None, the default:
+            :data:`~continuum_mhe.model.direct.DEFAULT_GYRO_STD`, or
+            :data:`SINGLE_IMU_GYRO_STD` for a robot with one IMU; :attr:`gyro_noise_std`
+            is the value used).
         accel_direction_std: standard deviation of each component of ``f/|f|``
             (``direct``; None: ``noise.measurement_std``).
         estimate_gyro_bias: a gyro bias per IMU as states (``direct``), random walk.
@@ -370,7 +383,7 @@ class TendonFormulation(Formulation):
     #: linearised (sigma points would cost a shooting per state the outputs depend on)
     sigma_point_output_std: ClassVar[bool] = False
     imu_model: ImuModel = "tilt"
-    gyro_std: float = DEFAULT_GYRO_STD
+    gyro_std: float | None = None
     accel_direction_std: float | None = None
     estimate_gyro_bias: bool = False
     own_acceleration: bool = True
@@ -420,6 +433,7 @@ class TendonFormulation(Formulation):
             "initial_force_std": self.force_prior_std,
             "max_force": self.max_force_used,
             "force_jerk_psd": self.jerk_psd,
+            "gyro_std": self.gyro_noise_std,
         }
         if self.estimate_force_acceleration and not self.force_rate_moves_imus:
             raise UserError(
@@ -478,6 +492,14 @@ class TendonFormulation(Formulation):
         if on is None:
             on = self.force_rate_moves_imus
         return 3 if on else 0
+
+    @property
+    def gyro_noise_std(self) -> float:
+        """The gyros' white noise used, rad/s (:attr:`gyro_std`, resolved from the
+        robot's IMUs)."""
+        if self.gyro_std is not None:
+            return self.gyro_std
+        return SINGLE_IMU_GYRO_STD if self.robot.n_imus == 1 else DEFAULT_GYRO_STD
 
     @property
     def jerk_psd(self) -> float:
@@ -876,7 +898,7 @@ class TendonFormulation(Formulation):
             imu = np.eye(self.n_imu_measurements) * self.noise.measurement_std**2
         else:
             f_std = self.accel_direction_std or self.noise.measurement_std
-            one = np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3)
+            one = np.diag([f_std**2] * 3 + [self.gyro_noise_std**2] * 3)
             imu = np.asarray(np.kron(np.eye(self.robot.n_imus), one), dtype=np.float64)
         k = self.robot.n_tendons
         # the rates' rows are zero residuals: any weight
