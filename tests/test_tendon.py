@@ -742,11 +742,50 @@ def test_the_gyro_noise_is_resolved_from_the_robot_s_imus() -> None:
         base = make_formulation("direct", robot)
         assert tendon_formulation_for(base, InputOptions()).gyro_noise_std == want
         for options in (InputOptions(gyro_std=0.02),
-                        InputOptions(gyro_std=DEFAULT_GYRO_STD, gyro_std_given=True)):  # fmt: skip
+                        InputOptions(gyro_std=DEFAULT_GYRO_STD, gyro_std_given=True),
+                        InputOptions(gyro_std=DEFAULT_GYRO_STD,
+                                     from_profile=frozenset({"gyro_std"}))):  # fmt: skip
             f = tendon_formulation_for(base, options)
             assert f.gyro_noise_std == options.gyro_std
     with pytest.raises(UserError, match="gyro_std must be a positive finite number"):
         TendonFormulation(robot=one, imu_model="direct", gyro_std=0.0)
+
+
+def test_an_options_files_gyro_noise_at_the_two_imu_default_is_kept_for_one_imu(
+    tmp_path: Path,
+) -> None:
+    """The tip IMU alone (raw) takes 0.005 rad/s of gyro noise by default; 0.01 rad/s
+    given in an options file (``gyro-std = 0.01``, the two-IMU default's value) is the
+    user's choice and gives the estimates of ``--gyro-std 0.01`` on the command line, not
+    the default's."""
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
+    text = (data / "robots" / "tendon_two_section.toml").read_text()
+    robot = tmp_path / "tip.toml"
+    robot.write_text(text.replace("[[imu]]\nsection = 1\n\n", "", 1))
+    assert read_robot(robot).n_imus == 1
+    lines = (data / "tendon" / "twist-29_raw.csv").read_text().splitlines()[:101]
+    header = "t," + ",".join(c.replace("_2", "_1") for c in lines[0].split(",")[7:])
+    raw = tmp_path / "raw.csv"
+    raw.write_text("\n".join([header] + [",".join(r.split(",")[:1] + r.split(",")[7:])
+                                          for r in lines[1:]]) + "\n")  # fmt: skip
+    config = tmp_path / "options.toml"
+    config.write_text("gyro-std = 0.01\n")
+    common = ["--robot", str(robot), "--inputs", str(data / "tendon" / "twist-29_tensions.csv")]
+    runs = {
+        "default": [],
+        "options file": ["--config", str(config)],
+        "command line": ["--gyro-std", "0.01"],
+    }
+    est = {}
+    for name, extra in runs.items():
+        out = tmp_path / f"{name.replace(' ', '_')}.csv"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert main(["estimate", str(raw), "-o", str(out), *common, *extra]) == 0
+        est[name] = read_state_table(out)
+    x = {name: table.column("x") for name, table in est.items()}
+    np.testing.assert_array_equal(x["options file"], x["command line"])
+    assert np.max(np.abs(x["options file"] - x["default"])) > 1e-6
 
 
 def test_the_start_takes_a_gyro_reading_as_its_bias_not_as_a_force() -> None:

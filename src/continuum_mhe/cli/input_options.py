@@ -81,7 +81,8 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         type=float,
         default=DEFAULT_GYRO_STD,
         help="gyro white noise std in rad/s for --imu-model direct (default "
-        f"{DEFAULT_GYRO_STD:g}: a MEMS gyro, with room for the model's error); a "
+        f"{DEFAULT_GYRO_STD:g}: a MEMS gyro, with room for the model's error; a tendon "
+        "robot with one IMU takes 0.005 unless this is given); a "
         "gyro's own noise is far smaller, and given on a tendon robot (under 0.005) "
         "it leaves rows ok outside their intervals, with a warning (docs/tendon.md)",
     )
@@ -184,7 +185,9 @@ def input_options(args: argparse.Namespace) -> Any:
         skip_bad=bool(getattr(args, "skip_bad", False)),
         tensions=getattr(args, "inputs", None),
         estimate_tension_gain=bool(getattr(args, "estimate_tension_gain", False)),
-        from_profile=frozenset(profile & {"degrees", "mount_rpy", "attitude", "pair_tolerance"}),
+        from_profile=frozenset(
+            profile & {"degrees", "mount_rpy", "attitude", "pair_tolerance", "gyro_std"}
+        ),
     )
 
 

@@ -64,9 +64,11 @@ class InputOptions:
         estimate_tension_gain: a tendon robot's formulation estimates a gain per
             section on the tensions given (``--estimate-tension-gain``).
         from_profile: the options (``degrees``, ``mount_rpy``, ``attitude``,
-            ``pair_tolerance``) that an options file set, not the command line: a
-            profile's options apply where they can, so :func:`check_options_apply`
-            passes over them where they do not.
+            ``pair_tolerance``, ``gyro_std``) that an options file set, not the command
+            line: a profile's options apply where they can, so
+            :func:`check_options_apply` passes over them where they do not; a
+            ``gyro_std`` set there is the user's (a tendon robot keeps it, where it
+            resolves the default from its IMUs).
     """
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)

@@ -71,7 +71,7 @@ from continuum_mhe.io.tension_glitches import (
 from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot, modulus_unit_hint
-from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.model.tendon import SINGLE_IMU_GYRO_STD, TendonFormulation
 
 #: The turns a section may bend through under its tendons alone (their net moment over
 #: its bending stiffness, times its length) before the tensions are refused as another
@@ -1014,7 +1014,8 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
             "the errors, and rows are ok outside their 95 % intervals (on the shipped "
             "twist-29, 0.003: tip coverage x 0.79 over the ok rows; 0.001: 72 of 351 ok "
             "rows more than 4 standard deviations off; docs/tendon-studies.md): leave "
-            "the default (0.01) unless the estimate is checked against a known shape",
+            f"the default ({DEFAULT_GYRO_STD:g}; {SINGLE_IMU_GYRO_STD:g} for a robot with "
+            "one IMU) unless the estimate is checked against a known shape",
             OptionWarning,
             stacklevel=2,
         )
@@ -1025,7 +1026,9 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
         # the options' default noise resolved from the robot's IMUs (one IMU: less)
         gyro_std=(
             options.gyro_std
-            if options.gyro_std_given or options.gyro_std != DEFAULT_GYRO_STD
+            if options.gyro_std_given
+            or "gyro_std" in options.from_profile
+            or options.gyro_std != DEFAULT_GYRO_STD
             else None
         ),
         estimate_gyro_bias=direct and options.estimate_gyro_bias is not False,
