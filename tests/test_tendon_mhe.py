@@ -18,7 +18,7 @@ from continuum_mhe.estimators.fast import Workspace, window_cost
 from continuum_mhe.estimators.fast.sqp import _weights
 from continuum_mhe.estimators.mhe import WindowProblem
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
@@ -34,7 +34,7 @@ def _formulation() -> TendonFormulation:
     """The shipped robot with tilt IMUs, as the command line makes it."""
     robot = read_robot("tendon-two-section")
     base = make_formulation("bend", robot, NoiseSettings(measurement_std=math.radians(2.0)))
-    f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
+    f = tendon_formulation_for(base, InputOptions())
     assert isinstance(f, TendonFormulation)
     return f
 

@@ -38,7 +38,7 @@ from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
 from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.tensions import read_tensions
 
 
@@ -96,7 +96,7 @@ def main() -> None:
         help="weigh the hypotheses by the whole measurement's density",
     )  # fmt: skip
     a = p.parse_args()
-    options = InputOptions(gyro_std=DEFAULT_GYRO_STD)
+    options = InputOptions()
     f, used = study_formulation(a.robot, a.imu, a.tip_imu_only, 2.0, options, a.set)
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", f.robot.n_tendons)
     t, z_imu = imu_readings(a.folder, a.scenario, a.imu, used)

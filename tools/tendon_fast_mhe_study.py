@@ -30,7 +30,7 @@ from continuum_mhe.estimators.mhe import (
     MovingHorizonInference,
     WindowProblem,
 )
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
@@ -67,7 +67,7 @@ def main() -> None:
     MovingHorizonInference._solve_ipopt = fast_fallback  # type: ignore[method-assign]
     robot = read_robot("tendon-two-section")
     base = make_formulation("bend", robot, NoiseSettings(measurement_std=math.radians(2.0)))
-    f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
+    f = tendon_formulation_for(base, InputOptions())
     tensions = read_tensions(DATA / f"{a.scenario}_tensions.csv", robot.n_tendons)
     _, tilt = _table(DATA / f"{a.scenario}_tilt.csv")
     names, truth = _table(DATA / f"{a.scenario}_truth.csv")

@@ -25,7 +25,7 @@ from tendon_study import _table
 
 from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
@@ -105,7 +105,7 @@ def main() -> None:
     p.add_argument("scenario")
     p.add_argument("--imu", choices=("tilt", "direct"), default="direct")
     p.add_argument("--noise-deg", type=float, default=2.0)
-    p.add_argument("--gyro-std", type=float, default=DEFAULT_GYRO_STD)
+    p.add_argument("--gyro-std", type=float, default=None, help="default: the model's own")
     p.add_argument("--iterations", type=int, default=1)
     p.add_argument("--line-search", action="store_true", help="iterated: halve steps")
     p.add_argument("--skip", type=float, default=1.0)
@@ -194,7 +194,7 @@ def main() -> None:
         fstd.append(np.sqrt(np.diag(C)[force]))
     print(json.dumps({
         "scenario": a.scenario, "imu": a.imu, "noise_deg": a.noise_deg,
-        "gyro_std": a.gyro_std, "iterations": a.iterations, "set": a.set,
+        "gyro_std": f.gyro_noise_std, "iterations": a.iterations, "set": a.set,
         "tip_mean_mm": round(float(np.mean(errs)) * 1e3, 2),
         "tip_max_mm": round(float(np.max(errs)) * 1e3, 2),
         "tip_nees": round(float(np.mean(nees)), 2),

@@ -25,7 +25,7 @@ import continuum_mhe.estimators.fast.model as fm
 from continuum_mhe.estimators.fast import FastOptions, Workspace, solve_window, window_cost
 from continuum_mhe.estimators.fast.sqp import _weights
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
@@ -44,7 +44,7 @@ def main() -> None:
     a = p.parse_args()
     robot = read_robot("tendon-two-section")
     base = make_formulation("bend", robot, NoiseSettings(measurement_std=math.radians(2.0)))
-    f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
+    f = tendon_formulation_for(base, InputOptions())
     tensions = read_tensions(DATA / f"{a.scenario}_tensions.csv", robot.n_tendons)
     lines = (DATA / f"{a.scenario}_tilt.csv").read_text().splitlines()
     rows = np.loadtxt([ln for ln in lines if not ln.startswith("#")][1:], delimiter=",")

@@ -34,7 +34,7 @@ import numpy as np
 
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.kalman import SigmaPointSettings, UnscentedKalmanFilter
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
@@ -127,7 +127,7 @@ def main() -> None:
     p.add_argument("--skip", type=float, default=1.0)
     p.add_argument("--robot", default="tendon-two-section")
     p.add_argument("--noise-deg", type=float, default=2.0, help="as the command line's")
-    p.add_argument("--gyro-std", type=float, default=DEFAULT_GYRO_STD, help="as the command line's")
+    p.add_argument("--gyro-std", type=float, default=None, help="as the command line's")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="a TendonFormulation field (repeatable)")  # fmt: skip
     p.add_argument("--tip-imu-only", action="store_true", help="use only the last IMU")

@@ -24,7 +24,7 @@ import numpy as np
 from tendon_study import _table, imu_readings
 
 from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
@@ -64,7 +64,7 @@ def read_raw_recording(folder: Path, scenario: str, changes: list[str]) -> RawRe
     ``NAME=VALUE``), the recording's tensions, times, IMU readings and truth."""
     robot = read_robot("tendon-two-section")
     base = make_formulation("direct", robot, NoiseSettings(measurement_std=math.radians(2.0)))
-    f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
+    f = tendon_formulation_for(base, InputOptions())
     f = replace(f, **{k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in changes)})
     tensions = read_tensions(folder / f"{scenario}_tensions.csv", robot.n_tendons)
     t, z_imu = imu_readings(folder, scenario, "direct", range(robot.n_imus))

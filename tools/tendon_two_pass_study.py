@@ -20,7 +20,7 @@ from tendon_study import _table
 
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
@@ -35,7 +35,7 @@ def main() -> None:
     a = p.parse_args()
     robot = read_robot("tendon-two-section")
     base = make_formulation("bend", robot, NoiseSettings(measurement_std=math.radians(2.0)))
-    f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
+    f = tendon_formulation_for(base, InputOptions())
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")
     names, truth = _table(a.folder / f"{a.scenario}_truth.csv")

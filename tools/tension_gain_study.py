@@ -27,7 +27,7 @@ import numpy as np
 from tendon_study import _table, imu_readings
 
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
@@ -58,7 +58,7 @@ def main() -> None:
         NoiseSettings(measurement_std=math.radians(2.0)),
     )
     changes = {k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in a.set)}
-    default = replace(tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD)),
+    default = replace(tendon_formulation_for(base, InputOptions()),
                       **changes)  # fmt: skip
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     t, z_imu = imu_readings(a.folder, a.scenario, a.imu, range(robot.n_imus))

@@ -31,7 +31,7 @@ from tendon_truth_residual import true_imu_errors
 
 from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
-from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
@@ -61,7 +61,7 @@ def main() -> None:
     n_all = robot.n_imus
     robot = replace(robot, imus=(robot.imus[-1],))
     base = make_formulation("direct", robot, NoiseSettings(measurement_std=math.radians(2.0)))
-    f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
+    f = tendon_formulation_for(base, InputOptions())
     f = replace(f, **{k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in a.set)})
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     t, z_imu = imu_readings(a.folder, a.scenario, "direct", [n_all - 1])

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 from continuum_mhe.errors import InputError
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
 from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
+from continuum_mhe.model.tendon import SINGLE_IMU_GYRO_STD
 
 if TYPE_CHECKING:
     pass
@@ -79,10 +80,11 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--gyro-std",
         type=float,
-        default=DEFAULT_GYRO_STD,
+        default=None,
         help="gyro white noise std in rad/s for --imu-model direct (default "
         f"{DEFAULT_GYRO_STD:g}: a MEMS gyro, with room for the model's error; a tendon "
-        "robot with one IMU takes 0.005 unless this is given); a "
+        f"robot with one IMU takes {SINGLE_IMU_GYRO_STD:g} unless a value is given here "
+        "or in an options file); a "
         "gyro's own noise is far smaller, and given on a tendon robot (under 0.005) "
         "it leaves rows ok outside their intervals, with a warning (docs/tendon.md)",
     )
@@ -163,8 +165,8 @@ def input_options(args: argparse.Namespace) -> Any:
             pair_tolerance = None
         if "orientation" in profile:
             use_orientation = False
-    gyro_std = float(getattr(args, "gyro_std", DEFAULT_GYRO_STD))
-    if not (math.isfinite(gyro_std) and gyro_std > 0):
+    gyro_std = getattr(args, "gyro_std", None)  # None: the model's own (recorded only if set)
+    if gyro_std is not None and not (math.isfinite(gyro_std) and gyro_std > 0):
         raise InputError(f"--gyro-std must be positive, got {gyro_std}")
     return InputOptions(
         raw=raw_settings(args),
@@ -185,9 +187,7 @@ def input_options(args: argparse.Namespace) -> Any:
         skip_bad=bool(getattr(args, "skip_bad", False)),
         tensions=getattr(args, "inputs", None),
         estimate_tension_gain=bool(getattr(args, "estimate_tension_gain", False)),
-        from_profile=frozenset(
-            profile & {"degrees", "mount_rpy", "attitude", "pair_tolerance", "gyro_std"}
-        ),
+        from_profile=frozenset(profile & {"degrees", "mount_rpy", "attitude", "pair_tolerance"}),
     )
 
 

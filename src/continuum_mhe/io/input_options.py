@@ -46,8 +46,10 @@ class InputOptions:
             half of IMU 1's median sample period).
         use_orientation: use the Imu message's orientation (roll, pitch) instead of
             its raw accelerometer and gyro.
-        gyro_std: gyro white noise, rad/s, for the direct model (default
-            :data:`DEFAULT_GYRO_STD`).
+        gyro_std: gyro white noise, rad/s (None, the default: the model's own:
+            :data:`DEFAULT_GYRO_STD` for the direct model, and for a tendon robot the
+            value it resolves from its IMUs, less for one IMU; a value given, 0.01
+            included, is kept).
         estimate_gyro_bias: the direct model estimates each gyro's bias (None: yes,
             the default; False: the bias counts as gyro noise).
         estimate_accel_bias: the direct model estimates each accelerometer's bias.
@@ -64,11 +66,9 @@ class InputOptions:
         estimate_tension_gain: a tendon robot's formulation estimates a gain per
             section on the tensions given (``--estimate-tension-gain``).
         from_profile: the options (``degrees``, ``mount_rpy``, ``attitude``,
-            ``pair_tolerance``, ``gyro_std``) that an options file set, not the command
-            line: a profile's options apply where they can, so
-            :func:`check_options_apply` passes over them where they do not; a
-            ``gyro_std`` set there is the user's (a tendon robot keeps it, where it
-            resolves the default from its IMUs).
+            ``pair_tolerance``) that an options file set, not the command line: a
+            profile's options apply where they can, so :func:`check_options_apply`
+            passes over them where they do not.
     """
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
@@ -79,7 +79,7 @@ class InputOptions:
     topics: tuple[str, ...] = ()
     pair_tolerance: float | None = None
     use_orientation: bool = False
-    gyro_std: float = DEFAULT_GYRO_STD
+    gyro_std: float | None = None
     estimate_gyro_bias: bool | None = None
     estimate_accel_bias: bool = False
     own_acceleration: bool = False
@@ -118,7 +118,8 @@ class InputOptions:
         object.__setattr__(self, "topics", tuple(self.topics))
         for topic in self.topics:
             expect_type("InputOptions topics item", topic, str, "a str (an Imu topic)")
-        check_positive("InputOptions gyro_std", self.gyro_std)
+        if self.gyro_std is not None:
+            check_positive("InputOptions gyro_std", self.gyro_std)
         if self.pair_tolerance is not None:
             check_positive("InputOptions pair_tolerance", self.pair_tolerance)
 
@@ -191,7 +192,7 @@ def formulation_for(
     return DirectFormulation(
         robot=base.robot,
         noise=base.noise,
-        gyro_std=options.gyro_std,
+        gyro_std=DEFAULT_GYRO_STD if options.gyro_std is None else options.gyro_std,
         estimate_gyro_bias=(
             not held if options.estimate_gyro_bias is None else options.estimate_gyro_bias
         ),

@@ -1007,7 +1007,7 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
             OptionWarning,
             stacklevel=2,
         )
-    if direct and options.gyro_std < TENDON_GYRO_STD_CALIBRATED:
+    if direct and options.gyro_std is not None and options.gyro_std < TENDON_GYRO_STD_CALIBRATED:
         warnings.warn(
             f"--gyro-std {options.gyro_std:g} rad/s on a tendon robot: below "
             f"{TENDON_GYRO_STD_CALIBRATED:g} the standard deviations narrow faster than "
@@ -1023,14 +1023,7 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
         robot=base.robot,
         noise=base.noise,
         imu_model="direct" if direct else "tilt",
-        # the options' default noise resolved from the robot's IMUs (one IMU: less)
-        gyro_std=(
-            options.gyro_std
-            if options.gyro_std_given
-            or "gyro_std" in options.from_profile
-            or options.gyro_std != DEFAULT_GYRO_STD
-            else None
-        ),
+        gyro_std=options.gyro_std,  # None: resolved from the robot's IMUs (one IMU: less)
         estimate_gyro_bias=direct and options.estimate_gyro_bias is not False,
         estimate_accel_bias=options.estimate_accel_bias or TendonFormulation.estimate_accel_bias,
         estimate_tension_gain=options.estimate_tension_gain,
