@@ -13,13 +13,18 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
+import continuum_mhe._core as _core
 from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.results import Measurement
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
 
@@ -38,6 +43,29 @@ def sections_case(k: int, duration: float = 20.0) -> tuple[Formulation, Recordin
     return make_formulation("bend", robot), simulate_robot(
         "spatial", robot, duration=duration, seed=0
     )
+
+
+def full_windows(
+    f: Formulation, rec: Recording, settings: MHESettings
+) -> tuple[Any, Any, Iterator[tuple[Any, np.ndarray, np.ndarray]]]:
+    """``(model, options, windows)`` of the fast MHE (``settings``) run over ``rec``: its
+    compiled window model and solver options, and each full window the compiled step
+    solved, as ``(problem, X0, lam0)`` (the window's problem and the step's start), made
+    as the run goes."""
+    est = MovingHorizonEstimator(f, settings)
+    inference = est.inference
+    model, window = inference._fast, inference._window
+    assert model is not None and isinstance(window, _core.MovingHorizon)
+
+    def windows() -> Iterator[tuple[Any, np.ndarray, np.ndarray]]:
+        est.reset()
+        for i, (t, z) in enumerate(zip(rec.t, rec.z)):
+            est.step(Measurement(float(t), z))
+            if i >= settings.horizon and window.solved:
+                X0, lam0 = np.array(window.X0), np.array(window.lam0)
+                yield inference.window_problem(), X0, lam0
+
+    return model, inference.fast_options, windows()
 
 
 def main() -> None:

@@ -26,12 +26,9 @@ import collections
 from dataclasses import replace
 
 import numpy as np
-from sections_ratio import sections_case
+from sections_ratio import full_windows, sections_case
 
-import continuum_mhe._core as _core
 from continuum_mhe.estimators import fast as fm
-from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.results import Measurement
 from continuum_mhe.settings import MHE_LOSSES, MHESettings
 
 N = 30
@@ -44,21 +41,13 @@ def main() -> None:
     p.add_argument("--loss", choices=MHE_LOSSES, default="l2", help="default l2")
     a = p.parse_args()
     f, rec = sections_case(a.sections, a.duration)
-    est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver="fast", loss=a.loss))
-    inference = est.inference
-    model, window, options = inference._fast, inference._window, inference.fast_options
-    assert model is not None and isinstance(window, _core.MovingHorizon)
+    settings = MHESettings(horizon=N, solver="fast", loss=a.loss)
+    model, options, windows = full_windows(f, rec, settings)
     scale = model.step_scale
     tight = replace(options, step_tol=1e-13, err_tol=1e-13, max_iter=200)
     bare = [replace(options, step_tol=1e-300, err_tol=1e-300, max_iter=j) for j in (1, 2, 3)]
     rows = []
-    est.reset()
-    for i, (t, z) in enumerate(zip(rec.t, rec.z)):
-        est.step(Measurement(float(t), z))
-        if i < N or not window.solved:
-            continue
-        problem = inference.window_problem()
-        X0, lam0 = np.array(window.X0), np.array(window.lam0)
+    for problem, X0, lam0 in windows:
         answer = fm.solve_window(model, problem, X0, options, lam0)
         ref = fm.solve_window(model, problem, X0, tight, lam0)
         its = [fm.solve_window(model, problem, X0, o, lam0) for o in bare]

@@ -23,12 +23,9 @@ import argparse
 import collections
 
 import numpy as np
-from sections_ratio import sections_case
+from sections_ratio import full_windows, sections_case
 
-import continuum_mhe._core as _core
 from continuum_mhe.estimators import fast as fm
-from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.results import Measurement
 from continuum_mhe.settings import MHESettings
 
 N = 30
@@ -41,18 +38,9 @@ def main() -> None:
     a = p.parse_args()
     f, rec = sections_case(a.sections, a.duration)
     angles = [i for i, name in enumerate(f.state_names) if not name.endswith("_dot")]
-    est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver="fast"))
-    inference = est.inference
-    model, window, options = inference._fast, inference._window, inference.fast_options
-    assert model is not None and isinstance(window, _core.MovingHorizon)
+    model, options, windows = full_windows(f, rec, MHESettings(horizon=N, solver="fast"))
     counts: dict[str, list[int]] = collections.defaultdict(list)
-    est.reset()
-    for i, (t, z) in enumerate(zip(rec.t, rec.z)):
-        est.step(Measurement(float(t), z))
-        if i < N or not window.solved:
-            continue
-        problem = inference.window_problem()
-        X0, lam0 = np.array(window.X0), np.array(window.lam0)
+    for problem, X0, lam0 in windows:
         answer = fm.solve_window(model, problem, X0, options, lam0)
         starts = {"own start": X0}
         starts["newest angles"] = X0.copy()

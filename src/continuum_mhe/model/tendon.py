@@ -494,21 +494,24 @@ class TendonFormulation(Formulation):
             on = self.force_rate_moves_imus
         return 3 if on else 0
 
+    def _by_imus(self, given: float | None, one: float, several: float) -> float:
+        """A field's value used: ``given``, or where it is None the default for a robot
+        with one IMU (``one``) or with several (``several``)."""
+        if given is not None:
+            return given
+        return one if self.robot.n_imus == 1 else several
+
     @property
     def gyro_noise_std(self) -> float:
         """The gyros' white noise used, rad/s (:attr:`gyro_std`, resolved from the
         robot's IMUs)."""
-        if self.gyro_std is not None:
-            return self.gyro_std
-        return SINGLE_IMU_GYRO_STD if self.robot.n_imus == 1 else DEFAULT_GYRO_STD
+        return self._by_imus(self.gyro_std, SINGLE_IMU_GYRO_STD, DEFAULT_GYRO_STD)
 
     @property
     def jerk_psd(self) -> float:
         """The tip force's white-noise jerk used where its acceleration is a state,
         N^2/s^5 (:attr:`force_jerk_psd`, resolved from the robot's IMUs)."""
-        if self.force_jerk_psd is not None:
-            return self.force_jerk_psd
-        return SINGLE_IMU_FORCE_JERK_PSD if self.robot.n_imus == 1 else FORCE_JERK_PSD
+        return self._by_imus(self.force_jerk_psd, SINGLE_IMU_FORCE_JERK_PSD, FORCE_JERK_PSD)
 
     @property
     def _n_motion(self) -> int:
@@ -521,19 +524,15 @@ class TendonFormulation(Formulation):
         """The tip force's white-noise acceleration used, N^2/s^3
         (:attr:`force_accel_psd`, resolved from the robot's IMUs and whether the force's
         acceleration is a state)."""
-        if self.force_accel_psd is not None:
-            return self.force_accel_psd
         if self.n_force_acceleration:
-            return SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD if self.robot.n_imus == 1 else 0.0
-        return SINGLE_IMU_FORCE_ACCEL_PSD if self.robot.n_imus == 1 else FORCE_ACCEL_PSD
+            return self._by_imus(self.force_accel_psd, SINGLE_IMU_FORCE_ACCEL_WITH_JERK_PSD, 0.0)
+        return self._by_imus(self.force_accel_psd, SINGLE_IMU_FORCE_ACCEL_PSD, FORCE_ACCEL_PSD)
 
     @property
     def slack_width(self) -> float:
         """The clip's width used, N (:attr:`slack_smoothing`, resolved from the robot's
         IMUs)."""
-        if self.slack_smoothing is not None:
-            return self.slack_smoothing
-        return SINGLE_IMU_SLACK_SMOOTHING if self.robot.n_imus == 1 else 0.0
+        return self._by_imus(self.slack_smoothing, SINGLE_IMU_SLACK_SMOOTHING, 0.0)
 
     @property
     def force_prior_std(self) -> float:
