@@ -5,6 +5,7 @@ tilt and raw IMUs."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import casadi as ca
@@ -321,3 +322,61 @@ def test_a_guarded_branch_equals_casadi_on_each_side_and_mixed(
         got = np.full(forward.output_size, np.nan)
         forward.evaluate([X[:2, k].copy()], got)
         np.testing.assert_allclose(got, casadi_flat(fn, [X[:2, k]])[1:], rtol=1e-14, atol=1e-15)
+
+
+@functools.cache
+def _model_functions() -> list[ca.Function]:
+    """Every operation, and a two-section raw-IMU model's node functions with their
+    derivatives (tens of thousands of instructions, constants, several outputs)."""
+    from continuum_mhe.estimators.fast.model import output_function
+    from continuum_mhe.model.tape import residual_function, transition_function
+
+    two = Robot((Section(0.15, 3.0), Section(0.15, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("direct", two, estimate_gyro_bias=True)
+    residual = residual_function(f)
+    x, z = residual.sx_in()
+    jac = ca.Function("residual_jacobian", [x, z], [ca.jacobian(residual(x, z), x)])
+    return [_OPS, transition_function(f), residual, jac, output_function(f)]
+
+
+@pytest.mark.parametrize("k", range(5))
+def test_the_serialized_algorithm_is_the_queried_one(k: int) -> None:
+    """The tape read in one piece from CasADi's serialization is, array for array, the
+    one read instruction by instruction through CasADi's queries; and the serialization
+    was read (not the queries' fallback)."""
+    from continuum_mhe.model import tape
+
+    fn = tape._sx(_model_functions()[k])
+    assert tape._serialized_algorithm(fn) is not None
+    code, constants = tape.tape_arrays(fn)
+    queried_code, queried_constants = tape._queried_tape_arrays(fn)
+    np.testing.assert_array_equal(code, queried_code)
+    np.testing.assert_array_equal(constants, queried_constants)
+    assert code.dtype == np.int32 and constants.dtype == np.float64
+
+
+def test_a_serialization_not_recognised_is_read_by_the_queries(monkeypatch) -> None:
+    """Where the serialized algorithm is not where it is looked for, or one instruction
+    in it differs from CasADi's queries, the tape comes from the queries: the same
+    arrays, and the same values as CasADi's."""
+    from continuum_mhe.model import tape
+
+    fn = _OPS
+    n = fn.n_instructions()
+    assert n <= tape._CHECKED_INSTRUCTIONS  # every instruction is checked
+    text = fn.serialize()
+    key = tape._letters(np.array(tape._queried_row(fn, 0)[:4], dtype="<i4").tobytes())
+    start = text.index(key)
+    # instruction n // 2's result slot, one more
+    at = start + 32 * (n // 2) + 8
+    changed = tape._letters(bytes([(ord(text[at]) - 97 + 1) % 16 | (ord(text[at + 1]) - 97) << 4]))
+    queried = tape._queried_tape_arrays(fn)
+    for other in ("", text[:at] + changed + text[at + 2 :]):
+        monkeypatch.setattr(ca.Function, "serialize", lambda self, *a, _t=other: _t)
+        assert tape._serialized_algorithm(fn) is None
+        code, constants = tape.tape_arrays(fn)
+        np.testing.assert_array_equal(code, queried[0])
+        np.testing.assert_array_equal(constants, queried[1])
+    monkeypatch.undo()
+    args = [np.array([0.3, -0.4, 0.8]), np.array([1.7])]
+    np.testing.assert_array_equal(core_flat(tape_function(fn), args), casadi_flat(fn, args))

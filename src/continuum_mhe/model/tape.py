@@ -2,9 +2,10 @@
 
 The model of a robot is written once, symbolically (:mod:`continuum_mhe.model`); the
 compiled core (:mod:`continuum_mhe._core`) evaluates its functions from the algorithm
-that CasADi keeps for every SX function (``instruction_id``, ``instruction_input``,
-``instruction_output``, ``instruction_constant``). A new robot or option set is new
-data: nothing is compiled when it is first used.
+that CasADi keeps for every SX function (read from its serialization, checked against
+``instruction_id``, ``instruction_input``, ``instruction_output`` and
+``instruction_constant``). A new robot or option set is new data: nothing is compiled
+when it is first used.
 """
 
 from __future__ import annotations
@@ -40,20 +41,131 @@ def _sx(fn: ca.Function) -> ca.Function:
 def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
     """``(code, constants)`` of an SX function: ``code`` (n, 4) int32 rows
     ``(op, res, a, b)`` in the core's numbering (see ``csrc/tape.hpp``); an output's
-    offsets are those of its dense column-major layout."""
+    offsets are those of its dense column-major layout.
+
+    The instructions are read in one piece from CasADi's serialization of ``fn``
+    (:func:`_serialized_algorithm`); where that layout is not recognised, one at a time
+    through CasADi's instruction queries (the same arrays, more slowly)."""
+    algorithm = _serialized_algorithm(fn)
+    if algorithm is None:
+        return _queried_tape_arrays(fn)
+    rows, constant_values = algorithm
+    ops, i0, i1, i2 = rows.T
+    n = len(ops)
+    core_ops = np.full(n, -1, dtype=np.int32)
+    for op in np.unique(ops):
+        core_ops[ops == op] = _core_op(fn, int(op))
+    code = np.empty((n, 4), dtype=np.int32)
+    code[:, 0], code[:, 1], code[:, 2] = core_ops, i0, i1
+    # operations of one argument: b repeats a
+    unary = np.isin(ops, [op for op in np.unique(ops) if _arguments(fn, ops, int(op)) == 1])
+    code[:, 3] = np.where(unary, i1, i2)
+    is_output = core_ops == _OUTPUT
+    if is_output.any():  # output i0, nonzero i2 <- work i1
+        dense = [_dense_offsets(fn.sparsity_out(i)) for i in range(fn.n_out())]
+        k = np.flatnonzero(is_output)
+        code[k, 1] = [dense[o][nz] for o, nz in zip(i0[k], i2[k])]
+        code[k, 3] = i0[k]
+    is_constant = core_ops == _CONST
+    k = np.flatnonzero(is_constant)
+    code[k, 2], code[k, 3] = np.arange(len(k)), 0
+    return code, np.ascontiguousarray(constant_values[k], dtype=np.float64)
+
+
+def _core_op(fn: ca.Function, op: int) -> int:
+    """The core's number of CasADi operation ``op``; one the core lacks is an error."""
+    try:
+        return _OPCODES[op]
+    except KeyError:
+        names = [m for m in dir(ca) if m.startswith("OP_") and getattr(ca, m) == op]
+        raise NotImplementedError(
+            f"{fn.name()}: the compiled core has no operation {names or op}"
+        ) from None
+
+
+def _arguments(fn: ca.Function, ops: np.ndarray, op: int) -> int:
+    """How many work values operation ``op`` reads (asked of its first instruction)."""
+    if _OPCODES.get(op) in (_INPUT, _OUTPUT, _CONST):
+        return 2
+    return len(fn.instruction_input(int(np.flatnonzero(ops == op)[0])))
+
+
+#: How many of an algorithm's instructions :func:`_serialized_algorithm` checks against
+#: CasADi's instruction queries (evenly spread, the first and the last included).
+_CHECKED_INSTRUCTIONS = 256
+
+
+def _serialized_algorithm(fn: ca.Function) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(rows, constants)`` of ``fn``'s algorithm as CasADi serializes an SX function:
+    its instructions as ``(op, i0, i1, i2)`` int32 rows (an operation writes work ``i0``
+    from ``i1`` and ``i2``, or ``i1`` alone; an input writes ``i0`` from input ``i1``'s
+    nonzero ``i2``; an output writes output ``i0``'s nonzero ``i2`` from work ``i1``),
+    and per row the float64 that a constant keeps in place of ``i1, i2``. Each byte of
+    the serialization is two letters, ``a`` plus its low and its high four bits. The
+    block is found by its first instruction and checked against CasADi's instruction
+    queries on :data:`_CHECKED_INSTRUCTIONS` instructions; None where it is not found
+    so."""
+    n = fn.n_instructions()
+    if n == 0:
+        return None
+    text = fn.serialize()
+    head = _queried_row(fn, 0)
+    key = _letters(np.array(head[:2] if len(head) == 5 else head, dtype="<i4").tobytes())
+    checked = np.unique(np.r_[n - 1, np.linspace(0, n - 1, min(n, _CHECKED_INSTRUCTIONS))])
+    start = text.find(key)
+    while 0 <= start <= len(text) - 32 * n:
+        if start % 2 == 0:
+            letters = np.frombuffer(text[start : start + 32 * n].encode("ascii"), np.uint8) - 97
+            block = (letters[0::2] | (letters[1::2] << 4)).astype(np.uint8)
+            rows = block.view("<i4").reshape(n, 4).astype(np.int64)
+            constants = block.view("<f8").reshape(n, 2)[:, 1]
+            if all(_matches(fn, rows[k], constants[k], int(k)) for k in checked.astype(int)):
+                return rows, constants
+        start = text.find(key, start + 1)
+    return None
+
+
+def _letters(data: bytes) -> str:
+    """``data`` as CasADi's serialization writes bytes: two letters each."""
+    b = np.frombuffer(data, np.uint8)
+    return bytes(np.stack([97 + (b & 15), 97 + (b >> 4)], axis=1).ravel()).decode("ascii")
+
+
+def _queried_row(fn: ca.Function, k: int) -> tuple[float, ...]:
+    """Instruction ``k`` of ``fn`` from CasADi's instruction queries: ``(op, i0, i1,
+    i2)`` as :func:`_serialized_algorithm` reads them (``i2`` repeating ``i1`` for an
+    operation of one argument), or ``(op, i0, 0, 0, value)`` for a constant."""
+    op = int(fn.instruction_id(k))
+    args, res = fn.instruction_input(k), fn.instruction_output(k)
+    core = _OPCODES.get(op)
+    if core == _INPUT:
+        return (op, res[0], args[0], args[1])
+    if core == _OUTPUT:
+        return (op, res[0], args[0], res[1])
+    if core == _CONST:
+        return (op, res[0], 0, 0, float(fn.instruction_constant(k)))
+    return (op, res[0], args[0], args[1] if len(args) > 1 else args[0])
+
+
+def _matches(fn: ca.Function, row: np.ndarray, constant: float, k: int) -> bool:
+    """Whether a serialized row (and a constant's value) is instruction ``k``."""
+    queried = _queried_row(fn, k)
+    if len(queried) == 5:
+        return (int(row[0]), int(row[1]), float(constant)) == (*queried[:2], queried[4])
+    if len(fn.instruction_input(k)) == 1 and _OPCODES.get(int(queried[0])) != _OUTPUT:
+        return tuple(int(v) for v in row[:3]) == queried[:3]
+    return tuple(int(v) for v in row) == queried
+
+
+def _queried_tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`tape_arrays` through CasADi's instruction queries, one instruction at a
+    time."""
     n = fn.n_instructions()
     code = np.zeros((n, 4), dtype=np.int32)
     constants: list[float] = []
     dense = [_dense_offsets(fn.sparsity_out(i)) for i in range(fn.n_out())]
     for k in range(n):
-        op = fn.instruction_id(k)
-        try:
-            core_op = _OPCODES[op]
-        except KeyError:
-            names = [m for m in dir(ca) if m.startswith("OP_") and getattr(ca, m) == op]
-            raise NotImplementedError(
-                f"{fn.name()}: the compiled core has no operation {names or op}"
-            ) from None
+        core_op = _core_op(fn, fn.instruction_id(k))
         args, res = fn.instruction_input(k), fn.instruction_output(k)
         if core_op == _INPUT:  # res <- input args[0], nonzero args[1]
             code[k] = (core_op, res[0], args[0], args[1])
