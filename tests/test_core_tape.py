@@ -347,18 +347,21 @@ def test_the_serialized_algorithm_is_the_queried_one(k: int) -> None:
     from continuum_mhe.model import tape
 
     fn = tape._sx(_model_functions()[k])
-    assert tape._serialized_algorithm(fn) is not None
-    code, constants = tape.tape_arrays(fn)
+    algorithm = tape._serialized_algorithm(fn)
+    assert algorithm is not None
+    code, constants = tape._serialized_tape_arrays(fn, *algorithm)
     queried_code, queried_constants = tape._queried_tape_arrays(fn)
     np.testing.assert_array_equal(code, queried_code)
     np.testing.assert_array_equal(constants, queried_constants)
     assert code.dtype == np.int32 and constants.dtype == np.float64
+    if fn.n_instructions() > tape.SERIALIZED_FROM:  # the path tape_arrays takes
+        np.testing.assert_array_equal(tape.tape_arrays(fn)[0], queried_code)
 
 
 def test_a_serialization_not_recognised_is_read_by_the_queries(monkeypatch) -> None:
     """Where the serialized algorithm is not where it is looked for, or one instruction
-    in it differs from CasADi's queries, the tape comes from the queries: the same
-    arrays, and the same values as CasADi's."""
+    in it differs from CasADi's queries, it is not taken, and the tape comes from the
+    queries: the same arrays, and the same values as CasADi's."""
     from continuum_mhe.model import tape
 
     fn = _OPS
@@ -371,6 +374,7 @@ def test_a_serialization_not_recognised_is_read_by_the_queries(monkeypatch) -> N
     at = start + 32 * (n // 2) + 8
     changed = tape._letters(bytes([(ord(text[at]) - 97 + 1) % 16 | (ord(text[at + 1]) - 97) << 4]))
     queried = tape._queried_tape_arrays(fn)
+    monkeypatch.setattr(tape, "SERIALIZED_FROM", 0)
     for other in ("", text[:at] + changed + text[at + 2 :]):
         monkeypatch.setattr(ca.Function, "serialize", lambda self, *a, _t=other: _t)
         assert tape._serialized_algorithm(fn) is None

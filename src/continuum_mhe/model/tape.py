@@ -43,31 +43,43 @@ def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
     ``(op, res, a, b)`` in the core's numbering (see ``csrc/tape.hpp``); an output's
     offsets are those of its dense column-major layout.
 
-    The instructions are read in one piece from CasADi's serialization of ``fn``
-    (:func:`_serialized_algorithm`); where that layout is not recognised, one at a time
-    through CasADi's instruction queries (the same arrays, more slowly)."""
-    algorithm = _serialized_algorithm(fn)
+    A function of more than :data:`SERIALIZED_FROM` instructions is read in one piece
+    from CasADi's serialization of it (:func:`_serialized_algorithm`); a smaller one, or
+    one whose serialization's layout is not recognised, one instruction at a time
+    through CasADi's instruction queries (the same arrays)."""
+    algorithm = _serialized_algorithm(fn) if fn.n_instructions() > SERIALIZED_FROM else None
     if algorithm is None:
         return _queried_tape_arrays(fn)
-    rows, constant_values = algorithm
+    return _serialized_tape_arrays(fn, *algorithm)
+
+
+#: The size (instructions) from which :func:`tape_arrays` reads a function's
+#: serialization: below it, asking CasADi instruction by instruction costs less than
+#: serializing the function and checking the serialization.
+SERIALIZED_FROM = 1024
+
+
+def _serialized_tape_arrays(
+    fn: ca.Function, rows: np.ndarray, constant_values: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`tape_arrays` from the rows and constants of :func:`_serialized_algorithm`."""
     ops, i0, i1, i2 = rows.T
     n = len(ops)
+    distinct = [int(op) for op in np.unique(ops)]
     core_ops = np.full(n, -1, dtype=np.int32)
-    for op in np.unique(ops):
-        core_ops[ops == op] = _core_op(fn, int(op))
+    for op in distinct:
+        core_ops[ops == op] = _core_op(fn, op)
     code = np.empty((n, 4), dtype=np.int32)
     code[:, 0], code[:, 1], code[:, 2] = core_ops, i0, i1
     # operations of one argument: b repeats a
-    unary = np.isin(ops, [op for op in np.unique(ops) if _arguments(fn, ops, int(op)) == 1])
+    unary = np.isin(ops, [op for op in distinct if _arguments(fn, ops, op) == 1])
     code[:, 3] = np.where(unary, i1, i2)
-    is_output = core_ops == _OUTPUT
-    if is_output.any():  # output i0, nonzero i2 <- work i1
+    k = np.flatnonzero(core_ops == _OUTPUT)
+    if len(k):  # output i0, nonzero i2 <- work i1
         dense = [_dense_offsets(fn.sparsity_out(i)) for i in range(fn.n_out())]
-        k = np.flatnonzero(is_output)
         code[k, 1] = [dense[o][nz] for o, nz in zip(i0[k], i2[k])]
         code[k, 3] = i0[k]
-    is_constant = core_ops == _CONST
-    k = np.flatnonzero(is_constant)
+    k = np.flatnonzero(core_ops == _CONST)
     code[k, 2], code[k, 3] = np.arange(len(k)), 0
     return code, np.ascontiguousarray(constant_values[k], dtype=np.float64)
 
