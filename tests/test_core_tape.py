@@ -326,8 +326,9 @@ def test_a_guarded_branch_equals_casadi_on_each_side_and_mixed(
 
 @functools.cache
 def _model_functions() -> list[ca.Function]:
-    """Every operation, and a two-section raw-IMU model's node functions with their
-    derivatives (tens of thousands of instructions, constants, several outputs)."""
+    """Every operation, a two-section raw-IMU model's node functions with their
+    derivatives (thousands of instructions, constants, several outputs), and a function
+    whose first instruction is a constant."""
     from continuum_mhe.estimators.fast.model import output_function
     from continuum_mhe.model.tape import residual_function, transition_function
 
@@ -336,10 +337,17 @@ def _model_functions() -> list[ca.Function]:
     residual = residual_function(f)
     x, z = residual.sx_in()
     jac = ca.Function("residual_jacobian", [x, z], [ca.jacobian(residual(x, z), x)])
-    return [_OPS, transition_function(f), residual, jac, output_function(f)]
+    # constants first, among thousands of whole numbers that the serialized expressions
+    # hold before the algorithm (each a false match of a key without the value)
+    v = ca.SX.sym("v", 3)
+    whole = ca.vertcat(*(v[i % 3] * float(i + 2) for i in range(2000)))
+    constants = ca.Function("constants", [v], [ca.vertcat(0.5, ca.sin(whole), whole)])
+    return [_OPS, transition_function(f), residual, jac, output_function(f), constants]
 
 
-@pytest.mark.parametrize("k", range(5))
+@pytest.mark.parametrize(
+    "k", range(6), ids=["operations", "transition", "residual", "jacobian", "outputs", "constants"]
+)
 def test_the_serialized_algorithm_is_the_queried_one(k: int) -> None:
     """The tape read in one piece from CasADi's serialization is, array for array, the
     one read instruction by instruction through CasADi's queries; and the serialization
@@ -356,6 +364,7 @@ def test_the_serialized_algorithm_is_the_queried_one(k: int) -> None:
     assert code.dtype == np.int32 and constants.dtype == np.float64
     if fn.n_instructions() > tape.SERIALIZED_FROM:  # the path tape_arrays takes
         np.testing.assert_array_equal(tape.tape_arrays(fn)[0], queried_code)
+        np.testing.assert_array_equal(tape.tape_arrays(fn)[1], queried_constants)
 
 
 def test_a_serialization_not_recognised_is_read_by_the_queries(monkeypatch) -> None:
@@ -368,7 +377,7 @@ def test_a_serialization_not_recognised_is_read_by_the_queries(monkeypatch) -> N
     n = fn.n_instructions()
     assert n <= tape._CHECKED_INSTRUCTIONS  # every instruction is checked
     text = fn.serialize()
-    key = tape._letters(np.array(tape._queried_row(fn, 0)[:4], dtype="<i4").tobytes())
+    key = tape._letters(tape._row_bytes(tape._queried_row(fn, 0)))
     start = text.index(key)
     # instruction n // 2's result slot, one more
     at = start + 32 * (n // 2) + 8

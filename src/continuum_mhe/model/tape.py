@@ -2,7 +2,7 @@
 
 The model of a robot is written once, symbolically (:mod:`continuum_mhe.model`); the
 compiled core (:mod:`continuum_mhe._core`) evaluates its functions from the algorithm
-that CasADi keeps for every SX function (read from its serialization, checked against
+that CasADi keeps for every SX function (read from its serialization, or through
 ``instruction_id``, ``instruction_input``, ``instruction_output`` and
 ``instruction_constant``). A new robot or option set is new data: nothing is compiled
 when it is first used.
@@ -38,6 +38,15 @@ def _sx(fn: ca.Function) -> ca.Function:
     return fn
 
 
+#: The size (instructions) above which :func:`tape_arrays` reads a function's
+#: serialization: up to it, asking CasADi instruction by instruction costs less than
+#: serializing the function and checking the serialization.
+SERIALIZED_FROM = 1024
+#: How many of an algorithm's instructions :func:`_serialized_algorithm` checks against
+#: CasADi's instruction queries (evenly spread, the first two and the last included).
+_CHECKED_INSTRUCTIONS = 256
+
+
 def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
     """``(code, constants)`` of an SX function: ``code`` (n, 4) int32 rows
     ``(op, res, a, b)`` in the core's numbering (see ``csrc/tape.hpp``); an output's
@@ -46,38 +55,30 @@ def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
     A function of more than :data:`SERIALIZED_FROM` instructions is read in one piece
     from CasADi's serialization of it (:func:`_serialized_algorithm`); a smaller one, or
     one whose serialization's layout is not recognised, one instruction at a time
-    through CasADi's instruction queries (the same arrays)."""
+    through CasADi's instruction queries, giving the same arrays."""
     algorithm = _serialized_algorithm(fn) if fn.n_instructions() > SERIALIZED_FROM else None
     if algorithm is None:
         return _queried_tape_arrays(fn)
     return _serialized_tape_arrays(fn, *algorithm)
 
 
-#: The size (instructions) from which :func:`tape_arrays` reads a function's
-#: serialization: below it, asking CasADi instruction by instruction costs less than
-#: serializing the function and checking the serialization.
-SERIALIZED_FROM = 1024
-
-
 def _serialized_tape_arrays(
     fn: ca.Function, rows: np.ndarray, constant_values: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`tape_arrays` from the rows and constants of :func:`_serialized_algorithm`."""
+    """:func:`tape_arrays` from the rows and constants of :func:`_serialized_algorithm`
+    (an operation of one argument has ``i2 = i1``, as CasADi writes it)."""
     ops, i0, i1, i2 = rows.T
-    n = len(ops)
-    distinct = [int(op) for op in np.unique(ops)]
-    core_ops = np.full(n, -1, dtype=np.int32)
+    distinct = np.unique(ops)
+    lookup = np.zeros(int(distinct.max()) + 1, dtype=np.int32)
     for op in distinct:
-        core_ops[ops == op] = _core_op(fn, op)
-    code = np.empty((n, 4), dtype=np.int32)
-    code[:, 0], code[:, 1], code[:, 2] = core_ops, i0, i1
-    # operations of one argument: b repeats a
-    unary = np.isin(ops, [op for op in distinct if _arguments(fn, ops, op) == 1])
-    code[:, 3] = np.where(unary, i1, i2)
+        lookup[op] = _core_op(fn, int(op))
+    core_ops = lookup[ops]
+    code = np.stack([core_ops, i0, i1, i2], axis=1).astype(np.int32)
     k = np.flatnonzero(core_ops == _OUTPUT)
     if len(k):  # output i0, nonzero i2 <- work i1
-        dense = [_dense_offsets(fn.sparsity_out(i)) for i in range(fn.n_out())]
-        code[k, 1] = [dense[o][nz] for o, nz in zip(i0[k], i2[k])]
+        offsets = [_dense_offsets(fn.sparsity_out(i)) for i in range(fn.n_out())]
+        first = np.cumsum([0] + [len(o) for o in offsets])
+        code[k, 1] = np.concatenate(offsets)[first[i0[k]] + i2[k]]
         code[k, 3] = i0[k]
     k = np.flatnonzero(core_ops == _CONST)
     code[k, 2], code[k, 3] = np.arange(len(k)), 0
@@ -95,44 +96,35 @@ def _core_op(fn: ca.Function, op: int) -> int:
         ) from None
 
 
-def _arguments(fn: ca.Function, ops: np.ndarray, op: int) -> int:
-    """How many work values operation ``op`` reads (asked of its first instruction)."""
-    if _OPCODES.get(op) in (_INPUT, _OUTPUT, _CONST):
-        return 2
-    return len(fn.instruction_input(int(np.flatnonzero(ops == op)[0])))
-
-
-#: How many of an algorithm's instructions :func:`_serialized_algorithm` checks against
-#: CasADi's instruction queries (evenly spread, the first and the last included).
-_CHECKED_INSTRUCTIONS = 256
-
-
 def _serialized_algorithm(fn: ca.Function) -> tuple[np.ndarray, np.ndarray] | None:
     """``(rows, constants)`` of ``fn``'s algorithm as CasADi serializes an SX function:
     its instructions as ``(op, i0, i1, i2)`` int32 rows (an operation writes work ``i0``
-    from ``i1`` and ``i2``, or ``i1`` alone; an input writes ``i0`` from input ``i1``'s
-    nonzero ``i2``; an output writes output ``i0``'s nonzero ``i2`` from work ``i1``),
-    and per row the float64 that a constant keeps in place of ``i1, i2``. Each byte of
-    the serialization is two letters, ``a`` plus its low and its high four bits. The
-    block is found by its first instruction and checked against CasADi's instruction
-    queries on :data:`_CHECKED_INSTRUCTIONS` instructions; None where it is not found
-    so."""
+    from ``i1`` and ``i2``, ``i2 = i1`` for one of one argument; an input writes ``i0``
+    from input ``i1``'s nonzero ``i2``; an output writes output ``i0``'s nonzero ``i2``
+    from work ``i1``), and per row the float64 that a constant keeps in place of ``i1,
+    i2``. Each byte of the serialization is two letters, ``a`` plus its low and its high
+    four bits. The block is found by its first instruction (a constant's value
+    included) and checked against CasADi's instruction queries on
+    :data:`_CHECKED_INSTRUCTIONS` instructions; None where it is not found so."""
     n = fn.n_instructions()
-    if n == 0:
+    if n < 2:
         return None
     text = fn.serialize()
-    head = _queried_row(fn, 0)
-    key = _letters(np.array(head[:2] if len(head) == 5 else head, dtype="<i4").tobytes())
-    checked = np.unique(np.r_[n - 1, np.linspace(0, n - 1, min(n, _CHECKED_INSTRUCTIONS))])
+    key = _letters(_row_bytes(_queried_row(fn, 0)))
+    spread = np.linspace(0, n - 1, min(n, _CHECKED_INSTRUCTIONS))
+    checked = np.unique(np.r_[1, n - 1, spread].astype(int))
     start = text.find(key)
     while 0 <= start <= len(text) - 32 * n:
-        if start % 2 == 0:
+        # the second and the last instruction first: a false match costs little
+        if start % 2 == 0 and all(
+            _matches(text[start + 32 * k : start + 32 * (k + 1)], fn, k) for k in (1, n - 1)
+        ):
             letters = np.frombuffer(text[start : start + 32 * n].encode("ascii"), np.uint8) - 97
             block = (letters[0::2] | (letters[1::2] << 4)).astype(np.uint8)
-            rows = block.view("<i4").reshape(n, 4).astype(np.int64)
-            constants = block.view("<f8").reshape(n, 2)[:, 1]
-            if all(_matches(fn, rows[k], constants[k], int(k)) for k in checked.astype(int)):
-                return rows, constants
+            if all(_row_bytes(_queried_row(fn, int(k))) == block[16 * k : 16 * (k + 1)].tobytes()
+                   for k in checked):  # fmt: skip
+                rows = block.view("<i4").reshape(n, 4).astype(np.int64)
+                return rows, block.view("<f8").reshape(n, 2)[:, 1]
         start = text.find(key, start + 1)
     return None
 
@@ -143,30 +135,34 @@ def _letters(data: bytes) -> str:
     return bytes(np.stack([97 + (b & 15), 97 + (b >> 4)], axis=1).ravel()).decode("ascii")
 
 
+def _row_bytes(row: tuple[float, ...]) -> bytes:
+    """The 16 bytes of a serialized instruction :func:`_queried_row` gives: four int32,
+    or for a constant two and its float64 value."""
+    if len(row) == 3:
+        return np.array(row[:2], "<i4").tobytes() + np.array([row[2]], "<f8").tobytes()
+    return np.array(row, "<i4").tobytes()
+
+
+def _matches(letters: str, fn: ca.Function, k: int) -> bool:
+    """Whether 32 letters of a serialization are instruction ``k`` of ``fn``."""
+    return letters == _letters(_row_bytes(_queried_row(fn, k)))
+
+
 def _queried_row(fn: ca.Function, k: int) -> tuple[float, ...]:
-    """Instruction ``k`` of ``fn`` from CasADi's instruction queries: ``(op, i0, i1,
-    i2)`` as :func:`_serialized_algorithm` reads them (``i2`` repeating ``i1`` for an
-    operation of one argument), or ``(op, i0, 0, 0, value)`` for a constant."""
+    """Instruction ``k`` of ``fn`` from CasADi's instruction queries as
+    :func:`_serialized_algorithm` reads it: ``(op, i0, i1, i2)`` (``i2`` repeating
+    ``i1`` for an operation of one argument), or ``(op, i0, value)`` for a constant. An
+    operation the core lacks is an error (:func:`_core_op`)."""
     op = int(fn.instruction_id(k))
+    core = _core_op(fn, op)
     args, res = fn.instruction_input(k), fn.instruction_output(k)
-    core = _OPCODES.get(op)
     if core == _INPUT:
         return (op, res[0], args[0], args[1])
     if core == _OUTPUT:
         return (op, res[0], args[0], res[1])
     if core == _CONST:
-        return (op, res[0], 0, 0, float(fn.instruction_constant(k)))
+        return (op, res[0], float(fn.instruction_constant(k)))
     return (op, res[0], args[0], args[1] if len(args) > 1 else args[0])
-
-
-def _matches(fn: ca.Function, row: np.ndarray, constant: float, k: int) -> bool:
-    """Whether a serialized row (and a constant's value) is instruction ``k``."""
-    queried = _queried_row(fn, k)
-    if len(queried) == 5:
-        return (int(row[0]), int(row[1]), float(constant)) == (*queried[:2], queried[4])
-    if len(fn.instruction_input(k)) == 1 and _OPCODES.get(int(queried[0])) != _OUTPUT:
-        return tuple(int(v) for v in row[:3]) == queried[:3]
-    return tuple(int(v) for v in row) == queried
 
 
 def _queried_tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
