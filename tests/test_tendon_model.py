@@ -27,7 +27,12 @@ from continuum_mhe.io.state_tables import StateTable, read_state_table
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
 from continuum_mhe.model.tendon import TendonFormulation
-from continuum_mhe.model.tendon_statics import STEPS_PER_SECTION, Station, TendonStatics
+from continuum_mhe.model.tendon_statics import (
+    STEPS_PER_SECTION,
+    Station,
+    TendonStatics,
+    _statics_functions,
+)
 
 GJ = BACKBONE.torsional_stiffness
 
@@ -156,6 +161,28 @@ def test_the_backbone_points_pass_through_the_models_section_ends() -> None:
     for k in range(2):
         np.testing.assert_allclose(points[16 * (k + 1)], poses[Station(k, 1.0)][1], atol=5e-5)
     assert np.linalg.norm(points[-1] - points[0]) > 0.1  # a bend, not a straight rod
+
+
+def test_the_statics_evaluated_by_the_core_are_casadis_values() -> None:
+    """The statics' functions as :meth:`TendonStatics.solve` and ``backbone_points``
+    evaluate them (the compiled core, from their tapes) give CasADi's own values, bit for
+    bit, at loads that bend and twist the robot and at a slack tendon."""
+    from continuum_mhe.model.tendon_statics import _compiled_drawing, _compiled_statics
+
+    statics = TendonStatics(read_robot("tendon-two-section"))
+    rng = np.random.default_rng(3)
+    compiled = (*_compiled_statics(statics), _compiled_drawing(statics, 16))
+    references = (statics.function, *_statics_functions(statics)[1:], statics.drawing_function(16))
+    for _ in range(3):
+        k0, force = rng.normal(0.0, 3.0, 3), rng.normal(0.0, 0.1, 3)
+        tension = np.abs(rng.normal(0.0, 2.0, statics.robot.n_tendons))
+        tension[1] = 0.0
+        for fast, casadi in zip(compiled, references):
+            got = fast(k0, force, tension)
+            want = [np.asarray(v, dtype=float) for v in casadi(k0, force, tension)]
+            assert [g.shape for g in got] == [w.shape for w in want]
+            for g, w in zip(got, want):
+                np.testing.assert_array_equal(g, w)
 
 
 @pytest.mark.parametrize("scenario", ["force-29", "twist-29"])

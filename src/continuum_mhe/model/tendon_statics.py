@@ -71,6 +71,7 @@ from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tape import tape_function
 
 #: Steps per section of the shooting (more where an IMU splits one): with the
 #: fourth-order Lie-group steps of :meth:`TendonStatics.shoot`, two per section put every
@@ -357,12 +358,6 @@ class TendonStatics:
         (built once for all equal statics: :func:`_statics_functions`)."""
         return _statics_functions(self)[0]
 
-    @cached_property
-    def _tip_condition(self) -> ca.Function:
-        """``(k0, F, tau) -> (residual, d residual / d k0)``: the tip condition and its
-        Jacobian in the base curvature, for :meth:`solve`'s Newton steps."""
-        return _statics_functions(self)[1]
-
     def _build_function(self) -> ca.Function:
         """A new :attr:`function` (its symbolic shooting built again)."""
         k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
@@ -401,8 +396,7 @@ class TendonStatics:
                         f"no equilibrium of the tendon robot under the tip force "
                         f"{_one_line(force)} N and the tensions {_one_line(tension)} N"
                     )
-        _, out = self.function(x, force, tension)
-        arr = np.asarray(out, dtype=float)
+        _, arr = _compiled_statics(self)[0](x, force, tension)
         poses = {
             st: (arr[:9, j].reshape(3, 3, order="F"), arr[9:, j])
             for j, st in enumerate(self.stations())
@@ -413,9 +407,9 @@ class TendonStatics:
         """The base curvature (rad/m) meeting the tip condition, by Newton steps from
         ``k0`` halved until the residual's norm falls; None where a step cannot lower
         it or the iterations run out before it is below :data:`TIP_CONDITION_TOL`."""
-        fn = self._tip_condition
+        fn = _compiled_statics(self)[1]  # the tip condition
         x = k0.copy()
-        r, J = (np.asarray(v, dtype=float) for v in fn(x, force, tension))
+        r, J = fn(x, force, tension)
         norm = float(np.linalg.norm(r))
         for _ in range(NEWTON_ITERATIONS):
             if not np.isfinite(norm):
@@ -426,7 +420,7 @@ class TendonStatics:
             alpha = 1.0
             while alpha > 1e-6:
                 trial = x - alpha * step
-                rt, Jt = (np.asarray(v, dtype=float) for v in fn(trial, force, tension))
+                rt, Jt = fn(trial, force, tension)
                 nt = float(np.linalg.norm(rt))
                 if nt < (1.0 - 1e-4 * alpha) * norm:
                     x, r, J, norm = trial, rt, Jt, nt
@@ -450,8 +444,8 @@ class TendonStatics:
         as fine as the estimators' model). ``k0``: where :meth:`solve` starts (the
         equilibrium nearest a neighbouring row's, where the loads hold more than one)."""
         k0, _ = self.solve(force, tension, k0)
-        points, _, _ = self.drawing_function(points_per_section)(k0, force, tension)
-        return np.vstack([np.zeros(3), np.asarray(points, dtype=float).T])
+        points, _, _ = _compiled_drawing(self, points_per_section)(k0, force, tension)
+        return np.vstack([np.zeros(3), points.T])
 
     @lru_cache(maxsize=4)  # noqa: B019 (a frozen dataclass: the cache keeps it alive)
     def drawing_function(self, points_per_section: int) -> ca.Function:
@@ -488,6 +482,39 @@ def swing_twist_sym(Q: Sym) -> tuple[Sym, Sym, Sym]:
     phi = ca.atan2(ca.if_else(straight, 0.0, -t[1]), ca.if_else(straight, 1.0, -t[0]))
     psi = 2 * ca.atan2(Q[1, 0] - Q[0, 1], 1 + Q[0, 0] + Q[1, 1] + Q[2, 2])
     return theta, phi, psi
+
+
+class _CompiledFunction:
+    """A CasADi SX function evaluated by the compiled core (CasADi's values to the last
+    bit, without its per-call overhead): called with numeric arguments, it returns
+    its outputs as dense float arrays of their shapes."""
+
+    def __init__(self, fn: ca.Function) -> None:
+        self._core = tape_function(fn)
+        self._shapes = [fn.size_out(i) for i in range(fn.n_out())]
+        self._ends = np.cumsum([0] + [r * c for r, c in self._shapes])
+
+    def __call__(self, *args: FloatArray) -> list[FloatArray]:
+        flat = [np.ascontiguousarray(np.asarray(a, dtype=float).ravel(order="F")) for a in args]
+        out = np.empty(int(self._ends[-1]))
+        self._core.evaluate(flat, out)
+        return [
+            out[a:b].reshape(shape, order="F")
+            for a, b, shape in zip(self._ends[:-1], self._ends[1:], self._shapes)
+        ]
+
+
+@lru_cache(maxsize=8)
+def _compiled_statics(statics: TendonStatics) -> tuple[_CompiledFunction, _CompiledFunction]:
+    """:attr:`TendonStatics.function` and its tip condition, evaluated by the core."""
+    function, tip_condition = _statics_functions(statics)
+    return _CompiledFunction(function), _CompiledFunction(tip_condition)
+
+
+@lru_cache(maxsize=8)
+def _compiled_drawing(statics: TendonStatics, points_per_section: int) -> _CompiledFunction:
+    """:meth:`TendonStatics.drawing_function`, evaluated by the core."""
+    return _CompiledFunction(statics.drawing_function(points_per_section))
 
 
 @lru_cache(maxsize=8)
