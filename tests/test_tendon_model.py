@@ -31,6 +31,8 @@ from continuum_mhe.model.tendon_statics import (
     STEPS_PER_SECTION,
     Station,
     TendonStatics,
+    _compiled_drawing,
+    _compiled_statics,
     _statics_functions,
 )
 
@@ -167,8 +169,6 @@ def test_the_statics_evaluated_by_the_core_are_casadis_values() -> None:
     """The statics' functions as :meth:`TendonStatics.solve` and ``backbone_points``
     evaluate them (the compiled core, from their tapes) give CasADi's own values, bit for
     bit, at loads that bend and twist the robot and at a slack tendon."""
-    from continuum_mhe.model.tendon_statics import _compiled_drawing, _compiled_statics
-
     statics = TendonStatics(read_robot("tendon-two-section"))
     rng = np.random.default_rng(3)
     compiled = (*_compiled_statics(statics), _compiled_drawing(statics, 16))
@@ -183,6 +183,18 @@ def test_the_statics_evaluated_by_the_core_are_casadis_values() -> None:
             assert [g.shape for g in got] == [w.shape for w in want]
             for g, w in zip(got, want):
                 np.testing.assert_array_equal(g, w)
+
+
+def test_the_statics_refuse_tensions_of_another_count() -> None:
+    """Tensions or a force of another size than the robot's are an error, as CasADi's
+    own evaluation makes them: not a shape from values beyond the arrays given."""
+    statics = TendonStatics(read_robot("tendon-two-section"))
+    force = np.array([0.0, 0.05, 0.0])
+    for tension in (np.ones(5), np.ones(7)):
+        with pytest.raises(ValueError, match=r"not \[3, 3, 6\]"):
+            statics.solve(force, tension)
+    with pytest.raises(ValueError, match="sizes"):
+        statics.backbone_points(np.zeros(2), np.ones(6))
 
 
 @pytest.mark.parametrize("scenario", ["force-29", "twist-29"])

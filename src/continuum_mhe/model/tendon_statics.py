@@ -491,11 +491,21 @@ class _CompiledFunction:
 
     def __init__(self, fn: ca.Function) -> None:
         self._core = tape_function(fn)
+        self._name = fn.name()
+        self._sizes = [int(fn.nnz_in(i)) for i in range(fn.n_in())]
         self._shapes = [fn.size_out(i) for i in range(fn.n_out())]
         self._ends = np.cumsum([0] + [r * c for r, c in self._shapes])
 
     def __call__(self, *args: FloatArray) -> list[FloatArray]:
+        """The outputs at ``args`` (one array per input, of its size).
+
+        Raises:
+            ValueError: if the arguments are not one per input, each of its size."""
         flat = [np.ascontiguousarray(np.asarray(a, dtype=float).ravel(order="F")) for a in args]
+        if [len(a) for a in flat] != self._sizes:
+            raise ValueError(
+                f"{self._name}: arguments of sizes {[len(a) for a in flat]}, not {self._sizes}"
+            )
         out = np.empty(int(self._ends[-1]))
         self._core.evaluate(flat, out)
         return [
