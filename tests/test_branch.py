@@ -59,6 +59,32 @@ def test_branch_check_leaves_a_wrong_local_minimum(solver: str) -> None:
     assert est.inference.branch.stats.restarted == 1
 
 
+def test_a_start_the_fast_sqp_does_not_certify_is_no_candidate(monkeypatch) -> None:
+    """On the fast backend, a restart from which the SQP certifies no answer is left
+    out of the check, not solved again by IPOPT: with no start certified, the warm
+    answer stays and IPOPT is never called."""
+    from dataclasses import replace
+
+    est = _filled_window("fast")
+    inference = est.inference
+    problem = inference.window_problem()
+    X_wrong, status = inference._solve(problem, np.tile(WRONG, (N, 1)))
+    assert status == "ok" and inference.branch.implausible(problem, X_wrong)
+    solve_fast = inference._solve_fast
+
+    def uncertified(*args: object) -> object:
+        return replace(solve_fast(*args), converged=False, outcome="max-iter")
+
+    def no_ipopt(*args: object) -> None:
+        raise AssertionError("IPOPT solved a branch-check start")
+
+    monkeypatch.setattr(inference, "_solve_fast", uncertified)
+    monkeypatch.setattr(inference, "_solve_ipopt", no_ipopt)
+    X, status = inference._check_branch(problem, X_wrong, status)
+    assert status == "ok" and np.array_equal(X, X_wrong)
+    assert inference.branch.stats.fired == 1 and inference.branch.stats.restarted == 0
+
+
 @pytest.mark.parametrize("solver", ["fast", "ipopt"])
 def test_a_wrong_arrival_prior_is_forgotten_when_no_restart_helps(solver: str) -> None:
     f = make_formulation("bend", TWO)

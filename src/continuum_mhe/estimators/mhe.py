@@ -892,14 +892,22 @@ class MovingHorizonInference(Inference):
         previous window's multipliers, and the winner's become the warm start. When the
         answer needed the arrival prior forgotten (stage 2), the prior is re-anchored
         on the answer's first node with its covariance times ``FORGET``. The fast
-        backend compares costs with its compiled model (no IPOPT NLP is built)."""
+        backend compares costs with its compiled model (no IPOPT NLP is built), and a
+        start from which its SQP certifies no answer is not a candidate (no IPOPT solve
+        of it: the check keeps converged answers only)."""
         assert self.branch is not None
         kept = self._lam
 
         def solve(p: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status, object]:
             self._lam = None
-            Xc, st = self._solve(p, X0)
-            return Xc, st, self._lam
+            if self._fast is None:
+                Xc, st = self._solve(p, X0)
+                return Xc, st, self._lam
+            res = self._solve_fast(p, X0, None)
+            self._last_cost = res.cost if res.converged else None
+            if not res.converged:
+                return res.X, Status.NOT_CONVERGED, None
+            return res.X, Status.OK, res.lam
 
         fast = self._fast
         cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
