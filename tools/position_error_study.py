@@ -16,7 +16,7 @@ the row's own estimated bends (rad) and the sections' lengths ``L_k`` (m):
 * ``product``: ``f = (L_1 + L_2) theta_1 theta_2`` (large only where both bend).
 
 The scale is given as ``s100``, the term's ``sigma_pos`` in mm where both sections
-bend 100 degrees (``c = s100 / f(100 deg, 100 deg)``, printed too), so the three forms
+bend 100 degrees (``c = s100 / f(100 deg, 100 deg)``, printed too), so the forms
 compare at one size. A row whose widened tip standard deviation
 ``sqrt(std_x^2 + std_y^2 + std_z^2)`` then exceeds ``--uncertain-fraction`` (0.1) of
 the robot's length turns ``uncertain`` and leaves ``ok`` (only that row: the policy's

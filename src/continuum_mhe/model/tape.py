@@ -65,8 +65,12 @@ def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
 def _serialized_tape_arrays(
     fn: ca.Function, rows: np.ndarray, constant_values: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`tape_arrays` from the rows and constants of :func:`_serialized_algorithm`
-    (an operation of one argument has ``i2 = i1``, as CasADi writes it)."""
+    """:func:`tape_arrays` from instructions as CasADi serializes them: ``(op, i0,
+    i1, i2)`` rows and a constant's value per row (of :func:`_serialized_algorithm`, or
+    of the queries; an operation of one argument has ``i2 = i1``, as CasADi writes
+    it)."""
+    if len(rows) == 0:
+        return np.zeros((0, 4), dtype=np.int32), np.zeros(0)
     ops, i0, i1, i2 = rows.T
     distinct = np.unique(ops)
     lookup = np.zeros(int(distinct.max()) + 1, dtype=np.int32)
@@ -167,25 +171,17 @@ def _queried_row(fn: ca.Function, k: int) -> tuple[float, ...]:
 
 def _queried_tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
     """:func:`tape_arrays` through CasADi's instruction queries, one instruction at a
-    time."""
+    time (:func:`_queried_row`), decoded as the serialized rows are."""
     n = fn.n_instructions()
-    code = np.zeros((n, 4), dtype=np.int32)
-    constants: list[float] = []
-    dense = [_dense_offsets(fn.sparsity_out(i)) for i in range(fn.n_out())]
+    rows = np.zeros((n, 4), dtype=np.int64)
+    constants = np.zeros(n)
     for k in range(n):
-        core_op = _core_op(fn, fn.instruction_id(k))
-        args, res = fn.instruction_input(k), fn.instruction_output(k)
-        if core_op == _INPUT:  # res <- input args[0], nonzero args[1]
-            code[k] = (core_op, res[0], args[0], args[1])
-        elif core_op == _OUTPUT:  # output res[0], nonzero res[1] <- work args[0]
-            code[k] = (core_op, dense[res[0]][res[1]], args[0], res[0])
-        elif core_op == _CONST:
-            code[k] = (core_op, res[0], len(constants), 0)
-            constants.append(float(fn.instruction_constant(k)))
+        row = _queried_row(fn, k)
+        if len(row) == 3:  # a constant: (op, i0, value)
+            rows[k, :2], constants[k] = row[:2], row[2]
         else:
-            a = args[0]
-            code[k] = (core_op, res[0], a, args[1] if len(args) > 1 else a)
-    return code, np.asarray(constants, dtype=np.float64)
+            rows[k] = row
+    return _serialized_tape_arrays(fn, rows, constants)
 
 
 def _dense_offsets(sp: ca.Sparsity) -> np.ndarray:
