@@ -362,7 +362,7 @@ def test_quantiles_match_scipy_stats() -> None:
     3.326)."""
     from scipy.stats import chi2, f
 
-    from continuum_mhe.estimators.chi2 import chi2_quantile, f_quantile
+    from continuum_mhe.quantiles import chi2_quantile, f_quantile
 
     assert chi2_quantile(0.95, 2) == pytest.approx(5.991464547, rel=1e-9)
     for q in (0.5, 0.9, 0.99, 0.9999):
@@ -384,7 +384,7 @@ def test_quantile_table_is_scipy_s_at_every_level_the_estimators_use(
     quantile beyond it is ``scipy.special``'s too."""
     from scipy.special import chdtri, fdtri
 
-    from continuum_mhe.estimators.chi2 import TABLE_PATH, chi2_quantile, f_quantile
+    from continuum_mhe.quantiles import TABLE_PATH, chi2_quantile, f_quantile
 
     monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "tools"))
     import quantile_table
@@ -541,8 +541,8 @@ def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> No
     ``S = H P+ H^T + R`` over the valid readings, ``A = pinv(H^T R^-1 H) H^T R^-1`` on
     the states the readings depend on. A reading 30 standard deviations off is
     ``inconsistent``."""
-    from continuum_mhe.estimators.chi2 import chi2_quantile
     from continuum_mhe.estimators.consistency import MEMORY, ConsistencyCheck
+    from continuum_mhe.quantiles import chi2_quantile
 
     # the quantiles as docs/options.md states them, not the module's constants: a
     # changed constant is a changed check

@@ -582,6 +582,26 @@ def test_a_resting_gyro_in_deg_s_is_told_by_the_accelerometers(
             out.unlink()
 
 
+def test_the_gravity_checks_turns_are_scipys_rotations() -> None:
+    """The gravity check turns a direction by each stretch's rotation vector as SciPy's
+    ``Rotation.from_rotvec(...).apply`` does: random turns, none, tiny ones (1e-9 rad),
+    half and whole turns, and turns about the direction itself."""
+    from scipy.spatial.transform import Rotation
+
+    from continuum_mhe.io.raw_units import _rotated_by_vectors
+
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(12, 3))
+    axis = rng.normal(size=(12, 3))
+    axis /= np.linalg.norm(axis, axis=1)[:, None]
+    angles = np.r_[0.0, 1e-9, math.pi, 2 * math.pi, 7.0, rng.uniform(-4, 4, 7)]
+    rotvec = axis * angles[:, None]
+    rotvec[-1] = 2.5 * v[-1] / np.linalg.norm(v[-1])  # about the direction itself
+    np.testing.assert_allclose(
+        _rotated_by_vectors(v, rotvec), Rotation.from_rotvec(rotvec).apply(v), atol=1e-12
+    )
+
+
 def test_the_gravity_check_of_gyro_units_judges_still_stretches_alone() -> None:
     """Known answers of the gravity check: a resting IMU's gyro in deg/s (bias about 2
     deg/s, or 0.4) is found; in rad/s (bias 0.05 rad/s) it is not, also at 100 Hz with a 20 s

@@ -914,8 +914,8 @@ def test_the_check_skips_the_shift_that_a_tendon_robot_does_not_judge() -> None:
     model again for the shift (a Jacobian of the shooting a sample), though the fit's
     NIS is beyond its limit on every sample."""
     from continuum_mhe.estimators import make_estimator
-    from continuum_mhe.estimators.chi2 import chi2_quantile
     from continuum_mhe.estimators.consistency import SAMPLE_QUANTILE
+    from continuum_mhe.quantiles import chi2_quantile
     from continuum_mhe.results import Measurement
 
     f, t, z = _raw_shipped(12, "force-29")

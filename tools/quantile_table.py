@@ -5,10 +5,11 @@ much of numpy's and scipy's array-API support with it).
 
 Rows: the chi-square quantile at each level the estimators use (the consistency check's
 ``SAMPLE_QUANTILE``, ``RUN_QUANTILE`` and ``SHIFT_QUANTILE``, the start check's and the
-branch check's ``QUANTILE``) for 1 to ``CHI2_DOF`` degrees of freedom, and the F quantile
+branch check's ``QUANTILE``, the tendon model's ``IMU_ERROR_PROBABILITY`` and ``1 -
+LOADED_START_PROBABILITY``) for 1 to ``CHI2_DOF`` degrees of freedom, and the F quantile
 of the consistency check's average (``QUANTILE``, ``k (2 MEMORY - 1)`` and ``k (2
 QUIET_MEMORY - 1)`` degrees of freedom) for ``k`` = 1 to ``F_ROWS`` judged readings.
-:mod:`continuum_mhe.estimators.chi2` computes anything else with ``scipy.special``
+:mod:`continuum_mhe.quantiles` computes anything else with ``scipy.special``
 itself; ``tests/test_consistency.py`` checks the table against it::
 
     python tools/quantile_table.py
@@ -23,7 +24,8 @@ from pathlib import Path
 from scipy.special import chdtri, fdtri
 
 from continuum_mhe.estimators import branch, consistency, start_check
-from continuum_mhe.estimators.chi2 import TABLE_PATH
+from continuum_mhe.model import tendon
+from continuum_mhe.quantiles import TABLE_PATH
 
 #: Degrees of freedom of the chi-square rows: 1 to this (the branch check's goes to
 #: the horizon times the measurement rows).
@@ -33,8 +35,11 @@ F_ROWS = 64
 
 
 def chi2_levels() -> list[float]:
-    """The chi-square quantile levels the estimators use, each once, in order."""
+    """The chi-square quantile levels the estimators and the tendon model use, each
+    once, in order."""
     levels = (
+        tendon.IMU_ERROR_PROBABILITY,
+        1.0 - tendon.LOADED_START_PROBABILITY,
         consistency.SHIFT_QUANTILE,
         consistency.RUN_QUANTILE,
         consistency.SAMPLE_QUANTILE,

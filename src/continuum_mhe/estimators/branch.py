@@ -44,11 +44,11 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.base import Status
-from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.fast.model import NodeEvaluator, node_functions
 from continuum_mhe.estimators.kalman import joseph_update
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.quantiles import chi2_quantile
 
 if TYPE_CHECKING:
     from continuum_mhe.estimators.window_nlp import WindowProblem

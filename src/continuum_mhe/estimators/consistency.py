@@ -142,7 +142,6 @@ import numpy as np
 
 from continuum_mhe import _core
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.estimators.chi2 import chi2_quantile, f_quantile
 from continuum_mhe.estimators.fast.model import node_functions
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
@@ -151,6 +150,7 @@ from continuum_mhe.model.imu_motion import (
     takes_acceleration_as_gravity,
 )
 from continuum_mhe.model.tape import tape_function
+from continuum_mhe.quantiles import chi2_quantile, f_quantile
 
 #: Quantile of the F distribution beyond which the average of NIS / dof over the quiet
 #: level is inconsistent.

@@ -45,7 +45,6 @@ from continuum_mhe.errors import (
 )
 from continuum_mhe.estimators import start_check
 from continuum_mhe.estimators.base import NUMERICAL_FAILURES, Inference, tension_rows, tilt_rows
-from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import compiled_process_noise
 from continuum_mhe.estimators.reading_units import (
@@ -75,6 +74,7 @@ from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot, warn_mount_not_applied
+from continuum_mhe.quantiles import chi2_quantile
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import (
     FREEZE_TOLERANCE,

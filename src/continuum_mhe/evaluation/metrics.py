@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, real_number
-from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.io.position_units import (
     LENGTH_RATIO_TOLERANCE,
     force_unit_against,
@@ -37,6 +36,7 @@ from continuum_mhe.model.descriptions import (
 )
 from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.model.robot import MAX_SECTION_LENGTH
+from continuum_mhe.quantiles import chi2_quantile
 
 #: One section's outputs, the default column order of arrays without names.
 STATE_NAMES = output_names(pcc_outputs(1))

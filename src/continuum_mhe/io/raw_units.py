@@ -198,13 +198,11 @@ def _turn_errors(
     if not still.any():
         return np.zeros((0, 2))
     first, last, turn = direction[starts[still]], direction[stops[still] - 1], turn[still]
-    from scipy.spatial.transform import Rotation  # here: a tilt run imports no SciPy
-
     errors = np.empty((len(first), 2))
     moved = np.arccos(np.clip(np.sum(first * last, axis=1), -1.0, 1.0))  # the direction's own
     for col, scale in enumerate((1.0, math.pi / 180.0)):
         # a direction fixed in the world turns in the IMU's frame as dv/dt = -w x v
-        turned = Rotation.from_rotvec(-scale * turn).apply(first)
+        turned = _rotated_by_vectors(first, -scale * turn)
         errors[:, col] = np.arccos(np.clip(np.sum(turned * last, axis=1), -1.0, 1.0))
         # the angle above wraps: a turn of about a whole turn (deg/s read as rad/s over
         # the long stretches of a slow recording) would seem to follow gravity. Beyond a
@@ -214,6 +212,19 @@ def _turn_errors(
         beyond = np.linalg.norm(scale * turn, axis=1) > math.pi
         errors[beyond, col] = np.maximum(errors[beyond, col], (across - moved)[beyond])
     return errors
+
+
+def _rotated_by_vectors(v: FloatArray, rotvec: FloatArray) -> FloatArray:
+    """Each row of ``v`` (n, 3) turned by the rotation vector in the same row of
+    ``rotvec`` (n, 3; axis times angle, rad), by Rodrigues' formula: what
+    ``scipy.spatial.transform.Rotation.from_rotvec(rotvec).apply(v)`` gives, without
+    importing it (slow to import for one formula)."""
+    angle = np.linalg.norm(rotvec, axis=1)
+    # the axis of a zero turn is any: the formula's terms vanish with it
+    axis = rotvec / np.where(angle > 0.0, angle, 1.0)[:, None]
+    cos, sin = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    along = np.sum(axis * v, axis=1)[:, None] * axis
+    return v * cos + np.cross(axis, v) * sin + along * (1.0 - cos)
 
 
 def gyro_gravity_problem(

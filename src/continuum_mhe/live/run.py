@@ -35,7 +35,6 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.display import display_problem
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators.base import Estimate, Measurement
-from continuum_mhe.estimators.reading_units import direct_blocks
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.model.descriptions import OutputSpec
@@ -347,5 +346,3 @@ def warm_up(estimator: Estimator, steps: int = 40, period_s: float = 0.01) -> No
     for i in range(steps):
         estimator.step(Measurement(i * period_s, z))
     estimator.reset()  # zeroes its counts too
-    if direct_blocks(f):  # the gyros' units check, a second into the stream, uses SciPy
-        import scipy.spatial.transform  # noqa: F401

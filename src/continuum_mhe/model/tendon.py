@@ -102,6 +102,7 @@ from continuum_mhe.model.tendon_statics import (
     hat_sym,
     swing_twist_sym,
 )
+from continuum_mhe.quantiles import chi2_quantile
 
 #: Time step, s, of the central differences that give the IMUs' own acceleration
 #: (:meth:`TendonFormulation._imu_accelerations`; their error is of order its square).
@@ -1250,8 +1251,6 @@ class TendonFormulation(Formulation):
         chi-square quantile of ``probability`` (the chance of a larger misfit free of
         load) for as many terms (inf and 0 without an accelerometer row: nothing shows
         the start free of load)."""
-        from scipy.special import chdtri  # imported on use: scipy is slow to import
-
         var = np.diag(self.meas_cov())[: self.n_imu_measurements].copy()
         errors = self.initial_misalignment_std**2 if self.estimate_misalignment else 0.0
         if self.estimate_accel_bias:
@@ -1263,7 +1262,7 @@ class TendonFormulation(Formulation):
         if not used.any():  # no accelerometer: nothing shows the start free of load
             return math.inf, 0.0
         misfit = float(np.sum(np.asarray(r)[used] ** 2 / (var[used] + errors)))
-        return misfit, float(chdtri(int(used.sum()), probability))
+        return misfit, chi2_quantile(1.0 - probability, int(used.sum()))
 
     def initial_cov(self) -> FloatArray:
         """The start's prior: the tensions' that of the given ones
@@ -1293,14 +1292,12 @@ class TendonFormulation(Formulation):
         """``(indices, prior std, limit)`` of :meth:`drifted`: the IMU-error states, their
         prior standard deviations and the chi-square quantile of
         :data:`IMU_ERROR_PROBABILITY` for as many degrees of freedom."""
-        from scipy.special import chdtri  # imported on use: scipy is slow to import
-
         idx = np.array(
             [i for i, n in enumerate(self.state_names) if n.startswith(("bg", "mis", "ba"))],
             dtype=np.int64,
         )
         std = np.sqrt(np.diag(self.initial_cov()))[idx]
-        limit = float(chdtri(len(idx), 1.0 - IMU_ERROR_PROBABILITY)) if len(idx) else np.inf
+        limit = chi2_quantile(IMU_ERROR_PROBABILITY, len(idx)) if len(idx) else np.inf
         return idx, std, limit
 
     def drift_resets(self) -> bool:

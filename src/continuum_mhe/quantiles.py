@@ -1,6 +1,6 @@
-"""Chi-square and F quantiles for the estimators' consistency tests (``scipy.special``'s
-``chdtri`` and ``fdtri``: the same numbers as ``scipy.stats.chi2.ppf`` and
-``scipy.stats.f.ppf``).
+"""Chi-square and F quantiles for the consistency tests of the estimators and the model
+(``scipy.special``'s ``chdtri`` and ``fdtri``: the same numbers as
+``scipy.stats.chi2.ppf`` and ``scipy.stats.f.ppf``).
 
 The levels and degrees of freedom the estimators use are read from a table that
 ``tools/quantile_table.py`` computes with ``scipy.special`` (``data/quantiles.json``;
@@ -17,7 +17,7 @@ from pathlib import Path
 from types import ModuleType
 
 #: The table of quantiles (``tools/quantile_table.py`` writes it).
-TABLE_PATH = Path(__file__).parents[1] / "data" / "quantiles.json"
+TABLE_PATH = Path(__file__).parent / "data" / "quantiles.json"
 
 
 @cache
