@@ -4,6 +4,7 @@ and both parsers are built from the one table of commands."""
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import subprocess
 import sys
@@ -35,6 +36,37 @@ def test_help_and_version_import_nothing_heavy(argv):
         assert shown == [f"continuum-mhe {entry.version()}"]
     else:
         assert any("estimate" in line for line in shown)
+
+
+@pytest.mark.parametrize("preset", [None, "2"])
+def test_the_executable_runs_numpys_blas_on_one_thread_unless_told(preset):
+    """The executable sets ``OPENBLAS_NUM_THREADS`` to 1 where it is not set, before
+    numpy loads its BLAS: the process then runs no BLAS thread besides its own (counted
+    in ``/proc``); a value set outside is kept. The machine has at least two cores, or
+    OpenBLAS would start no thread either way."""
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("one core: OpenBLAS starts no thread either way")
+    code = (
+        "import os, sys\n"
+        "sys.argv = ['continuum-mhe', 'check-robot', 'two-section']\n"
+        "from continuum_mhe.cli.entry import main\n"
+        "assert main() == 0\n"
+        "import numpy\n"
+        "print(os.environ['OPENBLAS_NUM_THREADS'], len(os.listdir('/proc/self/task')))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if preset is not None:
+        env["OPENBLAS_NUM_THREADS"] = preset
+    r = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600
+    )
+    assert r.returncode == 0, r.stderr
+    value, threads = r.stdout.split()[-2:]
+    assert value == (preset or "1")
+    if preset is None:
+        assert threads == "1"
+    else:
+        assert int(threads) >= 2
 
 
 def test_the_installed_metadata_carries_the_package_s_version():

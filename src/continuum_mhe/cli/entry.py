@@ -10,12 +10,19 @@ the commands of :data:`continuum_mhe.cli.program.COMMANDS`.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
 from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, signal_exit, version
 
 __all__ = ["COMMANDS", "DESCRIPTION", "PROG", "main", "overview_parser", "version"]
+
+#: The variable that sets how many threads numpy's BLAS (OpenBLAS) starts. The executable
+#: sets it to 1 where it is not set: the estimators' matrices are a few dozen rows, too
+#: small for BLAS threads to help, and OpenBLAS's idle threads spin on the cores that the
+#: estimator, its reader and its writer threads run on. A value set outside is kept.
+BLAS_THREADS_VARIABLE = "OPENBLAS_NUM_THREADS"
 
 
 def overview_parser() -> argparse.ArgumentParser:
@@ -39,6 +46,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if _light(args):
         overview_parser().parse_args(args)  # prints help or version and exits
         return 0  # pragma: no cover - argparse exits before
+    if argv is None:  # the executable, before numpy loads its BLAS
+        os.environ.setdefault(BLAS_THREADS_VARIABLE, "1")
     try:  # Ctrl-C while the full command line imports (seconds): one line, not a traceback
         from continuum_mhe.cli.app import main as full_main
 
