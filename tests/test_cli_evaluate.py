@@ -933,7 +933,8 @@ def test_an_epoch_clock_truth_names_the_whole_shift_and_takes_it(mocap_run, caps
         + "\n"
     )
     assert main(["evaluate", str(est), str(ms)]) == 2
-    assert "the files' times do not match" in capsys.readouterr().err
+    assert f"{ms}: t advances by a median of" in (err := capsys.readouterr().err)
+    assert "is the truth's t in milliseconds? name its column t_ms" in err
 
 
 def test_the_truth_may_follow_an_option(mocap_run, capsys) -> None:

@@ -197,6 +197,33 @@ def test_a_folder_given_as_robot_file_is_named_a_folder(tmp_path: Path) -> None:
         read_robot(tmp_path / "missing.toml")
 
 
+@pytest.mark.parametrize("mark", [b"", b"\xef\xbb\xbf"])
+def test_a_robot_file_in_an_8_bit_encoding_is_named_at_its_line_and_byte(
+    tmp_path: Path, capsys, mark: bytes
+) -> None:
+    """A robot file saved in Windows-1252 (an umlaut in a comment) is refused at the
+    line and byte that are no UTF-8, with the character they are in Windows-1252 and the
+    command that converts the file, as a CSV file is (with a byte-order mark too); a
+    file of control bytes is said to be no text."""
+    path = tmp_path / "latin.toml"
+    path.write_bytes(
+        mark + b'mounting = "z-up"\n# Roboter f\xfcr Tests\n[[section]]\nlength = 0.2\n'
+    )
+    capsys.readouterr()
+    assert main(["check-robot", str(path)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {path}: line 2: not UTF-8 text: byte 12 of the line, 0xFC "
+        "('\u00fc' in Windows-1252), text saved in an 8-bit encoding; save it as UTF-8 "
+        f"(iconv -f CP1252 -t UTF-8 {path} > NEW.toml)\n"
+    )
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b'mounting = "z-up"\n\x01\x02\xff\n')
+    with pytest.raises(
+        InputError, match=r"binary\.toml: line 2: not UTF-8 text \(a binary file\?\)$"
+    ):
+        read_robot(binary)
+
+
 def test_robot_classes_take_numpy_numbers_and_refuse_bools_and_slips() -> None:
     """numpy's reals and integers are numbers, taken; bools are not, refused (not taken
     as 1); a tendon angle beyond a full turn is degrees given to a class that

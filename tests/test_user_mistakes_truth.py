@@ -119,7 +119,9 @@ def test_evaluate_scores_every_section_end_the_truth_has_and_names_a_typo(tmp_pa
 
 def test_evaluate_with_times_that_do_not_match_is_an_error(tmp_path, capsys) -> None:
     """A truth at another rate is interpolated at the estimate's times (a note); one in
-    milliseconds matches nowhere: one line, exit 2."""
+    milliseconds matches nowhere: one line naming the truth file and its unit, exit 2
+    (``evaluate`` and ``plot`` alike, no figure); with its column named ``t_ms`` it is
+    scored as the one in seconds."""
     m, _ = simulated(tmp_path, "a")
     _, t2 = simulated(tmp_path, "b", "--dt", "0.0493")
     est = tmp_path / "e.csv"
@@ -135,9 +137,21 @@ def test_evaluate_with_times_that_do_not_match_is_an_error(tmp_path, capsys) -> 
         "\n".join([rows[0], *(f"{1000 * float(r.split(',')[0])!r},{r.split(',', 1)[1]}"
                              for r in rows[1:])]) + "\n"
     )  # fmt: skip
+    said = (
+        f"continuum-mhe: error: {ms}: t advances by a median of 49.3 s per sample, the "
+        "estimate's by 0.05 s (986 times as long): is the truth's t in milliseconds? name "
+        "its column t_ms (read in milliseconds), or give seconds\n"
+    )
     assert main(["evaluate", str(est), str(ms)]) == 2
-    err = capsys.readouterr().err
-    assert "only 1 of 101 rows" in err and "times do not match" in err
+    assert capsys.readouterr().err == said
+    fig = tmp_path / "fig.png"
+    assert main(["plot", str(est), "--truth", str(ms), "-o", str(fig)]) == 2
+    assert capsys.readouterr().err == said and not fig.exists()
+    assert main(["evaluate", str(est), str(t2)]) == 0
+    in_seconds = capsys.readouterr().out
+    ms.write_text(ms.read_text().replace("t,", "t_ms,", 1))
+    assert main(["evaluate", str(est), str(ms)]) == 0
+    assert capsys.readouterr().out == in_seconds
 
 
 def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
@@ -812,7 +826,9 @@ def test_view_refuses_a_truth_with_t_in_milliseconds(paper3d_pair, tmp_path, cap
     argv = ["view", str(paper3d_pair["e"]), "--truth", str(paper3d_pair["t_ms"])]
     assert main([*argv, "--save", str(out)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and f"{paper3d_pair['t_ms']}: only " in err and not out.exists()
+    assert err.count("\n") == 1 and not out.exists()
+    assert f"{paper3d_pair['t_ms']}: t advances by a median of 50 s per sample" in err
+    assert "is the truth's t in milliseconds? name its column t_ms" in err
 
 
 def test_aligned_truth_warns_where_few_rows_are_scored() -> None:

@@ -33,6 +33,7 @@ from continuum_mhe.cli.truth_checks import (
     seconds_text,
     spans_the_truth,
     truth_frame_warning,
+    truth_time_unit_problem,
 )
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.estimate_tables import lengths_misfit
@@ -130,6 +131,8 @@ def _align(
             problem += cut
         if "files' times do not match" in warning:  # (not the part-of-the-run warning)
             warning += cut
+    if problem and (unit := truth_time_unit_problem(path_truth, t_est, t_truth)):
+        raise InputError(unit)
     if problem:
         first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
         hint = _log_clock_hint(path_est, t_est, t_truth, given_shift)

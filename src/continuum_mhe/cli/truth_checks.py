@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.estimate_tables import lengths_misfit, truth_at_rows, truth_problem
 from continuum_mhe.evaluation.metrics import (
@@ -23,6 +24,7 @@ from continuum_mhe.evaluation.metrics import (
     length_misfit,
     match_rows,
 )
+from continuum_mhe.io.csv_files import MS_LIKE_STEP_S
 from continuum_mhe.io.position_units import tip_direction_problem
 from continuum_mhe.io.state_tables import StateTable
 from continuum_mhe.model.descriptions import TIP_COLUMNS
@@ -258,6 +260,24 @@ def rows_matched(
     return "", what if compared < WARN_MATCHED * of else ""
 
 
+def truth_time_unit_problem(path_truth: str, t_est: FloatArray, t_truth: FloatArray) -> str:
+    """The refusal of a truth whose ``t`` steps like milliseconds (a median step over
+    :data:`~continuum_mhe.io.csv_files.MS_LIKE_STEP_S`) beside an estimate in seconds,
+    naming the truth file and the fix; ``""`` where its steps do not."""
+    if len(t_est) < 3 or len(t_truth) < 3:
+        return ""
+    step_truth = float(np.median(np.diff(t_truth)))
+    step_est = float(np.median(np.diff(t_est)))
+    if not (step_truth > MS_LIKE_STEP_S > step_est > 0):
+        return ""
+    return (
+        f"{path_truth}: t advances by a median of {step_truth:g} s per sample, the "
+        f"estimate's by {step_est:g} s ({step_truth / step_est:.4g} times as long): is the "
+        "truth's t in milliseconds? name its column t_ms (read in milliseconds), or give "
+        "seconds"
+    )
+
+
 #: A truth of part of the run (:func:`rows_matched`'s ``truth_spanned``) is scored from
 #: this many rows compared (fewer: a truth of a few rows, refused below
 #: :data:`MIN_MATCHED` of the rows).
@@ -328,6 +348,8 @@ def truth_beside(
     i_est, rows, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
     at_est = truth_at_rows(est, truth, i_est, rows, interpolated)
     problem = truth_problem(est, at_est or truth)
+    if problem is not None and (unit := truth_time_unit_problem(path_truth, est.t, truth.t)):
+        raise InputError(unit)
     if problem is not None:
         hint = ""
         if len(est.t):
@@ -345,6 +367,8 @@ def truth_beside(
             spanned,
             comparable_rows(est.t, truth.t),
         )
+        if refused and (unit := truth_time_unit_problem(path_truth, est.t, truth.t)):
+            raise InputError(unit)
         if refused:
             raise InputError(
                 refused + offset_hint(float(est.t[0]), est.t, truth.t, given_shift, shift_option)

@@ -71,7 +71,7 @@ from typing import Any
 
 from continuum_mhe.errors import FieldError, InputError, UserError, expect_type
 from continuum_mhe.io.csv_files import UnitWarning
-from continuum_mhe.io.text_rows import shorten
+from continuum_mhe.io.text_rows import not_utf8_problem, shorten
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import (
     DEFAULT_THETA_MAX,
@@ -548,6 +548,18 @@ def _single_table_hint(text: str) -> str:
     return ""
 
 
+def _not_utf8(path: Path, raw: bytes, start: int) -> str:
+    """The one line of a robot file whose bytes ``raw`` are no UTF-8 from byte ``start``
+    (of the file, from 0, after a byte-order mark): its line, the byte and the fix."""
+    if raw.startswith(b"\xef\xbb\xbf"):
+        start += 3  # the position in the text decoded past the mark
+    first = raw.rfind(b"\n", 0, start) + 1
+    end = raw.find(b"\n", start)
+    body = raw[first : len(raw) if end < 0 else end].rstrip(b"\r")
+    line = raw.count(b"\n", 0, start) + 1
+    return not_utf8_problem(str(path), line, body, start - first, "NEW.toml")
+
+
 def read_robot(path: str | os.PathLike[str]) -> Robot:
     """Read and validate a robot file (TOML), or a shipped robot by name
     (:func:`shipped_robots`, e.g. ``two-section``)."""
@@ -560,10 +572,11 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
         what = "a folder, not a robot file" if p.is_dir() else "no such robot file"
         raise InputError(f"{p}: {what} (shipped robots by name: {names})")
     try:
-        text = p.read_text(encoding="utf-8-sig")  # a byte-order mark is read, as in a CSV
+        raw = p.read_bytes()
+        text = raw.decode("utf-8-sig")  # a byte-order mark is read, as in a CSV
         doc = tomllib.loads(text)
-    except UnicodeDecodeError:
-        raise InputError(f"{p}: not a UTF-8 text file") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(_not_utf8(p, raw, exc.start)) from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(toml_error_line(p, exc) + _single_table_hint(text)) from None
     except RecursionError:  # the parser recurses into nested arrays and tables

@@ -291,16 +291,24 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
     try:
         line = body.decode("utf-8")
     except UnicodeDecodeError as exc:
-        if not _text_like(body):
-            raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
-        byte = body[exc.start]
-        raise InputError(
-            f"{name}: line {n}: not UTF-8 text: byte {exc.start + 1} of the line, 0x{byte:02X} "
-            f"({bytes([byte]).decode('cp1252', 'replace')!r} in Windows-1252), text saved in "
-            "an 8-bit encoding; save it as UTF-8 (iconv -f CP1252 -t UTF-8 "
-            f"{shlex.quote(name)} > NEW.csv)"
-        ) from None
+        raise InputError(not_utf8_problem(name, n, body, exc.start, "NEW.csv")) from None
     return line.rstrip("\r")
+
+
+def not_utf8_problem(name: str, n: int, body: bytes, start: int, new_name: str) -> str:
+    """What to say of line ``n`` (its bytes ``body``) of the file ``name`` whose byte
+    ``start`` (from 0) is no UTF-8: the byte, the character it is in Windows-1252 and
+    the ``iconv`` command that converts the file to ``new_name``; or, where the line
+    holds control bytes, that the file is no text."""
+    if not _text_like(body):
+        return f"{name}: line {n}: not UTF-8 text (a binary file?)"
+    byte = body[start]
+    return (
+        f"{name}: line {n}: not UTF-8 text: byte {start + 1} of the line, 0x{byte:02X} "
+        f"({bytes([byte]).decode('cp1252', 'replace')!r} in Windows-1252), text saved in "
+        "an 8-bit encoding; save it as UTF-8 (iconv -f CP1252 -t UTF-8 "
+        f"{shlex.quote(name)} > {new_name})"
+    )
 
 
 def _text_like(body: bytes) -> bool:
