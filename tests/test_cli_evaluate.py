@@ -937,6 +937,24 @@ def test_an_epoch_clock_truth_names_the_whole_shift_and_takes_it(mocap_run, caps
     assert "is the truth's t in milliseconds? name its column t_ms" in err
 
 
+def test_a_refusal_after_a_note_is_its_one_line_alone(mocap_run, capsys, tmp_path) -> None:
+    """``evaluate`` of an estimate whose options line names its robot says so in a note
+    when it scores it; when it then refuses an option or the truth, the refusal is the
+    one line written, without the note (``plot`` alike)."""
+    _, truth, est = mocap_run
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    said = capsys.readouterr().err
+    assert "note: " in said and "was estimated with --robot two-section" in said
+    assert main(["evaluate", str(est), str(truth), "--skip-start", "100"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("continuum-mhe: error: "), err
+    fig = tmp_path / "fig.png"
+    assert main(["plot", str(est), "--truth", str(est), "-o", str(fig)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("continuum-mhe: error: "), err
+    assert not fig.exists()
+
+
 def test_the_truth_may_follow_an_option(mocap_run, capsys) -> None:
     """``evaluate EST.csv --json TRUTH.csv`` takes the truth (argparse fills an optional
     positional only beside the ones before it); a word more is refused."""

@@ -13,6 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from continuum_mhe.cli.config import recorded_t0_s
+from continuum_mhe.cli.held_notes import said_unless_refused
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import (
     DEFAULT_LENGTH,
@@ -234,7 +235,8 @@ def run(args: argparse.Namespace) -> int:
             f"{args.estimates}: no truth to score it against: continuum-mhe evaluate EST.csv "
             "TRUTH.csv"
         )
-    with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
+    # the estimate is read twice; the notes and warnings are said once it is scored
+    with held_for_rereading(args.estimates, args.truth), said_unless_refused():
         return _evaluate(args)
 
 

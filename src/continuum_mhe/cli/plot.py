@@ -72,6 +72,7 @@ FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
 def _estimate(args: argparse.Namespace) -> int:
+    from continuum_mhe.cli.held_notes import said_unless_refused
     from continuum_mhe.io.output_files import check_output_target, refuse_inputs
     from continuum_mhe.io.text_rows import held_for_rereading
 
@@ -88,7 +89,8 @@ def _estimate(args: argparse.Namespace) -> int:
                            ("the tensions file --inputs", args.inputs),
                            ("the robot file --robot", args.robot)])  # fmt: skip
     check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
-    with held_for_rereading(args.source, args.truth):  # the estimate is read twice
+    # the estimate is read twice; the notes and warnings are said once the figure is made
+    with held_for_rereading(args.source, args.truth), said_unless_refused():
         return _figure(args, output)
 
 

@@ -4,14 +4,13 @@ Rerun (:func:`continuum_mhe.viewer.replay`)."""
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import os
 import sys
 import warnings
 from dataclasses import replace
 from pathlib import Path
 
+from continuum_mhe.cli.held_notes import said_unless_refused
 from continuum_mhe.cli.input_options import add_tensions_option
 from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_args
 from continuum_mhe.cli.options import add_overwrite_option
@@ -32,9 +31,8 @@ def run(args: argparse.Namespace) -> int:
     # the estimate is read twice, the tensions again where compared with the recorded ones
     with held_for_rereading(args.estimates, args.truth, args.inputs):
         # the notes and warnings about the robot and the truth are said once the files
-        # are found fit to draw: a refusal is its one line alone
-        said = io.StringIO()
-        with contextlib.redirect_stderr(said):
+        # are found fit to draw
+        with said_unless_refused():
             checked = _refuse_tendon_estimate_on_another_robot(args)  # before the notes
             robot = estimate_robot(args, args.estimates, "drawn on that robot")
             if not checked:  # a robot from a pipe: checked as it was taken
@@ -42,7 +40,6 @@ def run(args: argparse.Namespace) -> int:
             _check_estimate(args, robot)
             if args.truth:
                 _check_truth(args, robot)
-        sys.stderr.write(said.getvalue())
         replay(
             args.estimates, robot, sink, args.truth, args.trail, args.points,
             args.inputs or _recorded_tensions(args.estimates, robot), args.truth_shift,
