@@ -487,18 +487,35 @@ def test_garbled_lines_are_counted_by_cause_and_not_as_missing_samples(n_imus: i
     s, said = _session(robot=robot)
     now = time.monotonic()
     for i in range(60):
-        roll = 0.1 if not 20 <= i < 40 else 3.5 + 0.01 * i  # degrees-like, each its own
+        # degrees-like, each its own: 19 lines, one short of what stops a session
+        roll = 0.1 if not 20 <= i < 39 else 3.5 + 0.01 * i
         s.handle_line(f"{1000 + 20 * i}{f',{roll},0.1' * n_imus}".encode(), now + 0.02 * i)
     for i in (59, 59, 70):  # the last line twice more, then 10 lines lost
         s.handle_line(f"{1000 + 20 * i}{',0.1,0.1' * n_imus}".encode(), now + 0.02 * i)
     s.finish()
     cause = "roll beyond pi: degrees given for radians?"
     want = cause if n_imus == 1 else f"IMU 1: roll_1 {cause.removeprefix('roll ')}"
-    assert s.counts.reasons == {want: 20}
+    assert s.counts.reasons == {want: 19}
     assert (s.counts.gaps, s.counts.missing, s.counts.out_of_order) == (2, 10, 2)
     gaps = [m for m in said if m.startswith("gap of")]
-    assert "(about 0 samples missing, 20 line(s) in it skipped)" in gaps[0], gaps
+    assert "(about 0 samples missing, 19 line(s) in it skipped)" in gaps[0], gaps
     assert "(about 10 samples missing)" in gaps[1], gaps
+
+
+def test_a_gap_under_a_millisecond_is_said_to_its_digits() -> None:
+    """Whole seconds sent as ``t_ms`` (50 lines a stamp): the samples of a stamp are
+    spread over its millisecond, so the next stamp is a gap of under a millisecond
+    against that period: said as such (0.00099 s), not as a gap of 0.000 s with
+    hundreds of samples missing; the clock's unit then stops the session."""
+    s, said = _session()
+    now = time.monotonic()
+    for i in range(150):
+        s.handle_line(f"{i // 50},0.1,0.1".encode(), now + 0.02 * i)
+        if s.fatal:
+            break
+    gaps = [m for m in said if m.startswith("gap of")]
+    assert gaps and gaps[0].startswith("gap of 0.00099 s before t=0.002 s"), gaps
+    assert s.fatal is not None and "t_ms in seconds?" in s.fatal
 
 
 def test_a_gap_of_exactly_the_gap_reset_on_an_epoch_clock_is_decided_as_the_policy_does() -> None:
@@ -1325,22 +1342,50 @@ def test_a_stream_that_ends_in_tilt_degrees_is_found_without_the_stop(
 ) -> None:
     """A short recording in degrees (a few lines near straight, valid as radians, then
     the angles past the radians' range) ends before the garbled lines last the 3 s that
-    stop a session: at its end, a run of 20 lines or more that grew from the valid ones
-    says the readings were degrees, as the stop would (``live`` removes their estimates,
-    exit 2); a few such lines at the end are counted as garbled, the estimates kept."""
+    stop a session: 20 lines or more that grew from the valid ones say the readings were
+    degrees, as the stop would (``live`` removes their estimates, exit 2); a few such
+    lines at the end are counted as garbled, the estimates kept."""
     s, _ = _session()
     now = time.monotonic()
     lines = [f"{20 * i},{0.5 * i:.2f},0.5" for i in range(4)]
     lines += [f"{20 * (4 + i)},{3.5 + 2.5 * i:.2f},0.5" for i in range(garbled)]
     for i, line in enumerate(lines):
         s.handle_line(line.encode(), now + 0.02 * i)
-    assert s.fatal is None
     s.finish()
     assert s.wrong_units is wrong
     if wrong:
         assert s.fatal is not None and "degrees given for radians?" in s.fatal
     else:
         assert s.fatal is None and s.counts.garbled == garbled
+
+
+@pytest.mark.parametrize("degrees", [True, False])
+def test_tilt_degrees_in_short_runs_stop_live_by_their_share(degrees: bool) -> None:
+    """A fast stream (a line every 5 ms) of tilt in degrees swinging through straight
+    (10 degrees either way, once a second): each run of angles past the radians' range
+    lasts well under the 3 s that stop a session, but such lines, grown from the valid
+    ones, are a tenth of the lines or more: the readings were degrees (the session
+    stops, its estimates not kept), as ``estimate`` refuses such a file. A radians
+    stream with as many lines of garbage beyond pi between its valid ones, which do not
+    follow on from them, runs to its end with its estimates."""
+    s, _ = _session()
+    now = time.monotonic()
+    for i in range(1200):
+        if degrees:
+            roll = 10.0 * math.sin(2 * math.pi * i / 200)
+        else:
+            roll = 57.3 if i % 5 == 4 else 0.1 * math.sin(2 * math.pi * i / 200)
+        s.handle_line(f"{5 * i},{roll:.3f},0.2".encode(), now + 0.005 * i)
+        if s.fatal:
+            break
+    s.finish()
+    assert s.wrong_units is degrees
+    if degrees:
+        assert s.fatal is not None and "lines skipped for tilt angles that grew" in s.fatal
+        assert "the angles are in degrees; send radians" in s.fatal
+        assert s.counts.lines < 200  # stopped within the first swing
+    else:
+        assert s.fatal is None and s.counts.garbled == 240
 
 
 def test_the_summary_says_how_many_estimates_are_uncertain_for_their_width() -> None:

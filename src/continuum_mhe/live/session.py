@@ -32,6 +32,7 @@ from continuum_mhe.estimators.run_notices import (
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
+from continuum_mhe.io.csv_files import DEGREES_LIKE_SHARE
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row, format_number
 from continuum_mhe.io.input_options import MountingError
 from continuum_mhe.io.raw_imu import RawImuConverter, clip_notice
@@ -327,6 +328,10 @@ class LiveSession:
         #: lines began with angles beyond their range that follow on from them
         self._last_tilt: FloatArray | None = None
         self._degrees_run = False
+        #: the lines skipped in such runs, and the valid samples, since the units check
+        #: was last armed (:meth:`_mark_units`)
+        self._degree_lines = 0
+        self._samples_at_mark = 0
         #: the last garbled line's cause, text and arrival (s)
         self._garbage_last: tuple[str, str, float] = ("", "", 0.0)
         #: the first sample of the device clock's run (its arrival and time, s), and the
@@ -477,6 +482,25 @@ class LiveSession:
         if DEGREES_FOR_RADIANS in why and self._degrees_run:
             self.wrong_units = True
 
+    def _stop_on_degrees(self, why: str) -> None:
+        """Set :attr:`fatal` (:attr:`wrong_units`) where the lines skipped for tilt
+        angles that grew past the radians' range from the valid samples' (degrees read as
+        radians) number :data:`GARBAGE_STOP_LINES` or more and
+        :data:`~continuum_mhe.io.csv_files.DEGREES_LIKE_SHARE` or more of the lines read
+        since the units check was armed, however short each run (a fast stream, or a robot
+        that passes near straight, where degrees read as radians, more often than every
+        :data:`GARBAGE_STOP_S` s): the rule ``estimate`` applies to a file's rows."""
+        n = self._degree_lines
+        judged = n + self.counts.samples - self._samples_at_mark
+        if self.fatal is not None or n < GARBAGE_STOP_LINES or n < DEGREES_LIKE_SHARE * judged:
+            return
+        self.fatal = (
+            f"{self.settings.port}: {n} of {judged} lines skipped for tilt angles that grew "
+            f"past the radians' range from the samples before them (the last: {why}): the "
+            "angles are in degrees; send radians"
+        )
+        self.wrong_units = True
+
     @property
     def discarded(self) -> str | None:
         """Why the estimates from :attr:`discard_from` on are not to be kept (what they
@@ -530,6 +554,9 @@ class LiveSession:
             if self._garbage_since is None:  # the first garbled line of a run
                 self._degrees_run = DEGREES_FOR_RADIANS in str(exc) and self._continues(text)
             self._bad(str(exc), arrival, text, kind=exc.kind)
+            if self._degrees_run and DEGREES_FOR_RADIANS in str(exc):
+                self._degree_lines += 1
+                self._stop_on_degrees(str(exc))
             return None
         joined, self._joined = self._joined, False
         if sample is None:
@@ -708,6 +735,7 @@ class LiveSession:
         """Keep where the estimate sink ends as the units check is armed."""
         mark = getattr(self.out, "mark", None)
         self.units_mark = mark() if mark is not None else None
+        self._degree_lines, self._samples_at_mark = 0, self.counts.samples
 
     def _check_clock_rate(self, t: float, arrival: float, restart: bool) -> None:
         """Set :attr:`fatal` where the device clock (``t``, s) advanced less than
@@ -911,8 +939,10 @@ class LiveSession:
                 if long_gap:  # the estimator restarts itself (status reset); so do the
                     for conv in self.converters or ():  # attitude filters of raw IMUs
                         conv.reset()
+                # to the millisecond, or two digits under one (a sub-millisecond period's)
+                gap = f"{dt:.3f}" if dt >= 1e-3 else f"{dt:.2g}"
                 self.say(
-                    f"gap of {dt:.3f} s before t={t:.3f} s (about {lost} samples missing"
+                    f"gap of {gap} s before t={t:.3f} s (about {lost} samples missing"
                     f"{skipped}); {how}"
                 )
             else:
