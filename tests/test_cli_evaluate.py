@@ -940,7 +940,8 @@ def test_an_epoch_clock_truth_names_the_whole_shift_and_takes_it(mocap_run, caps
 def test_a_refusal_after_a_note_is_its_one_line_alone(mocap_run, capsys, tmp_path) -> None:
     """``evaluate`` of an estimate whose options line names its robot says so in a note
     when it scores it; when it then refuses an option or the truth, the refusal is the
-    one line written, without the note (``plot`` alike)."""
+    one line written, without the note; ``plot`` alike with its warning of a robot file
+    of other lengths."""
     _, truth, est = mocap_run
     assert main(["evaluate", str(est), str(truth)]) == 0
     said = capsys.readouterr().err
@@ -948,11 +949,21 @@ def test_a_refusal_after_a_note_is_its_one_line_alone(mocap_run, capsys, tmp_pat
     assert main(["evaluate", str(est), str(truth), "--skip-start", "100"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("continuum-mhe: error: "), err
+    # plot on a robot file of other lengths (a warning that the backbone misses the
+    # estimate's section ends), then a truth whose times meet none of the estimate's
+    other = tmp_path / "other.toml"
+    other.write_text(
+        "[[section]]\nlength = 0.2\n[[section]]\nlength = 0.1\n"
+        "[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+    )
+    late = _capture(truth, tmp_path / "late.csv", 10.0, t0=100.0)
     fig = tmp_path / "fig.png"
-    assert main(["plot", str(est), "--truth", str(est), "-o", str(fig)]) == 2
+    assert main(["plot", str(est), "--robot", str(other), "-o", str(fig)]) == 0
+    assert "misses its section ends" in capsys.readouterr().err
+    argv = ["plot", str(est), "--robot", str(other), "--truth", str(late), "-o", str(fig)]
+    assert main([*argv, "--overwrite"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("continuum-mhe: error: "), err
-    assert not fig.exists()
 
 
 def test_the_truth_may_follow_an_option(mocap_run, capsys) -> None:

@@ -504,9 +504,9 @@ def test_garbled_lines_are_counted_by_cause_and_not_as_missing_samples(n_imus: i
 
 def test_a_gap_under_a_millisecond_is_said_to_its_digits() -> None:
     """Whole seconds sent as ``t_ms`` (50 lines a stamp): the samples of a stamp are
-    spread over its millisecond, so the next stamp is a gap of under a millisecond
-    against that period: said as such (0.00099 s), not as a gap of 0.000 s with
-    hundreds of samples missing; the clock's unit then stops the session."""
+    spread over its millisecond, ever closer, so the next stamp is a gap against that
+    tiny period: its length is said to its digits (0.00099 s), not as 0.000 s; the
+    clock's unit then stops the session."""
     s, said = _session()
     now = time.monotonic()
     for i in range(150):

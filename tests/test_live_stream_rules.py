@@ -57,23 +57,27 @@ def test_2_khz_with_whole_millisecond_stamps_keeps_the_samples() -> None:
     assert s.clock.t_last == pytest.approx(3.9995, abs=1e-9)  # 0.5 ms apart, to the end
 
 
-@pytest.mark.parametrize(("gap", "steps"), [(0.0200153, 1), (0.3004, 15), (0.0071, 1)])
-def test_a_restarted_clock_goes_on_in_whole_samples(gap: float, steps: int) -> None:
+@pytest.mark.parametrize(
+    ("period", "gap", "steps"),
+    [(0.02, 0.0200153, 1), (0.02, 0.3004, 15), (0.02, 0.0071, 1), (5e-4, 2e-4, 1), (5e-4, 6e-4, 1)],
+)
+def test_a_restarted_clock_goes_on_in_whole_samples(period: float, gap: float, steps: int) -> None:
     """A device clock that restarts (back to 3 ms) goes on from the last sample by the
-    host's gap between their lines rounded to whole sample periods (at least one): the
+    host's gap between their lines rounded to whole sample periods (at least one, at
+    50 Hz and at 2 kHz alike): the
     axis keeps the device's grid (8.0 s stays 8.0 s, within a tensions file ending
     there), where the host's gap as measured put every later sample microseconds off
     it."""
     clock = DeviceClock()
-    period = 0.02
-    for i in range(250):
-        clock.place(20.0 * i, period * i, period)
+    n = round(5.0 / period)  # 5 s of samples: the step back is a restart, not a late line
+    for i in range(n):
+        clock.place(1e3 * period * i, period * i, period)
     last = clock.t_last
-    placed = clock.place(3.0, period * 249 + gap, period)
+    placed = clock.place(3.0, period * (n - 1) + gap, period)
     assert placed.event == "restart"
     assert placed.t == pytest.approx(last + steps * period, abs=1e-12)
-    later = clock.place(3.0 + 20.0 * 150, period * 249 + gap + 3.0, period)
-    assert later.t == pytest.approx(last + steps * period + 3.0, abs=1e-12)
+    later = clock.place(3.0 + 1e3 * period * 150, period * (n - 1) + gap + 150 * period, period)
+    assert later.t == pytest.approx(last + steps * period + 150 * period, abs=1e-12)
 
 
 def test_samples_sharing_a_stamp_are_spread_over_its_millisecond() -> None:

@@ -203,8 +203,9 @@ def test_a_robot_file_in_an_8_bit_encoding_is_named_at_its_line_and_byte(
 ) -> None:
     """A robot file saved in Windows-1252 (an umlaut in a comment) is refused at the
     line and byte that are no UTF-8, with the character they are in Windows-1252 and the
-    command that converts the file, as a CSV file is (with a byte-order mark too); a
-    file of control bytes is said to be no text."""
+    command that converts the file, as a CSV file is (with a byte-order mark too, the
+    byte counted after it); UTF-16 text is named as such; a file of control bytes is
+    said to be no text."""
     path = tmp_path / "latin.toml"
     path.write_bytes(
         mark + b'mounting = "z-up"\n# Roboter f\xfcr Tests\n[[section]]\nlength = 0.2\n'
@@ -216,6 +217,14 @@ def test_a_robot_file_in_an_8_bit_encoding_is_named_at_its_line_and_byte(
         "('\u00fc' in Windows-1252), text saved in an 8-bit encoding; save it as UTF-8 "
         f"(iconv -f CP1252 -t UTF-8 {path} > NEW.toml)\n"
     )
+    # on the first line after a byte-order mark: the byte counted after the mark
+    path.write_bytes(mark + b'mounting = "z-up" # f\xfcr\n')
+    with pytest.raises(InputError, match=r"line 1: not UTF-8 text: byte 22 of the line, 0xFC"):
+        read_robot(path)
+    utf16 = tmp_path / "utf16.toml"
+    utf16.write_bytes('mounting = "z-up"\n'.encode("utf-16"))
+    with pytest.raises(InputError, match=r"utf16\.toml: not UTF-8 text but UTF-16: save it as"):
+        read_robot(utf16)
     binary = tmp_path / "binary.toml"
     binary.write_bytes(b'mounting = "z-up"\n\x01\x02\xff\n')
     with pytest.raises(

@@ -1351,14 +1351,14 @@ def test_a_tendon_robots_log_without_tensions_is_told_to_give_them_with_inputs(
 
 
 def test_a_logs_tensions_stamped_since_1970_are_taken_on_its_clock(
-    recording: dict[str, Any], tmp_path: Path
+    recording: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A tendon robot's log (its tip IMU alone) with tensions stamped on the log's own
     clock (seconds since 1970, as a tension topic exported beside the IMU's has them):
     taken on the log's clock, t = 0 at IMU 1's first stamp, and said in a note; the
     samples equal those with the same tensions counted from that stamp (to the
     float64 resolution of times since 1970, 2.4e-7 s). The estimate's t0_ns is the
-    log's."""
+    log's, and ``plot`` and ``view`` take the tensions on that clock as well."""
     from dataclasses import replace
 
     from continuum_mhe.io.input_options import InputOptions
@@ -1391,6 +1391,25 @@ def test_a_logs_tensions_stamped_since_1970_are_taken_on_its_clock(
         "at IMU 1's first stamp, 1700000000.123456789 s",
     )
     assert not counted.notes
+    # the command line: estimate with them, then plot and view the estimate with the
+    # tensions its options line names, taken on the log's clock (its t0_ns) as estimate
+    # took them
+    from continuum_mhe.io.robot_file import shipped_robots
+
+    robot_file = tmp_path / "tip.toml"  # the shipped robot with its tip IMU alone
+    text = shipped_robots()["tendon-two-section"].read_text()
+    assert "[[imu]]\nsection = 1\n" in text
+    robot_file.write_text(text.replace("[[imu]]\nsection = 1\n", "", 1))
+    est = tmp_path / "est.csv"
+    _estimate(log, est, "--robot", str(robot_file), "--inputs", str(files["epoch.csv"]))
+    fig = tmp_path / "est.png"
+    capsys.readouterr()
+    assert main(["plot", str(est), "-o", str(fig)]) == 0
+    assert fig.read_bytes()[:4] == b"\x89PNG"
+    assert "are taken on the log's clock" in capsys.readouterr().err
+    pytest.importorskip("rerun")
+    assert main(["view", str(est), "--save", str(tmp_path / "est.rrd")]) == 0
+    assert "are taken on the log's clock" in capsys.readouterr().err
 
 
 def test_an_options_files_topics_give_way_to_the_command_line_and_to_a_csv(

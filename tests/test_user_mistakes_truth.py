@@ -152,6 +152,17 @@ def test_evaluate_with_times_that_do_not_match_is_an_error(tmp_path, capsys) -> 
     ms.write_text(ms.read_text().replace("t,", "t_ms,", 1))
     assert main(["evaluate", str(est), str(ms)]) == 0
     assert capsys.readouterr().out == in_seconds
+    # a sparse truth in seconds on another clock (every 50th row, 40 s late): its steps
+    # are long, but read in milliseconds its times would not meet the estimate's: the
+    # clock's hint, not milliseconds
+    late = tmp_path / "b_late.csv"
+    late.write_text(
+        "\n".join([rows[0], *(f"{40 + float(r.split(',')[0])!r},{r.split(',', 1)[1]}"
+                             for r in rows[1::50])]) + "\n"
+    )  # fmt: skip
+    assert main(["evaluate", str(est), str(late)]) == 2
+    err = capsys.readouterr().err
+    assert "is the truth's t in milliseconds" not in err and "--truth-shift 40 " in err, err
 
 
 def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:

@@ -5,10 +5,11 @@ much of numpy's and scipy's array-API support with it).
 
 Rows: the chi-square quantile at each level the estimators use (the consistency check's
 ``SAMPLE_QUANTILE``, ``RUN_QUANTILE`` and ``SHIFT_QUANTILE``, the start check's and the
-branch check's ``QUANTILE``, the tendon model's ``IMU_ERROR_PROBABILITY`` and ``1 -
-LOADED_START_PROBABILITY``) for 1 to ``CHI2_DOF`` degrees of freedom, and the F quantile
-of the consistency check's average (``QUANTILE``, ``k (2 MEMORY - 1)`` and ``k (2
-QUIET_MEMORY - 1)`` degrees of freedom) for ``k`` = 1 to ``F_ROWS`` judged readings.
+branch check's ``QUANTILE``, the tendon model's ``IMU_ERROR_PROBABILITY``, ``1 -
+LOADED_START_PROBABILITY`` and ``1 - LOAD_AT_START_PROBABILITY``) for 1 to ``CHI2_DOF``
+degrees of freedom, and the F quantile of the consistency check's average
+(``QUANTILE``, ``k (2 MEMORY - 1)`` and ``k (2 QUIET_MEMORY - 1)`` degrees of freedom)
+for ``k`` = 1 to ``F_ROWS`` judged readings.
 :mod:`continuum_mhe.quantiles` computes anything else with ``scipy.special``
 itself; ``tests/test_consistency.py`` checks the table against it::
 
@@ -40,6 +41,7 @@ def chi2_levels() -> list[float]:
     levels = (
         tendon.IMU_ERROR_PROBABILITY,
         1.0 - tendon.LOADED_START_PROBABILITY,
+        1.0 - tendon.LOAD_AT_START_PROBABILITY,
         consistency.SHIFT_QUANTILE,
         consistency.RUN_QUANTILE,
         consistency.SAMPLE_QUANTILE,

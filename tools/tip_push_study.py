@@ -1,5 +1,5 @@
 """How hard the tendon robot's estimated tip force pushes along the tip's tangent, in
-buckling loads (docs/tendon.md, the estimate: a push beyond two buckling loads makes a
+buckling loads (docs/tendon.md, the estimate: a push beyond the buckling load makes a
 row ``drifted``).
 
 Each estimate is ``continuum-mhe estimate REC --robot tendon-two-section --inputs

@@ -108,6 +108,8 @@ def environment(formulation: Formulation) -> dict[str, Any]:
             "cores": os.cpu_count(),
             "usable_cores": usable,
             "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+            # (the executable sets 1 where it is not set; every contender runs under it)
+            "openblas_num_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
         },
         "versions": {
             "python": platform.python_version(),
@@ -121,6 +123,7 @@ def environment_line(report: dict[str, Any]) -> str:
     m, v = report["machine"], report["versions"]
     return (
         f"machine: {m['cpu']}, "
-        f"{m['cores']} cores ({m['usable_cores']} usable), {m['platform']}; "
+        f"{m['cores']} cores ({m['usable_cores']} usable), {m['platform']}, "
+        f"OPENBLAS_NUM_THREADS {m.get('openblas_num_threads') or 'unset'}; "
         + ", ".join(f"{k} {val}" for k, val in v.items() if val)
     )

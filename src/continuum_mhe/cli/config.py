@@ -501,14 +501,20 @@ def _made_line(source: str) -> str | None:
     return value if isinstance(value, str) else None
 
 
-def recorded_t0_s(path: str) -> float | None:
-    """An estimate's ``t0_ns`` (its ``# t0_ns = ...`` line, an MCAP's note) in s, or
-    None where it has none (not of a robot log) or cannot be read."""
+def recorded_t0_ns(path: str) -> int | None:
+    """An estimate's ``t0_ns`` (its ``# t0_ns = ...`` line, an MCAP's note), ns, or None
+    where it has none (not of a robot log) or cannot be read."""
     try:
         value = _note_value(path, T0_LINE)
     except InputError:  # an MCAP whose notes cannot be read: its reader says why
         return None
-    return value / 1e9 if isinstance(value, int) and not isinstance(value, bool) else None
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+
+def recorded_t0_s(path: str) -> float | None:
+    """An estimate's ``t0_ns`` (:func:`recorded_t0_ns`) in s, or None."""
+    ns = recorded_t0_ns(path)
+    return None if ns is None else ns / 1e9
 
 
 def recorded_option(path: str, key: str) -> Any:

@@ -260,15 +260,31 @@ def rows_matched(
     return "", what if compared < WARN_MATCHED * of else ""
 
 
+#: A truth's median step this many times the estimate's, or more (and at most
+#: :data:`MS_RATIO_MAX` times), is a truth in milliseconds beside an estimate in seconds
+#: (where its times read in milliseconds also overlap the estimate's): a thousand for
+#: the same rate, a fifth of that for a truth sampled five times as densely...
+MS_RATIO_MIN = 200.0
+#: ... and five times that for one sampled five times as sparsely.
+MS_RATIO_MAX = 5000.0
+
+
 def truth_time_unit_problem(path_truth: str, t_est: FloatArray, t_truth: FloatArray) -> str:
-    """The refusal of a truth whose ``t`` steps like milliseconds (a median step over
-    :data:`~continuum_mhe.io.csv_files.MS_LIKE_STEP_S`) beside an estimate in seconds,
-    naming the truth file and the fix; ``""`` where its steps do not."""
+    """The refusal of a truth whose ``t`` steps like milliseconds beside an estimate in
+    seconds (a median step over :data:`~continuum_mhe.io.csv_files.MS_LIKE_STEP_S`,
+    :data:`MS_RATIO_MIN` to :data:`MS_RATIO_MAX` times the estimate's, and its times
+    read in milliseconds overlapping the estimate's), naming the truth file and the fix;
+    ``""`` where they do not (a sparse truth in seconds, on another clock: the clock's
+    hint says it)."""
     if len(t_est) < 3 or len(t_truth) < 3:
         return ""
     step_truth = float(np.median(np.diff(t_truth)))
     step_est = float(np.median(np.diff(t_est)))
     if not (step_truth > MS_LIKE_STEP_S > step_est > 0):
+        return ""
+    in_ms = MS_RATIO_MIN <= step_truth / step_est <= MS_RATIO_MAX
+    overlaps = t_truth[0] / 1e3 <= t_est[-1] and t_truth[-1] / 1e3 >= t_est[0]
+    if not (in_ms and overlaps):
         return ""
     return (
         f"{path_truth}: t advances by a median of {step_truth:g} s per sample, the "

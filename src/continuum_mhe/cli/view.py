@@ -10,6 +10,7 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
+from continuum_mhe.cli.config import recorded_t0_ns
 from continuum_mhe.cli.held_notes import said_unless_refused
 from continuum_mhe.cli.input_options import add_tensions_option
 from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_args
@@ -43,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
         replay(
             args.estimates, robot, sink, args.truth, args.trail, args.points,
             args.inputs or _recorded_tensions(args.estimates, robot), args.truth_shift,
+            recorded_t0_ns(args.estimates) or 0,
         )  # fmt: skip
         _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0

@@ -631,7 +631,8 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
     buckling = getattr(formulation, "buckling_load", None)
     push = (
         f"; or the tip force pushed along the backbone harder than "
-        f"{BUCKLED_PUSH_MULTIPLE:g} times its buckling load "
+        f"{'' if BUCKLED_PUSH_MULTIPLE == 1 else f'{BUCKLED_PUSH_MULTIPLE:g} times '}its "
+        "buckling load "
         f"({BUCKLED_PUSH_MULTIPLE * buckling:.3g} N), which a free tip cannot hold and the "
         "IMUs barely see along a nearly straight backbone (a still robot, or one whose tip "
         "presses on something)"

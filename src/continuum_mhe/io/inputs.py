@@ -93,8 +93,8 @@ from continuum_mhe.io.robot_logs import (
 )
 from continuum_mhe.io.sample_rows import RowProblems, SampleBlock, sample_blocks
 from continuum_mhe.io.tensions import (
-    EPOCH_LIKE_S,
     Tensions,
+    on_log_clock,
     read_tensions,
     tendon_formulation_for,
     tension_columns,
@@ -700,19 +700,12 @@ def _append_tensions(
     f = tendon_formulation_for(stream.formulation, options)
     k = f.robot.n_tendons
     blocks = stream.blocks
-    if (
-        tensions is not None
-        and stream.t0_ns >= EPOCH_LIKE_S * 1e9
-        and tensions.t[0] >= EPOCH_LIKE_S
-    ):
+    if tensions is not None:
         # a robot log's tensions on its clock (times since 1970, as the log's stamps):
         # the log's t = 0 is IMU 1's first stamp, t0_ns
-        seconds, ns = divmod(stream.t0_ns, 10**9)
-        tensions = replace(tensions, t=(tensions.t - seconds) - ns * 1e-9)
-        stream.description.notes += (
-            f"{tensions.name}: its times, since 1970, are taken on the log's clock: t = 0 "
-            f"at IMU 1's first stamp, {seconds}.{ns:09d} s",
-        )
+        tensions, note = on_log_clock(tensions, stream.t0_ns)
+        if note:
+            stream.description.notes += (note,)
 
     def with_tensions() -> Iterator[tuple[FloatArray, FloatArray]]:
         first = last = math.nan

@@ -63,6 +63,7 @@ import difflib
 import math
 import os
 import re
+import shlex
 import sys
 import warnings
 from collections.abc import Sequence
@@ -71,7 +72,7 @@ from typing import Any
 
 from continuum_mhe.errors import FieldError, InputError, UserError, expect_type
 from continuum_mhe.io.csv_files import UnitWarning
-from continuum_mhe.io.text_rows import not_utf8_problem, shorten
+from continuum_mhe.io.text_rows import not_utf8_problem, shorten, utf16_encoding
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import (
     DEFAULT_THETA_MAX,
@@ -550,14 +551,21 @@ def _single_table_hint(text: str) -> str:
 
 def _not_utf8(path: Path, raw: bytes, start: int) -> str:
     """The one line of a robot file whose bytes ``raw`` are no UTF-8 from byte ``start``
-    (of the file, from 0, after a byte-order mark): its line, the byte and the fix."""
-    if raw.startswith(b"\xef\xbb\xbf"):
-        start += 3  # the position in the text decoded past the mark
-    first = raw.rfind(b"\n", 0, start) + 1
-    end = raw.find(b"\n", start)
-    body = raw[first : len(raw) if end < 0 else end].rstrip(b"\r")
-    line = raw.count(b"\n", 0, start) + 1
-    return not_utf8_problem(str(path), line, body, start - first, "NEW.toml")
+    (from 0, after a UTF-8 byte-order mark, as the decoder counts): UTF-16 text named
+    as such, else its line, the byte (counted after the mark, as in a CSV file) and the
+    fix."""
+    first_line = raw.split(b"\n", 1)[0]
+    if encoding := utf16_encoding(first_line):
+        return (
+            f"{path}: not UTF-8 text but UTF-16: save it as UTF-8 (iconv -f {encoding} -t "
+            f"UTF-8 {shlex.quote(str(path))} > NEW.toml)"
+        )
+    data = raw[3:] if raw.startswith(b"\xef\xbb\xbf") else raw
+    begin = data.rfind(b"\n", 0, start) + 1
+    end = data.find(b"\n", start)
+    body = data[begin : len(data) if end < 0 else end].rstrip(b"\r")
+    line = data.count(b"\n", 0, start) + 1
+    return not_utf8_problem(str(path), line, body, start - begin, "NEW.toml")
 
 
 def read_robot(path: str | os.PathLike[str]) -> Robot:

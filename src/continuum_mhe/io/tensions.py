@@ -583,6 +583,20 @@ class Tensions:
         )
 
 
+def on_log_clock(tensions: Tensions, t0_ns: int) -> tuple[Tensions, str]:
+    """``tensions`` whose times are since 1970, as a robot log's stamps are, counted
+    from the log's ``t = 0`` (``t0_ns``, ns since 1970: IMU 1's first stamp), with the
+    note that says so; as given, and ``""``, where either is not on that clock."""
+    if t0_ns < EPOCH_LIKE_S * 1e9 or not len(tensions.t) or tensions.t[0] < EPOCH_LIKE_S:
+        return tensions, ""
+    seconds, ns = divmod(int(t0_ns), 10**9)
+    shifted = replace(tensions, t=(tensions.t - seconds) - ns * 1e-9)
+    return shifted, (
+        f"{tensions.name}: its times, since 1970, are taken on the log's clock: t = 0 "
+        f"at IMU 1's first stamp, {seconds}.{ns:09d} s"
+    )
+
+
 def _without_glitches(values: FloatArray, glitches: TensionGlitches) -> FloatArray:
     """``values`` (n, k) N with each glitch replaced by the cubic through its
     neighbours, not below zero."""

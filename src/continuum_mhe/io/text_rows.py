@@ -271,7 +271,7 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
                 raise InputError(f"{name}: line 1: not CSV text but {what}")
     body = raw.rstrip(b"\r\n") if raw.endswith(b"\n") else raw
     if b"\x00" in body:
-        if n == 1 and (encoding := _utf16(body)):
+        if n == 1 and (encoding := utf16_encoding(body)):
             raise InputError(f"{name}: line 1: not UTF-8 text but {UTF16.format(encoding)}")
         if n > 1 and b"\x00" not in body.rstrip(b"\x00"):
             raise InputError(
@@ -328,7 +328,7 @@ UTF16 = (
 )
 
 
-def _utf16(first: bytes) -> str:
+def utf16_encoding(first: bytes) -> str:
     """The encoding for ``iconv`` of a first line of UTF-16 text (``UTF-16`` with its
     byte-order mark; without one, ``UTF-16LE`` or ``UTF-16BE`` where every other byte
     of an ASCII header is NUL), else ``""``."""

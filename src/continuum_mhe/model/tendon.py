@@ -181,7 +181,9 @@ DIVERGED_BUCKLING_MULTIPLE = 10.0
 #: The least tip force, N, that counts as diverged by default.
 MAX_FORCE_FLOOR = 50.0
 #: A tip force that pushes along the tip's tangent harder than this many times the
-#: buckling load makes an estimate ``drifted`` (:meth:`TendonFormulation.drifted`): the
+#: buckling load makes an estimate ``drifted`` (:meth:`TendonFormulation.drifted`; a
+#: free tip holds no more, and between one and two such loads a filter's standard
+#: deviation had already collapsed on rows far off): the
 #: quasi-static model then solves a nearly straight equilibrium that the backbone cannot
 #: hold (it buckles), along which the IMUs barely see the force, and a filter's
 #: covariance linearised there collapses (a still, straight robot: tip forces of 4 N
@@ -189,7 +191,7 @@ MAX_FORCE_FLOOR = 50.0
 #: the load along its tip's tangent near the buckling load at most (a tip held sideways
 #: by what it presses on holds more, a push the IMUs do not see either); on the shipped
 #: recordings the push stays under 0.8 of it.
-BUCKLED_PUSH_MULTIPLE = 2.0
+BUCKLED_PUSH_MULTIPLE = 1.0
 #: The chi-square probability beyond which the IMUs' error states (gyro biases,
 #: misalignments, accelerometer biases), measured against their prior
 #: (:meth:`TendonFormulation.initial_cov`), make an estimate ``drifted``

@@ -163,7 +163,7 @@ class DeviceClock:
                 event = "wrap"
             elif self._restart_armed or confirmed or last - t_ms > self.restart_jump_s * 1e3:
                 assert self._t_last is not None
-                away = max(arrival - self._arrival_last, period_s or 0.0, 1e-3)
+                away = max(arrival - self._arrival_last, period_s or 1e-3)
                 if period_s:  # the host's gap to whole samples: the axis keeps its grid
                     away = max(1, round(away / period_s)) * period_s
                 self._offset_s = self._t_last + away - (t_ms + self._epoch_ms) / 1e3

@@ -19,7 +19,7 @@ from continuum_mhe.io.state_tables import (
     read_state_table,
     robot_misfit,
 )
-from continuum_mhe.io.tensions import read_tensions
+from continuum_mhe.io.tensions import on_log_clock, read_tensions
 from continuum_mhe.model.descriptions import OutputSpec, imu_twist_names, pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import tendon_outputs
@@ -50,14 +50,16 @@ def estimated_extras(names: Sequence[str], robot: Robot) -> tuple[OutputSpec, ..
 def replay(
     estimates: str, robot: Robot, sink: ViewerSink, truth: str | None = None,
     trail_s: float = 10.0, points_per_section: int = 16, tensions: str | None = None,
-    truth_shift: float = 0.0,
+    truth_shift: float = 0.0, t0_ns: int = 0,
 ) -> int:  # fmt: skip
     """Write or show the view of an estimate CSV (and its truth). Returns the number of
     estimates drawn. A tendon robot's backbone (``robot.backbone``) is its mechanics
     model's at each row's tip force under the ``tensions`` file's tensions; without
     that file, its tips alone are drawn (said in a note). The truth's row at time ``t``
     is drawn at ``t - truth_shift`` s (a truth on a clock that runs ``truth_shift``
-    ahead of the estimate's)."""
+    ahead of the estimate's). ``t0_ns``: a robot log's ``t = 0``, ns since 1970 (the
+    estimate's ``t0_ns``), on whose clock tensions timed since 1970 are taken, as
+    ``estimate`` took them (0: none)."""
     tendon = None
     if robot.backbone is not None:
         outputs = tendon_outputs(robot.n_sections)
@@ -67,6 +69,9 @@ def replay(
             else None
         )
         if table is not None:
+            table, note = on_log_clock(table, t0_ns)
+            if note:
+                print(f"continuum-mhe: note: {note}", file=sys.stderr)
             table.check_scale(robot)  # mN for N, as estimate refuses them
         tendon = TendonShapes(robot, points_per_section, table)
         if table is None:
