@@ -1410,6 +1410,15 @@ def test_a_logs_tensions_stamped_since_1970_are_taken_on_its_clock(
     pytest.importorskip("rerun")
     assert main(["view", str(est), "--save", str(tmp_path / "est.rrd")]) == 0
     assert "are taken on the log's clock" in capsys.readouterr().err
+    # tensions that end halfway: view's refusal is its one line, without its notes
+    half = tmp_path / "half.csv"
+    lines = files["counted.csv"].read_text().splitlines()
+    half.write_text("\n".join(lines[: len(lines) // 2]) + "\n")
+    rrd = tmp_path / "half.rrd"
+    assert main(["view", str(est), "--inputs", str(half), "--save", str(rrd)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the tensions must cover the recording" in err, err
+    assert not rrd.exists()
 
 
 def test_an_options_files_topics_give_way_to_the_command_line_and_to_a_csv(

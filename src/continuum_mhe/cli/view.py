@@ -41,10 +41,13 @@ def run(args: argparse.Namespace) -> int:
             _check_estimate(args, robot)
             if args.truth:
                 _check_truth(args, robot)
+            tensions = args.inputs or _recorded_tensions(args.estimates, robot)
+            t0_ns = recorded_t0_ns(args.estimates) or 0
+            if tensions and robot.backbone is not None:
+                _check_tensions(args.estimates, tensions, robot, t0_ns)
         replay(
-            args.estimates, robot, sink, args.truth, args.trail, args.points,
-            args.inputs or _recorded_tensions(args.estimates, robot), args.truth_shift,
-            recorded_t0_ns(args.estimates) or 0,
+            args.estimates, robot, sink, args.truth, args.trail, args.points, tensions,
+            args.truth_shift, t0_ns,
         )  # fmt: skip
         _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0
@@ -60,6 +63,23 @@ def _check_estimate(args: argparse.Namespace, robot: Robot) -> None:
     est = read_estimates(args.estimates, "view EST.csv")
     require_an_estimate(args.estimates, est)
     check_estimate_fits(args.estimates, est.names, robot)
+
+
+def _check_tensions(estimates: str, tensions: str, robot: Robot, t0_ns: int) -> None:
+    """The tensions file's own refusals, as :func:`~continuum_mhe.viewer.replay` makes
+    them (its notes are replay's): one it cannot read, in mN, or whose times (on a
+    robot log's clock, ``t0_ns``) do not cover the estimate's first and last rows."""
+    from continuum_mhe.io.estimate_files import read_estimates
+    from continuum_mhe.io.tensions import on_log_clock, read_tensions
+
+    table = read_tensions(tensions, robot.n_tendons, other_columns=True, time_warning=False)
+    table, _ = on_log_clock(table, t0_ns)
+    table.check_scale(robot)
+    est = read_estimates(estimates, "view EST.csv")
+    if len(est.t):
+        table.check_span(float(est.t[0]), float(est.t[-1]))
+        for t in (float(est.t[0]), float(est.t[-1])):  # the rows' tensions are there
+            table.at(t)
 
 
 def _recorded_tensions(estimates: str, robot: Robot) -> str | None:
