@@ -872,9 +872,10 @@ mount_rpy = [{3}, 30.0]
 """
 
 
-def _bent_rest(robot_path: Path, path: Path, theta1_deg: float) -> None:
+def _bent_rest(robot_path: Path, path: Path, theta1_deg: float, section: int = 0) -> None:
     """A raw rest (10 s at 20 Hz, the simulator's noise) of the robot file's robot, its
-    first section bent by ``theta1_deg`` towards phi = 0, the others straight."""
+    section ``section`` (from 0; the first by default) bent by ``theta1_deg`` towards
+    phi = 0, the others straight."""
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.model.bend import BendFormulation
     from continuum_mhe.model.kinematics import bend_from_shape
@@ -885,7 +886,7 @@ def _bent_rest(robot_path: Path, path: Path, theta1_deg: float) -> None:
     t = np.arange(201) * 0.05
     bends = np.zeros((len(t), robot.n_sections, 2))
     a, b = bend_from_shape(np.full(len(t), math.radians(theta1_deg)), np.zeros(len(t)))
-    bends[:, 0, 0], bends[:, 0, 1] = a, b
+    bends[:, section, 0], bends[:, section, 1] = a, b
     f = BendFormulation(robot=robot)
     x = np.concatenate([bends.reshape(len(t), -1), np.zeros((len(t), bends[0].size))], axis=1)
     rec = Recording(
@@ -926,6 +927,33 @@ def test_a_rest_in_which_every_imu_leans_one_way_warns(
         "(each board 5.4, 4.1, 11.5, 10.8 degrees that way)"
     ), err
     assert "was the robot straight and its base level at rest?" in err
+    assert err.count("\n") == 1
+
+
+def test_a_rest_with_a_later_section_bent_warns_of_the_boards_after_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same hanging robot, its boards tilted on their disks, at rest with its second
+    section bent 10 degrees: IMU 1 (on section 1) reads straight, so not every board
+    leans, but the boards after the bend lean the same way: one warning names them and
+    the section between; the robot straight says nothing (the test above)."""
+    tilted = ("2.5, -3.0", "-4.0, 1.5", "1.0, 3.5", "-2.0, -2.0")
+    nominal = tmp_path / "robot.toml"
+    nominal.write_text(
+        _HANGING_THREE_SECTIONS.format("0.0, 0.0", "0.0, 0.0", "0.0, 0.0", "0.0, 0.0")
+    )
+    true = tmp_path / "true.toml"
+    true.write_text(_HANGING_THREE_SECTIONS.format(*tilted).replace("30.0]", "33.0]"))
+    rest = tmp_path / "rest.csv"
+    _bent_rest(true, rest, 10.0, section=1)
+    code, out, err = _calibrate_main(capsys, "--from", str(rest), "--robot", str(nominal))
+    assert code == 0 and "IMU 4: mounting" in out
+    assert "every IMU reads" not in err and "the IMUs' gravity directions" not in err
+    assert err.startswith(
+        f"continuum-mhe: warning: {rest}: the gravity directions of IMUs 3 and 4 lean 13.1 "
+        "degrees the same way on average"
+    ), err
+    assert "(the IMUs before IMU 3 do not: a section bent between IMU 2 and IMU 3?)" in err
     assert err.count("\n") == 1
 
 

@@ -260,17 +260,20 @@ FAR_OFF_MOUNT_DEG = 30.0
 BOARD_POSE_DEG = 15.0
 
 
-def common_lean(cal: Calibration, yaws_deg: Sequence[float]) -> tuple[float, list[float]]:
+def common_lean(
+    cal: Calibration, yaws_deg: Sequence[float], first: int = 0
+) -> tuple[float, list[float]]:
     """The lean that the flat boards of a raw calibration ``cal`` (those within
-    :data:`FAR_OFF_MOUNT_DEG` of the straight robot's gravity direction) share: each
-    one's gravity direction, its horizontal part turned about the backbone by its yaw
+    :data:`FAR_OFF_MOUNT_DEG` of the straight robot's gravity direction) from IMU
+    ``first`` (from 0, in the robot file's order, base to tip) on share: each one's
+    gravity direction, its horizontal part turned about the backbone by its yaw
     ``yaws_deg`` (the robot file's, degrees) into the backbone's frame, averaged; as the
     mean's angle (deg) and each board's lean along the mean's direction (deg). A base not
     level, or a section bent at rest, leans every board after it the same way by as
     much; boards tilted on their disks lean each its own way, and their mean stays
     small. ``(0.0, [])`` with fewer than two such boards."""
     leans = []
-    for imu, yaw in zip(cal.imus, yaws_deg):
+    for imu, yaw in zip(cal.imus[first:], yaws_deg[first:]):
         if imu.mount_rpy is None:
             return 0.0, []
         roll, pitch = (math.radians(a) for a in imu.mount_rpy[:2])
@@ -372,18 +375,36 @@ def _common_lean_warning(cal: Calibration, yaws_deg: Sequence[float] | None) -> 
     """:func:`rest_tilt_warning`'s warning of a lean that the boards share, or None."""
     if yaws_deg is None:
         return None
-    lean, along = common_lean(cal, yaws_deg)
-    if lean <= REST_TILT_WARN_DEG or min(along, default=0.0) <= REST_TILT_WARN_DEG / 2:
-        return None
-    each = ", ".join(f"{a:.1f}" for a in along)
-    return (
-        f"the IMUs' gravity directions lean {lean:.1f} degrees the same way on average, "
-        f"turned into the backbone's frame by the robot file's yaws (each board {each} "
-        "degrees that way), and mount_rpy takes that as their mountings: was the robot "
-        "straight and its base level at rest? A base not level, or a section bent, leans "
-        "every board the same way, where boards tilted on their disks lean each its own "
-        "way; if it was not, every estimate is off by as much: record the rest again"
-    )
+    # every board, then the boards from IMU 2, 3, ... on: a section bent at rest leans
+    # the boards after it, not those before
+    for first in range(len(cal.imus) - 1):
+        lean, along = common_lean(cal, yaws_deg, first)
+        if lean <= REST_TILT_WARN_DEG or min(along, default=0.0) <= REST_TILT_WARN_DEG / 2:
+            continue
+        each = ", ".join(f"{a:.1f}" for a in along)
+        n = len(cal.imus)
+        joined = "and" if n - first == 2 else "to"
+        boards = (
+            "the IMUs' gravity directions"
+            if first == 0
+            else f"the gravity directions of IMUs {first + 1} {joined} {n}"
+        )
+        section = (
+            ""
+            if first == 0
+            else f" (the IMUs before IMU {first + 1} do not: a section "
+            f"bent between IMU {first} and IMU {first + 1}?)"
+        )
+        return (
+            f"{boards} lean {lean:.1f} degrees the same way on average, "
+            f"turned into the backbone's frame by the robot file's yaws (each board {each} "
+            f"degrees that way){section}, and mount_rpy takes that as their mountings: was "
+            "the robot straight and its base level at rest? A base not level, or a section "
+            "bent, leans every board after it the same way, where boards tilted on their "
+            "disks lean each its own way; if it was not, every estimate is off by as much: "
+            "record the rest again"
+        )
+    return None
 
 
 def angle_mean_std(angles: FloatArray) -> tuple[FloatArray, FloatArray]:
