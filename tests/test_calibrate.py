@@ -897,6 +897,20 @@ def _bent_rest(robot_path: Path, path: Path, theta1_deg: float, section: int = 0
     _write_rows(path, ("t", *names), np.column_stack([t, values]))
 
 
+def _hanging_tilted_robots(folder: Path) -> tuple[Path, Path]:
+    """``(nominal, true)`` robot files of the hanging three-section robot of four IMUs:
+    every board flat, and its boards tilted 2 to 4 degrees on their disks (IMU 4's yaw
+    3 degrees off), written in ``folder``."""
+    tilted = ("2.5, -3.0", "-4.0, 1.5", "1.0, 3.5", "-2.0, -2.0")
+    nominal = folder / "robot.toml"
+    nominal.write_text(
+        _HANGING_THREE_SECTIONS.format("0.0, 0.0", "0.0, 0.0", "0.0, 0.0", "0.0, 0.0")
+    )
+    true = folder / "true.toml"
+    true.write_text(_HANGING_THREE_SECTIONS.format(*tilted).replace("30.0]", "33.0]"))
+    return nominal, true
+
+
 def test_a_rest_in_which_every_imu_leans_one_way_warns(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -906,13 +920,7 @@ def test_a_rest_in_which_every_imu_leans_one_way_warns(
     leans every board the same way (calibrated so, the estimates of a spatial run were
     35 mm off on average, their `ok` rows up to 8.8 standard deviations off). One
     warning says the shared lean; the same robot straight says nothing."""
-    tilted = ("2.5, -3.0", "-4.0, 1.5", "1.0, 3.5", "-2.0, -2.0")
-    nominal = tmp_path / "robot.toml"
-    nominal.write_text(
-        _HANGING_THREE_SECTIONS.format("0.0, 0.0", "0.0, 0.0", "0.0, 0.0", "0.0, 0.0")
-    )
-    true = tmp_path / "true.toml"
-    true.write_text(_HANGING_THREE_SECTIONS.format(*tilted).replace("30.0]", "33.0]"))
+    nominal, true = _hanging_tilted_robots(tmp_path)
     rest = tmp_path / "rest.csv"
     _bent_rest(true, rest, 0.0)
     code, out, err = _calibrate_main(capsys, "--from", str(rest), "--robot", str(nominal))
@@ -937,13 +945,7 @@ def test_a_rest_with_a_later_section_bent_warns_of_the_boards_after_it(
     section bent 10 degrees: IMU 1 (on section 1) reads straight, so not every board
     leans, but the boards after the bend lean the same way: one warning names them and
     the section between; the robot straight says nothing (the test above)."""
-    tilted = ("2.5, -3.0", "-4.0, 1.5", "1.0, 3.5", "-2.0, -2.0")
-    nominal = tmp_path / "robot.toml"
-    nominal.write_text(
-        _HANGING_THREE_SECTIONS.format("0.0, 0.0", "0.0, 0.0", "0.0, 0.0", "0.0, 0.0")
-    )
-    true = tmp_path / "true.toml"
-    true.write_text(_HANGING_THREE_SECTIONS.format(*tilted).replace("30.0]", "33.0]"))
+    nominal, true = _hanging_tilted_robots(tmp_path)
     rest = tmp_path / "rest.csv"
     _bent_rest(true, rest, 10.0, section=1)
     code, out, err = _calibrate_main(capsys, "--from", str(rest), "--robot", str(nominal))
