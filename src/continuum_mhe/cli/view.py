@@ -10,6 +10,7 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.cli.config import recorded_t0_ns
 from continuum_mhe.cli.held_notes import said_unless_refused
 from continuum_mhe.cli.input_options import add_tensions_option
@@ -19,10 +20,11 @@ from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
 from continuum_mhe.cli.truth_checks import refuse_an_estimate_as_truth, truth_beside
 from continuum_mhe.errors import InputError, UserError
+from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.io.text_rows import held_for_rereading, held_text
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.viewer import INSTALL_HINT, replay
+from continuum_mhe.viewer import INSTALL_HINT, read_view_tensions, replay
 
 
 def run(args: argparse.Namespace) -> int:
@@ -38,48 +40,43 @@ def run(args: argparse.Namespace) -> int:
             robot = estimate_robot(args, args.estimates, "drawn on that robot")
             if not checked:  # a robot from a pipe: checked as it was taken
                 _refuse_tendon_estimate_on_another_robot(args, robot)
-            _check_estimate(args, robot)
+            est_t = _check_estimate(args, robot)
             if args.truth:
                 _check_truth(args, robot)
-            tensions = args.inputs or _recorded_tensions(args.estimates, robot)
-            t0_ns = recorded_t0_ns(args.estimates) or 0
-            if tensions and robot.backbone is not None:
-                _check_tensions(args.estimates, tensions, robot, t0_ns)
+            path = args.inputs or _recorded_tensions(args.estimates, robot)
+            tensions = _checked_tensions(args.estimates, path, robot, est_t) if path else None
         replay(
             args.estimates, robot, sink, args.truth, args.trail, args.points, tensions,
-            args.truth_shift, t0_ns,
+            args.truth_shift,
         )  # fmt: skip
         _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0
 
 
-def _check_estimate(args: argparse.Namespace, robot: Robot) -> None:
+def _check_estimate(args: argparse.Namespace, robot: Robot) -> FloatArray:
     """The estimate file's own refusals, as :func:`~continuum_mhe.viewer.replay` makes
     them: one it cannot read, one without an estimate, one whose columns do not fit
-    ``robot``."""
+    ``robot``; its times (s) where it passes."""
     from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
     from continuum_mhe.io.state_tables import check_estimate_fits
 
     est = read_estimates(args.estimates, "view EST.csv")
     require_an_estimate(args.estimates, est)
     check_estimate_fits(args.estimates, est.names, robot)
+    return est.t
 
 
-def _check_tensions(estimates: str, tensions: str, robot: Robot, t0_ns: int) -> None:
-    """The tensions file's own refusals, as :func:`~continuum_mhe.viewer.replay` makes
-    them (its notes are replay's): one it cannot read, in mN, or whose times (on a
-    robot log's clock, ``t0_ns``) do not cover the estimate's first and last rows."""
-    from continuum_mhe.io.estimate_files import read_estimates
-    from continuum_mhe.io.tensions import on_log_clock, read_tensions
-
-    table = read_tensions(tensions, robot.n_tendons, other_columns=True, time_warning=False)
-    table, _ = on_log_clock(table, t0_ns)
-    table.check_scale(robot)
-    est = read_estimates(estimates, "view EST.csv")
-    if len(est.t):
-        table.check_span(float(est.t[0]), float(est.t[-1]))
-        for t in (float(est.t[0]), float(est.t[-1])):  # the rows' tensions are there
-            table.at(t)
+def _checked_tensions(estimates: str, path: str, robot: Robot, t: FloatArray) -> Tensions:
+    """The tensions ``path`` the view draws with (:func:`~continuum_mhe.viewer.
+    read_view_tensions`, on the clock of the robot log the estimate ``estimates`` is of),
+    refused where their times (milliseconds?) do not cover the estimate's times ``t``
+    (s) from its first row to its last."""
+    table = read_view_tensions(path, robot, recorded_t0_ns(estimates) or 0)
+    if len(t):
+        table.check_span(float(t[0]), float(t[-1]))  # milliseconds?
+        for row_t in (float(t[0]), float(t[-1])):  # the rows' tensions are there
+            table.at(row_t)
+    return table
 
 
 def _recorded_tensions(estimates: str, robot: Robot) -> str | None:

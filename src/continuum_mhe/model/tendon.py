@@ -183,7 +183,7 @@ MAX_FORCE_FLOOR = 50.0
 #: A tip force that pushes along the tip's tangent harder than this many times the
 #: buckling load makes an estimate ``drifted`` (:meth:`TendonFormulation.drifted`; a
 #: free tip holds no more, and between one and two such loads a filter's standard
-#: deviation had already collapsed on rows far off): the
+#: deviation collapses on rows far off): the
 #: quasi-static model then solves a nearly straight equilibrium that the backbone cannot
 #: hold (it buckles), along which the IMUs barely see the force, and a filter's
 #: covariance linearised there collapses (a still, straight robot: tip forces of 4 N

@@ -37,7 +37,7 @@ breaks the trail. ``rerun-sdk`` is an optional dependency (``pip install
 from __future__ import annotations
 
 from continuum_mhe.viewer.geometry import BackboneGeometry, TendonShapes, backbone_geometry
-from continuum_mhe.viewer.replay import replay
+from continuum_mhe.viewer.replay import read_view_tensions, replay
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import INSTALL_HINT, BackboneView, require_rerun
 
@@ -48,6 +48,7 @@ __all__ = [
     "TendonShapes",
     "ViewerSink",
     "backbone_geometry",
+    "read_view_tensions",
     "replay",
     "require_rerun",
 ]

@@ -19,7 +19,7 @@ from continuum_mhe.io.state_tables import (
     read_state_table,
     robot_misfit,
 )
-from continuum_mhe.io.tensions import on_log_clock, read_tensions
+from continuum_mhe.io.tensions import Tensions, on_log_clock, read_tensions
 from continuum_mhe.model.descriptions import OutputSpec, imu_twist_names, pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import tendon_outputs
@@ -47,41 +47,50 @@ def estimated_extras(names: Sequence[str], robot: Robot) -> tuple[OutputSpec, ..
     return ()
 
 
+def _not_a_tendon_robot(name: str) -> str:
+    """The refusal of the tensions ``name`` beside a robot without a backbone."""
+    return f"{name}: --inputs is for a tendon robot (a [backbone] in --robot)"
+
+
+def read_view_tensions(path: str, robot: Robot, t0_ns: int = 0) -> Tensions:
+    """The tensions file ``path`` (or a recording with its tension columns, as ``live
+    --record`` writes one) for the view of a tendon robot ``robot``'s estimate: its
+    times on a robot log's clock where they are since 1970 and the estimate's ``t = 0``
+    is ``t0_ns`` (ns since 1970; 0: none), as ``estimate`` took them (said in a note);
+    refused in one line for a robot without a backbone, and in mN for N."""
+    if robot.backbone is None:
+        raise InputError(_not_a_tendon_robot(path))
+    table = read_tensions(path, robot.n_tendons, other_columns=True, time_warning=False)
+    table, note = on_log_clock(table, t0_ns)
+    if note:
+        print(f"continuum-mhe: note: {note}", file=sys.stderr)
+    table.check_scale(robot)  # mN for N, as estimate refuses them
+    return table
+
+
 def replay(
     estimates: str, robot: Robot, sink: ViewerSink, truth: str | None = None,
-    trail_s: float = 10.0, points_per_section: int = 16, tensions: str | None = None,
-    truth_shift: float = 0.0, t0_ns: int = 0,
+    trail_s: float = 10.0, points_per_section: int = 16, tensions: Tensions | None = None,
+    truth_shift: float = 0.0,
 ) -> int:  # fmt: skip
     """Write or show the view of an estimate CSV (and its truth). Returns the number of
     estimates drawn. A tendon robot's backbone (``robot.backbone``) is its mechanics
-    model's at each row's tip force under the ``tensions`` file's tensions; without
-    that file, its tips alone are drawn (said in a note). The truth's row at time ``t``
-    is drawn at ``t - truth_shift`` s (a truth on a clock that runs ``truth_shift``
-    ahead of the estimate's). ``t0_ns``: a robot log's ``t = 0``, ns since 1970 (the
-    estimate's ``t0_ns``), on whose clock tensions timed since 1970 are taken, as
-    ``estimate`` took them (0: none)."""
+    model's at each row's tip force under the ``tensions``
+    (:func:`read_view_tensions`); without them, its tips alone are drawn (said in a
+    note). The truth's row at time ``t`` is drawn at ``t - truth_shift`` s (a truth on
+    a clock that runs ``truth_shift`` ahead of the estimate's)."""
     tendon = None
     if robot.backbone is not None:
         outputs = tendon_outputs(robot.n_sections)
-        table = (  # a recording with its tension columns (live --record's) gives them too
-            read_tensions(tensions, robot.n_tendons, other_columns=True, time_warning=False)
-            if tensions
-            else None
-        )
-        if table is not None:
-            table, note = on_log_clock(table, t0_ns)
-            if note:
-                print(f"continuum-mhe: note: {note}", file=sys.stderr)
-            table.check_scale(robot)  # mN for N, as estimate refuses them
-        tendon = TendonShapes(robot, points_per_section, table)
-        if table is None:
+        tendon = TendonShapes(robot, points_per_section, tensions)
+        if tensions is None:
             print(
                 "continuum-mhe: note: a tendon robot's backbone is drawn from its mechanics "
                 "model with --inputs TENSIONS.csv; without it, the tips alone",
                 file=sys.stderr,
             )
-    elif tensions:
-        raise InputError(f"{tensions}: --inputs is for a tendon robot (a [backbone] in --robot)")
+    elif tensions is not None:
+        raise InputError(_not_a_tendon_robot(tensions.name))
     else:
         outputs = pcc_outputs(robot.n_sections)
     est = read_estimates(estimates, "view EST.csv")
