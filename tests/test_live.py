@@ -753,3 +753,32 @@ def test_the_firmware_header_of_a_tendon_robot_names_what_to_change(tmp_path: Pa
     second = said_to(merged, from_file)
     assert "which --inputs gives too" in second and "check --format" not in second, second
     assert said_to(board, from_file) == ""
+
+
+def test_the_live_plot_traces_the_estimated_tip_and_shows_a_robot_bent_below_its_base() -> None:
+    """``live --plot`` traces the estimate's own tip (``x, y, z``), not the end of the
+    arcs it draws from the bends: a tendon robot's tip under load lies off the arcs of
+    its equivalent bends. A robot whose sections bend past 90 degrees is drawn below
+    its base too."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from continuum_mhe.live.run import LivePlot
+    from continuum_mhe.model.tendon import tendon_outputs
+    from continuum_mhe.results import Estimate
+
+    outputs = tendon_outputs(2)
+    row = np.zeros(len(outputs))
+    named = {o.name: i for i, o in enumerate(outputs)}
+    row[named["theta_1"]], row[named["theta_2"]] = 0.4, 0.3
+    row[[named["x"], named["y"], named["z"]]] = (-0.05, 0.01, 0.27)  # off the arcs' end
+    plot = LivePlot((0.16, 0.14), (3.0, 3.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # Agg cannot show the window
+        plot.update(Estimate(0.0, None, row, None, "ok", 0.1), outputs)
+    np.testing.assert_array_equal(plot.tips[-1], [-0.05, 0.01, 0.27])
+    body = np.asarray(plot.body.get_data_3d())
+    assert np.linalg.norm(body[:, -1] - [-0.05, 0.01, 0.27]) > 0.01  # the arcs end elsewhere
+    assert plot.ax.get_zlim()[0] == pytest.approx(-0.3)
+    assert LivePlot((0.2,), (1.5,)).ax.get_zlim()[0] == 0.0
+    matplotlib.pyplot.close("all")

@@ -904,12 +904,14 @@ def _deg_s_lines(n: int, degrees: bool = True) -> list[str]:
     return [ln.rstrip("\n") for ln in raw_lines(0, n, gyro_scale=scale)]
 
 
-def _raw_session(raw: RawImuSettings) -> tuple[LiveSession, list[str], io.StringIO]:
+def _raw_session(
+    raw: RawImuSettings, robot: Robot | None = None
+) -> tuple[LiveSession, list[str], io.StringIO]:
     from continuum_mhe.io.inputs import imu_converters
     from continuum_mhe.model.direct import DirectFormulation
 
     said: list[str] = []
-    robot = Robot.single()
+    robot = robot if robot is not None else Robot.single()
     f = (
         DirectFormulation(robot=robot)
         if raw.imu_model == "direct"
@@ -1152,6 +1154,40 @@ def test_a_deg_s_gyro_line_names_its_field_and_the_likely_unit() -> None:
     ]
     with pytest.raises(GarbledLine, match=r"^ay beyond the accelerometer's range \(\|ay\| > 235 "):
         parse_line("20,0.1,981.0,9.8,0.01,0.02,0.03", "raw")
+
+
+def test_a_gyro_declared_beyond_the_default_range_is_read_live_as_estimate_reads_it() -> None:
+    """An IMU whose robot file declares a gyro of +-4000 deg/s (``gyro_range = 69.8``
+    rad/s) sends rates beyond the default limit (2000 deg/s and a margin): ``live`` reads
+    them, as ``estimate`` reads them from a file, and names the declared range where a
+    value lies beyond it with the margin; an accelerometer's declared +-64 g alike. A
+    declared range below the default's leaves the default limit."""
+    from dataclasses import replace
+
+    from continuum_mhe.model.robot import ImuPlacement
+    from continuum_mhe.stream.protocol import GarbledLine, parse_line, raw_limits
+
+    fast = "20,0.1,0.2,9.8,60.0,0.02,0.03"  # gx 60 rad/s
+    with pytest.raises(GarbledLine, match=r"^gx beyond the gyro's range \(\|gx\| > 52.4 "):
+        parse_line(fast, "raw")
+    wide = raw_limits(None, 69.8)
+    sample = parse_line(fast, "raw", limits=(wide,))
+    assert sample is not None and sample.values[3] == 60.0
+    with pytest.raises(GarbledLine) as caught:
+        parse_line("20,0.1,0.2,9.8,120.0,0.02,0.03", "raw", limits=(wide,))
+    assert str(caught.value) == (
+        "gx beyond the gyro's range (|gx| > 104.7 rad/s, the robot file's gyro_range 69.8 "
+        "rad/s and a margin): deg/s given for rad/s?"
+    )
+    assert parse_line("20,400.0,0.2,9.8,0.1,0.02,0.03", "raw", limits=(raw_limits(627.6, None),))
+    assert raw_limits(19.61, 4.363) == raw_limits(None, None)  # +-2 g, +-250 deg/s
+
+    robot = Robot.single()
+    declared = replace(robot, imus=(ImuPlacement(0, 1.0, gyro_range=69.8),))
+    for r, garbled in ((robot, 1), (declared, 0)):
+        s, said, _ = _raw_session(RawImuSettings(imu_model="direct"), r)
+        _handle(s, ["0,0.1,0.2,9.8,0.01,0.02,0.03", fast])
+        assert (s.counts.garbled, s.counts.lines) == (garbled, 2), said
 
 
 def test_live_stops_early_on_an_accelerometer_in_g() -> None:

@@ -1326,3 +1326,33 @@ def test_plot_warns_of_a_robot_file_of_another_mounting(
         err = capsys.readouterr().err
         assert (f"says {mounting}: the robot file's is used, which turns the estimate's "
                 "base over" in err) is warned, err  # fmt: skip
+
+
+@pytest.mark.parametrize("bend_names", [("theta", "phi"), ("theta_1", "phi_1")])
+def test_one_sections_checks_read_either_models_bend_columns(bend_names) -> None:
+    """A one-section table names its bend ``theta, phi`` (the constant-curvature model's
+    outputs) or ``theta_1, phi_1`` (the tendon model's): either way its tip's unit, its
+    robot's length and its axes are checked against its own angles (known answers: x and
+    y swapped, positions in cm, a robot twice as long)."""
+    from continuum_mhe.evaluation.metrics import length_misfit
+    from continuum_mhe.io.position_units import position_unit_problem, tip_direction_problem
+    from continuum_mhe.model.pcc import pose_at
+
+    lengths = (0.2,)
+    theta, phi = np.linspace(0.2, 1.2, 40), np.linspace(-1.0, 1.0, 40)
+    bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)[:, None, :]
+    tip = np.asarray(pose_at(bends, lengths, 0)[1], dtype=float)
+    names = ("x", "y", "z", *bend_names)
+
+    def table(positions: np.ndarray) -> np.ndarray:
+        return np.column_stack([positions, theta, phi])
+
+    assert tip_direction_problem(names, table(tip), lengths) == ""
+    assert position_unit_problem(names, table(tip), lengths) == ""
+    assert length_misfit(names, table(tip), lengths) == ""
+    swapped = tip[:, [1, 0, 2]]
+    assert "x and y swapped" in tip_direction_problem(names, table(swapped), lengths)
+    said = position_unit_problem(names, table(100.0 * tip), lengths)
+    assert said.endswith("positions in cm? give x, y, z in m"), said
+    said = length_misfit(names, table(2.0 * tip), lengths)
+    assert "made for a robot of about 0.4 m" in said, said

@@ -124,7 +124,11 @@ def run(args: argparse.Namespace) -> int:
     except Exception as exc:
         raise InputError(port_hint(settings.port, exc)) from None
     say = stderr_say("live")
-    plot = open_plot(robot.lengths, say) if args.plot else None
+    plot = (
+        open_plot(robot.lengths, say, tuple(sec.theta_max for sec in robot.sections))
+        if args.plot
+        else None
+    )
     columns = value_columns(settings.fmt, robot.n_imus, line.tensions_on_line)
     out = (
         None

@@ -18,7 +18,7 @@ from continuum_mhe.errors import time_text
 from continuum_mhe.estimators.base import Inference, tension_rows
 from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
 from continuum_mhe.estimators.process_noise import bend_accel_psd_applies
-from continuum_mhe.model.descriptions import tip_position_indices
+from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, tip_position_indices
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX
@@ -237,7 +237,7 @@ class ForceBeyondTensions:
 
     def __init__(self, formulation: Formulation) -> None:
         names = [o.name for o in formulation.outputs]
-        self._force = [names.index(c) for c in ("fx", "fy", "fz") if c in names]
+        self._force = [names.index(c) for c in TIP_FORCE_COLUMNS if c in names]
         self._tensions = tension_rows(formulation)
         self.active = len(self._force) == 3 and bool(self._tensions)
         self.force = 0.0  # the largest tip force estimated, N

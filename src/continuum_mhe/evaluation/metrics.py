@@ -22,7 +22,7 @@ from continuum_mhe.errors import UserError, real_number
 from continuum_mhe.io.position_units import (
     LENGTH_RATIO_TOLERANCE,
     force_unit_against,
-    has_bend_columns,
+    mentions_bend_angles,
     position_unit_against,
     position_unit_problem,
     tip_ratio,
@@ -486,7 +486,7 @@ def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[fl
     of sections is of another robot (the caller says so): ``""``."""
     rows = np.asarray(values, dtype=float)
     length = float(sum(lengths))
-    if has_bend_columns(names):
+    if mentions_bend_angles(names):
         ratio = tip_ratio(names, rows, lengths)
         if ratio is None or abs(ratio - 1) <= LENGTH_RATIO_TOLERANCE:
             return ""

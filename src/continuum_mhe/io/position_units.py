@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.model.descriptions import pcc_outputs
+from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, bend_columns, pcc_outputs
 
 #: A file whose tip is, at the median, further than this from 1 times as far from the
 #: base as its own angles put it on the given robot was made for a robot of another
@@ -64,7 +64,11 @@ def position_unit_problem(
         )
     units = [unit for unit, factor in POSITION_UNITS
              if abs(ratio / factor - 1.0) <= POSITION_UNIT_TOLERANCE]  # fmt: skip
-    if not units and not has_bend_columns(names) and ratio > 100.0 * (1 + POSITION_UNIT_TOLERANCE):
+    if (
+        not units
+        and not mentions_bend_angles(names)
+        and ratio > 100.0 * (1 + POSITION_UNIT_TOLERANCE)
+    ):
         units = ["mm"]  # beyond any shape in cm: a bent robot's tip in mm
     if not units:
         return ""
@@ -98,7 +102,9 @@ def position_unit_against(
     return ""
 
 
-def has_bend_columns(names: Sequence[str]) -> bool:
+def mentions_bend_angles(names: Sequence[str]) -> bool:
+    """Whether any of the column ``names`` is a bend angle (``theta``, ``phi``, with or
+    without a section's number), whether or not every section's are there."""
     return any(n.startswith(("theta", "phi")) for n in names)
 
 
@@ -109,8 +115,7 @@ def _tips_from_own_angles(
     ``names``, finite in ``rows``) put it on a robot of these section ``lengths``."""
     from continuum_mhe.model.pcc import pose_at
 
-    bend_names = [o.name for o in pcc_outputs(len(lengths)) if o.name.startswith(("theta", "phi"))]
-    cols = [list(names).index(n) for n in bend_names]
+    cols = [list(names).index(n) for n in bend_columns(names, len(lengths))]
     theta, phi = rows[:, cols[0::2]], rows[:, cols[1::2]]
     bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
     return np.asarray(pose_at(bends, lengths, len(lengths) - 1)[1], dtype=float)
@@ -138,7 +143,7 @@ def tip_ratio(names: Sequence[str], values: FloatArray, lengths: Sequence[float]
     outputs = pcc_outputs(len(lengths))
     tip = rows[:, [list(names).index(o.name) for o in outputs[:3]]]
     dist = np.linalg.norm(tip, axis=1)
-    bend_names = [o.name for o in outputs if o.name.startswith(("theta", "phi"))]
+    bend_names = bend_columns(names, len(lengths))
     in_file = {n for n in names if n.startswith(("theta", "phi"))}
     if in_file and in_file != set(bend_names):
         return None
@@ -170,7 +175,7 @@ def tip_direction_problem(
     than 5 % of the robot's length beyond :data:`TIP_DIRECTION_LIMIT_DEG`. Nothing said
     without every section's bend columns."""
     outputs = pcc_outputs(len(lengths))
-    bend_names = [o.name for o in outputs if o.name.startswith(("theta", "phi"))]
+    bend_names = bend_columns(names, len(lengths))
     if not all(o.name in names for o in outputs[:3]) or not set(bend_names) <= set(names):
         return ""
     rows = np.asarray(values, dtype=float)
@@ -202,8 +207,6 @@ def tip_direction_problem(
     )
 
 
-#: The tip force's columns (N).
-FORCE_COLUMNS = ("fx", "fy", "fz")
 #: A truth whose median tip force is within this factor of 1000 times the estimate's
 #: (and over :data:`FORCE_UNIT_LEAST_N`) is taken to be in mN.
 FORCE_UNIT_FACTOR = 3.0
@@ -218,11 +221,11 @@ def force_unit_against(
     is in mN against the estimate's (``ref_names``, ``ref_values``): its median
     magnitude about 1000 times the estimate's (within :data:`FORCE_UNIT_FACTOR`) and over
     :data:`FORCE_UNIT_LEAST_N`. An estimate free of load (a force of 0) says nothing."""
-    if not all(c in names and c in ref_names for c in FORCE_COLUMNS):
+    if not all(c in names and c in ref_names for c in TIP_FORCE_COLUMNS):
         return ""
     sizes = []
     for cols, table in ((names, values), (ref_names, ref_values)):
-        f = np.asarray(table, dtype=float)[:, [list(cols).index(c) for c in FORCE_COLUMNS]]
+        f = np.asarray(table, dtype=float)[:, [list(cols).index(c) for c in TIP_FORCE_COLUMNS]]
         size = np.linalg.norm(f, axis=1)
         size = size[np.isfinite(size)]
         sizes.append(float(np.median(size)) if len(size) else 0.0)

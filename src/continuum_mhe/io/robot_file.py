@@ -103,7 +103,6 @@ _SECTION_KEYS = {"length", "theta_max", "disks"}
 _IMU_KEYS = {"section", "at", "disk", "mount_rpy", "gyro_bias", "accel_range", "gyro_range"}
 _BACKBONE_KEYS = {"youngs_modulus", "shear_modulus", "radius", "density"}
 _TENDON_KEYS = {"section", "angle", "radius"}
-MM = 1e-3  # m
 
 
 class RobotFileWarning(UserWarning):

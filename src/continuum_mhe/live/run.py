@@ -22,6 +22,7 @@ The command itself (its options, the estimator and the files): :mod:`continuum_m
 
 from __future__ import annotations
 
+import math
 import os
 import queue
 import time
@@ -280,9 +281,14 @@ def plot_unavailable() -> str | None:
 
 
 class LivePlot:
-    """Matplotlib view of the current backbone and the tip's trace (``--plot``)."""
+    """Matplotlib view of the current backbone and the tip's trace (``--plot``): each
+    section drawn as the circular arc of its estimated bend (``theta_k, phi_k``; a tendon
+    robot's equivalent bend between its end tangents, a sketch of its shape), the trace
+    through the estimated tips (``x, y, z``), m, base frame."""
 
-    def __init__(self, lengths: tuple[float, ...]) -> None:
+    def __init__(self, lengths: tuple[float, ...], theta_max: tuple[float, ...] = ()) -> None:
+        """``lengths``: the sections' lengths, m; ``theta_max``: their bending bounds, rad
+        (a robot that can bend past 90 degrees is drawn below its base too)."""
         import matplotlib.pyplot as plt
 
         self.plt = plt
@@ -294,7 +300,7 @@ class LivePlot:
         s = length
         self.ax.set_xlim(-s, s)
         self.ax.set_ylim(-s, s)
-        self.ax.set_zlim(0, s)
+        self.ax.set_zlim(-s if any(t > math.pi / 2 for t in theta_max) else 0.0, s)
         self.ax.set_xlabel("x (m)")
         self.ax.set_ylabel("y (m)")
         self.ax.set_zlabel("z (m)")
@@ -303,25 +309,28 @@ class LivePlot:
         self.tips: deque[FloatArray] = deque(maxlen=500)
 
     def update(self, est: Estimate, outputs: tuple[OutputSpec, ...]) -> None:
-        from continuum_mhe.model.descriptions import section_bends
+        from continuum_mhe.model.descriptions import section_bends, tip_position_indices
         from continuum_mhe.model.pcc import backbone
 
         if est.output is None or not np.all(np.isfinite(est.output)):
             return
         pts = backbone(section_bends(outputs, est.output), self.lengths)
         self.body.set_data_3d(pts[:, 0], pts[:, 1], pts[:, 2])
-        self.tips.append(pts[-1])
+        self.tips.append(np.asarray(est.output)[list(tip_position_indices(outputs))])
         tr = np.asarray(self.tips)
         self.trace.set_data_3d(tr[:, 0], tr[:, 1], tr[:, 2])
         self.plt.pause(0.001)
 
 
-def open_plot(lengths: tuple[float, ...], say: Any) -> LivePlot | None:
-    """The ``--plot`` window, or None after one line saying why it cannot open."""
+def open_plot(
+    lengths: tuple[float, ...], say: Any, theta_max: tuple[float, ...] = ()
+) -> LivePlot | None:
+    """The ``--plot`` window (:class:`LivePlot`), or None after one line saying why it
+    cannot open."""
     why = plot_unavailable()
     if why is None:
         try:
-            return LivePlot(lengths)
+            return LivePlot(lengths, theta_max)
         except Exception as exc:  # a backend that fails to open a window
             why = f"--plot: cannot open a matplotlib window ({type(exc).__name__}: {exc})"
     say(f"{why}; estimating without the plot")

@@ -50,7 +50,7 @@ from continuum_mhe.io.tensions import (
     tension_scale_problem,
 )
 from continuum_mhe.live.counts import DeviceMessages, LatencyHistogram, LiveCounts
-from continuum_mhe.model.descriptions import TIP_COLUMNS
+from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.stream.clock import DeviceClock, MicrosecondsCheck
 from continuum_mhe.stream.protocol import (
@@ -64,6 +64,7 @@ from continuum_mhe.stream.protocol import (
     header_hint,
     line_fields,
     parse_line,
+    raw_limits,
 )
 from continuum_mhe.stream.reader import stderr_say
 from continuum_mhe.stream.recording import csv_cell
@@ -235,6 +236,10 @@ class LiveSession:
         self._fallback_prepared = False
         self._estimated = 0
         self.n_imus = self.formulation.robot.n_imus
+        #: each IMU's plausibility limits of a raw line (its robot file's full scales)
+        self._raw_limits = tuple(
+            raw_limits(p.accel_range, p.gyro_range) for p in self.formulation.robot.imus
+        )
         f = self.formulation
         #: the tendon formulation that takes the tensions (None: a robot without them)
         self.tendon = f if isinstance(f, TendonFormulation) else None
@@ -549,7 +554,9 @@ class LiveSession:
             self._bad("not ASCII", arrival, shown=repr(bytes(raw[:SHOWN_CHARS])))
             return None
         try:
-            sample = parse_line(text, self.settings.fmt, self.n_imus, self.n_tensions)
+            sample = parse_line(
+                text, self.settings.fmt, self.n_imus, self.n_tensions, self._raw_limits
+            )
         except GarbledLine as exc:
             if self._garbage_since is None:  # the first garbled line of a run
                 self._degrees_run = DEGREES_FOR_RADIANS in str(exc) and self._continues(text)
@@ -1166,7 +1173,7 @@ class LiveSession:
         angles = " ".join(
             f"{o.name}={math.degrees(v[o.name]):.1f}" for o in outputs if o.unit == "rad"
         )
-        force = ",".join(f"{v[k]:.3f}" for k in ("fx", "fy", "fz") if k in v)
+        force = ",".join(f"{v[k]:.3f}" for k in TIP_FORCE_COLUMNS if k in v)
         force = f" tip force=({force}) N" if force else ""
         return f"t={est.t:.2f} s tip=({tip}) mm {angles} deg{force} [{est.status}]"
 

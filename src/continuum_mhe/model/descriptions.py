@@ -90,6 +90,17 @@ def pcc_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
     return tuple(out)
 
 
+def bend_columns(names: Sequence[str], n_sections: int) -> tuple[str, ...]:
+    """The bend columns ``theta_k, phi_k`` of ``n_sections`` sections, in section order,
+    as a table of these column ``names`` writes them: one section's are ``theta, phi``
+    (the constant-curvature model's) or ``theta_1, phi_1`` (the tendon model's, which
+    numbers every section); the constant-curvature model's names where the table has
+    neither."""
+    if n_sections == 1 and "theta" not in names and "theta_1" in names:
+        return ("theta_1", "phi_1")
+    return tuple(o.name for o in pcc_outputs(n_sections) if o.name.startswith(("theta", "phi")))
+
+
 def section_outputs(k: int) -> list[OutputSpec]:
     """Section ``k``'s (1-based) bend ``theta_k, phi_k`` and end position ``x_k, y_k,
     z_k``."""

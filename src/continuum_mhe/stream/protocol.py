@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -28,16 +29,50 @@ from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.io.slack_readings import take_slack_readings
 from continuum_mhe.io.tensions import tension_columns
 from continuum_mhe.io.text_rows import declared_fields
-from continuum_mhe.model.imu import STANDARD_GRAVITY
+from continuum_mhe.model.imu import PITCH_LIMIT, ROLL_LIMIT, STANDARD_GRAVITY
 
 LineFormat = Literal["raw", "tilt"]
 LINE_FORMATS: tuple[LineFormat, ...] = ("raw", "tilt")
 #: Values per IMU on a line.
 VALUES_PER_IMU: dict[str, int] = {"raw": 6, "tilt": 2}
-#: Plausibility limits: MPU9250 full scale (16 g, 2000 deg/s) with 50 % margin.
-ACC_LIMIT = 16 * STANDARD_GRAVITY * 1.5
-GYRO_LIMIT = math.radians(2000) * 1.5
-TILT_LIMITS = (math.pi + 0.05, math.pi / 2 + 0.05)
+#: The margin of a raw line's plausibility limits over a full scale.
+RANGE_MARGIN = 1.5
+#: Plausibility limits of a raw line's values (m/s^2, rad/s) where the robot file
+#: declares no larger full scale: the firmware's MPU9250 (16 g, 2000 deg/s) with the
+#: margin.
+ACC_LIMIT = 16 * STANDARD_GRAVITY * RANGE_MARGIN
+GYRO_LIMIT = math.radians(2000) * RANGE_MARGIN
+TILT_LIMITS = (ROLL_LIMIT, PITCH_LIMIT)
+
+
+@dataclass(frozen=True)
+class RawLimits:
+    """The largest magnitude an IMU's accelerometer axis (``accel``, m/s^2) and gyro axis
+    (``gyro``, rad/s) may send on a raw line; a value beyond is not a reading (raw
+    counts, deg/s, a garbled field). ``accel_range``, ``gyro_range``: the robot file's
+    full scales they come from, or None for the default's."""
+
+    accel: float = ACC_LIMIT
+    gyro: float = GYRO_LIMIT
+    accel_range: float | None = None
+    gyro_range: float | None = None
+
+
+def raw_limits(accel_range: float | None, gyro_range: float | None) -> RawLimits:
+    """The limits of an IMU whose robot file declares these full scales (m/s^2, rad/s,
+    or None): the margin over a declared full scale beyond the default's, else the
+    default (a reading beyond a smaller declared scale is the conversion's to judge, as
+    a file's: clipped or named, ``continuum_mhe.io.raw_imu``)."""
+    accel = RANGE_MARGIN * accel_range if accel_range is not None else 0.0
+    gyro = RANGE_MARGIN * gyro_range if gyro_range is not None else 0.0
+    return RawLimits(
+        max(ACC_LIMIT, accel),
+        max(GYRO_LIMIT, gyro),
+        accel_range if accel > ACC_LIMIT else None,
+        gyro_range if gyro > GYRO_LIMIT else None,
+    )
+
+
 #: Longest accepted line, bytes (a sample of 8 raw IMUs is under 500).
 MAX_LINE_BYTES = 4096
 
@@ -105,16 +140,19 @@ def _number(text: str) -> float:
 DEGREES_FOR_RADIANS = "degrees given for radians?"
 
 
-def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> list[float]:
-    """One IMU's values of a line, checked (plausible, finite), or :class:`GarbledLine`."""
+def _imu_values(
+    fields: list[str], fmt: LineFormat, imu: int, n_imus: int, limits: RawLimits
+) -> list[float]:
+    """One IMU's values of a line, checked (plausible within ``limits``, finite), or
+    :class:`GarbledLine`."""
     v = [_number(f) for f in fields]
     if fmt == "raw":
         ax, ay, az, gx, gy, gz = v
         if (
-            max(abs(ax), abs(ay), abs(az)) > ACC_LIMIT
-            or max(abs(gx), abs(gy), abs(gz)) > GYRO_LIMIT
+            max(abs(ax), abs(ay), abs(az)) > limits.accel
+            or max(abs(gx), abs(gy), abs(gz)) > limits.gyro
         ):
-            raise GarbledLine(beyond_range(v, imu, n_imus))
+            raise GarbledLine(beyond_range(v, imu, n_imus, limits))
         if ax == 0.0 and ay == 0.0 and az == 0.0:
             raise GarbledLine("accelerometer reads exactly zero")
         if ax * ax + ay * ay + az * az == 0.0:  # a square underflows: no direction either
@@ -130,9 +168,16 @@ def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> li
     return v
 
 
-def parse_line(text: str, fmt: LineFormat, n_imus: int = 1, n_tensions: int = 0) -> Sample | None:
+def parse_line(
+    text: str,
+    fmt: LineFormat,
+    n_imus: int = 1,
+    n_tensions: int = 0,
+    limits: Sequence[RawLimits] = (),
+) -> Sample | None:
     """Parse one protocol line (``n_tensions`` tendon tensions after the IMUs' values);
-    None for comments and blank lines.
+    None for comments and blank lines. ``limits``: each IMU's (:func:`raw_limits`, from
+    its robot file's full scales), or empty for the default's.
 
     Raises :class:`GarbledLine` for anything else that is not a complete, plausible
     sample (wrong field count, a bad time, non-numbers, non-finite or out-of-range
@@ -165,7 +210,8 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1, n_tensions: int = 0)
     first_kind = ""  # the first problem's cause, without its values
     for i in range(n_imus):
         try:
-            values += _imu_values(parts[1 + k * i : 1 + k * (i + 1)], fmt, i, n_imus)
+            limit = limits[i] if limits else RawLimits()
+            values += _imu_values(parts[1 + k * i : 1 + k * (i + 1)], fmt, i, n_imus, limit)
         except GarbledLine as exc:
             if n_imus == 1:
                 raise
@@ -194,19 +240,33 @@ def _tensions(fields: list[str]) -> FloatArray:
     return v  # a slack tendon's reading below zero: the estimator's step takes it as 0
 
 
-def beyond_range(values: list[float], imu: int, n_imus: int) -> str:
-    """Why raw ``values`` (one IMU's six, ``imu`` 0-based) are beyond the sensor's range:
-    the first field out of range, the limit and the likely unit mistake."""
+def beyond_range(
+    values: list[float], imu: int, n_imus: int, limits: RawLimits | None = None
+) -> str:
+    """Why raw ``values`` (one IMU's six, ``imu`` 0-based) are beyond the sensor's range
+    (``limits``, the default's where None): the first field out of range, the limit and
+    the likely unit mistake."""
+    lim = limits if limits is not None else RawLimits()
+    gyro_scale = (
+        f"the robot file's gyro_range {lim.gyro_range:g} rad/s"
+        if lim.gyro_range is not None
+        else "2000 deg/s"
+    )
+    accel_scale = (
+        f"the robot file's accel_range {lim.accel_range:g} m/s^2"
+        if lim.accel_range is not None
+        else "16 g"
+    )
     for name, v in zip(raw_columns(imu, n_imus), values):
-        if name.startswith("g") and abs(v) > GYRO_LIMIT:
+        if name.startswith("g") and abs(v) > lim.gyro:
             return (
-                f"{name} beyond the gyro's range (|{name}| > {GYRO_LIMIT:.1f} rad/s, 2000 deg/s "
+                f"{name} beyond the gyro's range (|{name}| > {lim.gyro:.1f} rad/s, {gyro_scale} "
                 "and a margin): deg/s given for rad/s?"
             )
-        if name.startswith("a") and abs(v) > ACC_LIMIT:
+        if name.startswith("a") and abs(v) > lim.accel:
             return (
-                f"{name} beyond the accelerometer's range (|{name}| > {ACC_LIMIT:.0f} m/s^2, "
-                "16 g and a margin): raw counts or mg given for m/s^2?"
+                f"{name} beyond the accelerometer's range (|{name}| > {lim.accel:.0f} m/s^2, "
+                f"{accel_scale} and a margin): raw counts or mg given for m/s^2?"
             )
     return "value beyond the sensor's range"
 
