@@ -52,8 +52,10 @@ fraction of the 2 degrees assumed), and a model error then shows as innovations 
 four times their own level while still below ``R``'s. The ratio of the two averages is
 F-distributed where the model follows (``dof * (2 MEMORY - 1)`` and ``dof * (2
 QUIET_MEMORY - 1)`` degrees of freedom); beyond its ``QUANTILE`` (99.9 %) quantile the
-sample is ``inconsistent`` too, and every output standard deviation is widened by
-``sqrt(noise_scale)`` where it exceeds 1 (the covariances are scaled as the noise is).
+sample is ``inconsistent`` too. On every sample, ``inconsistent`` or not, the
+estimator's own output standard deviations are multiplied by ``sqrt(noise_scale)``
+where it exceeds 1 (the covariances are scaled as the noise is; the constant-error
+term below is added afterwards, not multiplied).
 Once beyond that quantile, the samples stay ``inconsistent`` until the average has been
 back at the quiet level for ``MEMORY`` samples in a row (as long as it remembers): a
 model error does not end when the average merely drops below the quantile, nor when
