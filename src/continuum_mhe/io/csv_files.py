@@ -30,6 +30,7 @@ from continuum_mhe.io.imu_columns import READER_FIX, ROBOT_FIX, TILT_IMU_COLUMNS
 from continuum_mhe.io.sample_rows import RowProblems, read_samples
 from continuum_mhe.io.text_rows import MEASUREMENT_HEADER_HINT, TextRows, open_rows
 from continuum_mhe.model.descriptions import (
+    imu_suffix,
     tilt_blocks,
 )
 from continuum_mhe.model.imu import PITCH_LIMIT, ROLL_LIMIT
@@ -87,9 +88,7 @@ def read_sample_rows(
 
 def tilt_columns(n_imus: int) -> tuple[str, ...]:
     """``roll, pitch`` for one IMU; ``roll_1, pitch_1, roll_2, ...`` for several."""
-    if n_imus == 1:
-        return ("roll", "pitch")
-    return tuple(f"{c}_{i}" for i in range(1, n_imus + 1) for c in ("roll", "pitch"))
+    return tuple(f"{c}{imu_suffix(i, n_imus)}" for i in range(n_imus) for c in ("roll", "pitch"))
 
 
 def read_measurements(

@@ -52,6 +52,7 @@ from continuum_mhe.io.raw_units import (
 )
 from continuum_mhe.io.sample_rows import RowProblems
 from continuum_mhe.io.text_rows import TextRows, open_rows
+from continuum_mhe.model.descriptions import imu_suffix
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import STANDARD_GRAVITY, tilt_from_accelerometer
 from continuum_mhe.model.robot import full_scale_problem, mount_rpy_hint
@@ -601,7 +602,7 @@ def _refuse_other_raw_names(rows: TextRows) -> None:
 def raw_columns(i: int, n_imus: int, gyro: bool = True) -> tuple[str, ...]:
     """Raw columns of IMU ``i`` (0-based): ``ax..gz`` for one IMU, ``ax_1..gz_1``..."""
     names = RAW_FIELDS if gyro else ACC_COLUMNS
-    return names if n_imus == 1 else tuple(f"{c}_{i + 1}" for c in names)
+    return tuple(f"{c}{imu_suffix(i, n_imus)}" for c in names)
 
 
 @dataclass(frozen=True)

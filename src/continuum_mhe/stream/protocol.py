@@ -29,6 +29,7 @@ from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.io.slack_readings import take_slack_readings
 from continuum_mhe.io.tensions import tension_columns
 from continuum_mhe.io.text_rows import declared_fields
+from continuum_mhe.model.descriptions import imu_suffix
 from continuum_mhe.model.imu import PITCH_LIMIT, ROLL_LIMIT, STANDARD_GRAVITY
 
 LineFormat = Literal["raw", "tilt"]
@@ -158,7 +159,7 @@ def _imu_values(
         if ax * ax + ay * ay + az * az == 0.0:  # a square underflows: no direction either
             raise GarbledLine("accelerometer reads zero to double precision")
     else:
-        suffix = f"_{imu + 1}" if n_imus > 1 else ""
+        suffix = imu_suffix(imu, n_imus)
         for name, value, limit, bound in zip(("roll", "pitch"), v, TILT_LIMITS, ("pi", "pi/2")):
             if abs(value) > limit:
                 raise GarbledLine(
