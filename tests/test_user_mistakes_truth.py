@@ -1197,7 +1197,7 @@ def test_no_frame_is_claimed_for_a_truth_along_a_line() -> None:
     degrees is)."""
     from scipy.spatial.transform import Rotation
 
-    from continuum_mhe.cli.truth_checks import frame_fit
+    from continuum_mhe.evaluation.truth_checks import frame_fit
 
     rng = np.random.default_rng(0)
     n, length = 500, 0.35

@@ -21,21 +21,6 @@ from continuum_mhe.cli.robot_options import (
     estimate_robot,
     robot_given,
 )
-from continuum_mhe.cli.truth_checks import (
-    WARN_MATCHED,
-    clock_offset_warning,
-    comparable_rows,
-    frame_fit,
-    frame_fit_warning,
-    moves_the_base,
-    offset_hint,
-    refuse_an_estimate_as_truth,
-    rows_matched,
-    seconds_text,
-    spans_the_truth,
-    truth_frame_warning,
-    truth_time_unit_problem,
-)
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.estimate_tables import lengths_misfit
 from continuum_mhe.evaluation.metrics import (
@@ -51,6 +36,21 @@ from continuum_mhe.evaluation.metrics import (
     section_numbers,
     srmse_columns,
     truth_sparser,
+)
+from continuum_mhe.evaluation.truth_checks import (
+    WARN_MATCHED,
+    clock_offset_warning,
+    comparable_rows,
+    frame_fit,
+    frame_fit_warning,
+    moves_the_base,
+    offset_hint,
+    refuse_an_estimate_as_truth,
+    rows_matched,
+    seconds_text,
+    spans_the_truth,
+    truth_frame_warning,
+    truth_time_unit_problem,
 )
 from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.io.position_units import (

@@ -103,7 +103,6 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         recorded_robot,
         warn_other_recorded_robot,
     )
-    from continuum_mhe.cli.truth_checks import refuse_an_estimate_as_truth, truth_beside
     from continuum_mhe.evaluation.estimate_figure import estimate_figure
     from continuum_mhe.evaluation.estimate_tables import (
         has_tip_force,
@@ -113,6 +112,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     )
     from continuum_mhe.evaluation.metrics import interpolated_note, truth_sparser
     from continuum_mhe.evaluation.plotting import save
+    from continuum_mhe.evaluation.truth_checks import refuse_an_estimate_as_truth, truth_beside
     from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
     from continuum_mhe.io.position_units import position_unit_against, position_unit_problem
     from continuum_mhe.io.robot_file import read_robot

@@ -18,8 +18,8 @@ from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
-from continuum_mhe.cli.truth_checks import refuse_an_estimate_as_truth, truth_beside
 from continuum_mhe.errors import InputError, UserError
+from continuum_mhe.evaluation.truth_checks import refuse_an_estimate_as_truth, truth_beside
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.io.text_rows import held_for_rereading, held_text
 from continuum_mhe.model.imu import MOUNTINGS

@@ -791,7 +791,10 @@ def best_rotation(
     than :data:`ROTATION_MIN_ROWS` rows. A truth in another frame than the robot's base
     frame (a y-up motion capture, axes swapped) shows as a large angle whose error is
     far below the unturned one; a truth about another origin (a motion capture's), as a
-    large offset."""
+    large offset. Positions along one line (a straight robot) leave the turn about that
+    line free: the answer is then one of many that fit alike (SciPy's warning of it is not
+    shown); :func:`~continuum_mhe.evaluation.truth_checks.frame_fit` judges a turn only
+    where the positions spread over two directions."""
     from scipy.spatial.transform import Rotation
 
     est = np.asarray(tip_est, dtype=float)
@@ -803,7 +806,7 @@ def best_rotation(
     est_mean, truth_mean = (
         (est.mean(axis=0), truth.mean(axis=0)) if moved else (np.zeros(3), np.zeros(3))
     )
-    with warnings.catch_warnings():  # a degenerate set (a straight robot): any answer
+    with warnings.catch_warnings():  # a degenerate set (a straight robot): one of many
         warnings.simplefilter("ignore", UserWarning)
         rotation, _ = Rotation.align_vectors(est - est_mean, truth - truth_mean)
     offset = np.asarray(est_mean - rotation.apply(truth_mean), dtype=float)
