@@ -371,6 +371,41 @@ def test_evaluate_warns_when_the_truths_clock_is_offset(
     assert "clocks offset" not in capsys.readouterr().err
 
 
+def test_a_truth_on_an_offset_clock_is_said_from_a_section_end_the_imus_determine(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A hanging robot of three sections with IMUs at the ends of sections 1 and 3: the
+    IMUs leave sections 2 and 3 free, so the tip is far off however the clocks run and
+    its error does not halve at the truth's offset; section 1's end, which IMU 1
+    determines, shows it. A truth 0.5 s late is warned of from that end (it had been
+    scored silently); the truth as it was is not."""
+    robot = tmp_path / "three.toml"
+    sections = "".join(f"[[section]]\nlength = {L}\n" for L in (0.12, 0.18, 0.09))
+    robot.write_text(
+        f'mounting = "z-down"\n{sections}[[imu]]\nsection = 1\n[[imu]]\nsection = 3\n',
+        encoding="utf-8",
+    )
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    argv = ["simulate", "spatial", "--robot", str(robot), "--duration", "8", "--seed", "1"]
+    assert main([*argv, "-o", str(meas), "--truth", str(truth)]) == 0
+    with pytest.warns(UserWarning):  # the robot's IMUs do not determine its shape
+        assert main(["estimate", str(meas), "--robot", str(robot), "--method", "ekf",
+                     "-o", str(est)]) == 0  # fmt: skip
+    late = _shifted(truth, tmp_path / "late.csv", 0.5)
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    assert "clocks offset" not in capsys.readouterr().err
+    assert main(["evaluate", str(est), str(late)]) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "clocks offset" in ln]
+    assert len(said) == 1 and re.fullmatch(
+        rf"continuum-mhe: warning: {re.escape(str(late))}: the truth fits the estimate best "
+        r"\+0\.5 s later \(mean error of section 1's end \d\.\d+ mm against \d\d\.?\d* mm "
+        r"as the times match\): are the two files' clocks offset\? \(a motion that repeats "
+        r"can fit shifted too; --truth-shift 0\.5 compares them so\)",
+        said[0],
+    ), said
+
+
 def test_evaluate_skip_start_scores_the_rows_after_the_start_alone(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

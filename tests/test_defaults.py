@@ -998,3 +998,45 @@ def test_a_filter_s_bound_notice_of_unobservable_bends_says_they_pass_the_bound(
     bends.add(output, ["ok", "ok"])
     line = bends.notice(2, "ekf", False, raise_it)
     assert line is not None and "so the readings, not the bound, set those shapes" in line
+
+
+def test_the_bound_notice_of_an_unobservable_robot_names_a_determined_bend_on_it(
+    tmp_path: Path,
+) -> None:
+    """A hanging robot of three sections with IMUs at the ends of sections 1 and 3: the
+    IMUs leave sections 2 and 3 free, and section 1's IMU determines its bend. Section 1
+    on its bound of 1.5708 rad did not drift there: the notice names it and says to
+    raise its theta_max if the robot bends so far (it had said only that the free bends
+    drift); free bends alone on the bound keep the drift's sentence alone."""
+    from continuum_mhe.estimators.run_notices import BendsOnBound
+
+    path = tmp_path / "three.toml"
+    sections = "".join(
+        f"[[section]]\nlength = {L}\ntheta_max = 1.5708\n" for L in (0.12, 0.18, 0.09)
+    )
+    path.write_text(
+        f'mounting = "z-down"\n{sections}[[imu]]\nsection = 1\n[[imu]]\nsection = 3\n',
+        encoding="utf-8",
+    )
+    f = make_formulation("bend", read_robot(str(path)))
+    names = [o.name for o in f.outputs]
+    raise_it = "raise theta_max in the robot file R"
+    drift_only = (
+        "and the robot's IMUs do not determine its shape: the bends they leave free drift "
+        "to the bound (one IMU per section determines them; check-robot tells)"
+    )
+    output = np.zeros((2, f.ny))
+    output[:, names.index("theta_2")] = 1.5708
+    bends = BendsOnBound(f)
+    bends.add(output, ["uncertain", "uncertain"])
+    line = bends.notice(2, "mhe", True, raise_it, observable=False)
+    assert line is not None and line.endswith(drift_only), line
+    output[1, names.index("theta_1")] = 1.5708
+    bends = BendsOnBound(f)
+    bends.add(output, ["uncertain", "uncertain"])
+    line = bends.notice(2, "mhe", True, raise_it, observable=False)
+    assert line is not None and line.endswith(
+        drift_only + "; but the IMUs determine the bend of section(s) 1, which reached the "
+        "bound too: the robot may bend further than the bound allows; raise theta_max in "
+        "the robot file R if it bends so far"
+    ), line

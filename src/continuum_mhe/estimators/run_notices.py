@@ -78,6 +78,9 @@ class BendsOnBound:
         self.statuses: Counter[str] = Counter()
         self.largest = [0.0] * len(robot.sections)
         self._imu_rows = [b.start for b in formulation.measurement_blocks if b.is_imu]
+        # the sections (0-based) whose bend the IMUs leave free: theirs drift to the
+        # bound; the others' reach it where the robot (or the readings) bend so far
+        self._free = {a // 2 for a, _, _ in formulation.free_bends()}
 
     def add(self, output: FloatArray, statuses: Sequence[str], z: FloatArray | None = None) -> None:
         """Count the estimates ``output`` (n, ny; NaN rows without an estimate) and
@@ -139,6 +142,24 @@ class BendsOnBound:
                 f"free {drift} (one IMU per section determines them; "
                 "check-robot tells)"
             )
+            seen = [k for k, big in enumerate(self.largest) if big > 0 and k not in self._free]
+            if seen and self._free:
+                # a bend the IMUs determine did not drift there: the readings put it there
+                named = ", ".join(str(k + 1) for k in seen)
+                if all(sections[k].theta_max >= DEFAULT_THETA_MAX for k in seen):
+                    why = (
+                        f"a bound of {DEFAULT_THETA_MAX:g} rad or more is one a robot does "
+                        "not reach: check the robot file against the robot"
+                    )
+                else:
+                    why = (
+                        "the robot may bend further than the bound allows; "
+                        f"{raise_it} if it bends so far"
+                    )
+                further += (
+                    f"; but the IMUs determine the bend of section(s) {named}, which "
+                    f"reached the bound too: {why}"
+                )
         elif self.partial == self.count:
             further = (
                 "and all of them while an IMU's reading was missing (a dropout): the "

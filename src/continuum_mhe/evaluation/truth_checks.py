@@ -18,6 +18,7 @@ from continuum_mhe.evaluation.metrics import (
     INTERPOLATE_STEP,
     SHIFT_MAX_S,
     FrameRotation,
+    TimeShift,
     aligned_truth,
     best_rotation,
     best_time_shift,
@@ -56,20 +57,15 @@ def clock_offset_warning(
     the shift advised includes."""
     if not tip_mean >= SHIFT_MIN_ERROR * length:  # close enough: no shift to look for
         return ""
-    xyz = ([est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS])
-    shift = best_time_shift(est.t, est.values[:, xyz[0]], truth.t, truth.values[:, xyz[1]])
-    if (
-        shift is None
-        or shift.shift_s == 0.0
-        or shift.unshifted < SHIFT_MIN_ERROR * length
-        or not shift.error < SHIFT_GAIN * shift.unshifted
-    ):
+    found = _clock_shift(est, truth, length)
+    if found is None:
         return ""
+    what, shift = found
     given = seconds_text(given_shift)
     as_given = f"at {shift_option} {given}" if given_shift else "as the times match"
     later = f"s later than {shift_option} {given} puts it" if given_shift else "s later"
     fits = (
-        f"(mean tip error {shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm "
+        f"({what} {shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm "
         f"{as_given}): are the two files' clocks offset?"
     )
     if abs(shift.shift_s) >= SHIFT_MAX_S - 0.05:  # at the edge: the offset may be larger
@@ -84,6 +80,35 @@ def clock_offset_warning(
         f"motion that repeats can fit shifted too; {shift_option} {total} "
         "compares them so)"
     )
+
+
+def _clock_shift(est: StateTable, truth: StateTable, length: float) -> tuple[str, TimeShift] | None:
+    """The words for a point's error and the shift of the truth's clock that fits the
+    estimate far better there
+    (:func:`~continuum_mhe.evaluation.metrics.best_time_shift`: its mean error below
+    :data:`SHIFT_GAIN` of the unshifted one, itself at least :data:`SHIFT_MIN_ERROR` of
+    the robot's ``length`` m): the tip's, else the first of the section ends both files
+    give (``x_k, y_k, z_k``) that shows one (on a robot whose IMUs do not determine its
+    tip, a section end they do determine shows the offset that the tip's error hides);
+    None without."""
+    points: list[tuple[str, tuple[str, ...]]] = [("mean tip error", tuple(TIP_COLUMNS))]
+    for name in est.names:
+        end = tuple(f"{c}_{name[2:]}" for c in TIP_COLUMNS)
+        if name.startswith("x_") and all(c in est.names and c in truth.names for c in end):
+            points.append((f"mean error of section {name[2:]}'s end", end))
+    for what, columns in points:
+        e = est.values[:, [est.names.index(c) for c in columns]]
+        shift = best_time_shift(
+            est.t, e, truth.t, truth.values[:, [truth.names.index(c) for c in columns]]
+        )
+        if (
+            shift is not None
+            and shift.shift_s != 0.0
+            and shift.unshifted >= SHIFT_MIN_ERROR * length
+            and shift.error < SHIFT_GAIN * shift.unshifted
+        ):
+            return what, shift
+    return None
 
 
 #: ``evaluate`` warns where the truth's positions turned about the base by at least
