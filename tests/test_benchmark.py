@@ -22,6 +22,7 @@ from continuum_mhe.benchmark import peers
 from continuum_mhe.benchmark.dompc import run_dompc
 from continuum_mhe.benchmark.peers import PEERS
 from continuum_mhe.cli import benchmark as cli_benchmark
+from continuum_mhe.cli.benchmark_report import print_report
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
@@ -383,7 +384,7 @@ def test_a_missing_peer_is_skipped_with_the_line_that_installs_it(
     }
     assert "pip install --no-deps --target DIR comma-deps-acados" in peers.ACADOS_HINT
     assert {r["method"] for r in report["results"]} == {"ipopt", "ekf"}
-    bm.print_report(report)
+    print_report(report)
     out = " ".join(capsys.readouterr().out.split())
     assert "acados: not timed: needs comma-deps-acados: pip install --no-deps" in out
 
@@ -415,7 +416,7 @@ def test_the_ratios_line_names_only_the_contenders_that_ran(
     """With the EKFs skipped the fast MHE's line gives its ratio to IPOPT alone, with no
     '-x the compiled EKF' for the contenders that did not run."""
     report = bm.run_benchmark([3], 0.4, ("fast", "ipopt"), 0, (), repeats=1, compile_peers=False)
-    bm.print_report(report)
+    print_report(report)
     out = " ".join(capsys.readouterr().out.split())
     line = out[out.index("fast MHE at N = 3:") :].split("machine:")[0]
     assert line.strip().endswith("of IPOPT") and "EKF" not in line and "-x" not in line

@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import math
 import sys
+import warnings
 from collections import defaultdict
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,7 +23,7 @@ from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate
-from continuum_mhe.viewer import BackboneView, ViewerSink
+from continuum_mhe.viewer import BackboneView, ViewerSink, ViewWarning
 
 POINTS = 8
 
@@ -683,14 +684,16 @@ def test_view_says_when_the_models_backbone_misses_the_estimated_tip(
     soft.write_text(text.replace("youngs_modulus = 54e9", "youngs_modulus = 30e9"))
     assert "youngs_modulus = 30e9" in soft.read_text()
     rrd = tendon_view["tmp"] / "soft.rrd"
-    capsys.readouterr()
-    assert main(["view", str(tendon_view["est"]), "--robot", str(soft), "--inputs",
-                 tendon_view["tensions"], "--save", str(rrd)]) == 0  # fmt: skip
-    err = capsys.readouterr().err
-    assert "backbone at the estimate's tip force and the tensions ends up to" in err, err
+    said = "backbone at the estimate's tip force and the tensions ends up to"
+    with pytest.warns(ViewWarning, match=said):  # the command's warning line
+        assert main(["view", str(tendon_view["est"]), "--robot", str(soft), "--inputs",
+                     tendon_view["tensions"], "--save", str(rrd)]) == 0  # fmt: skip
     own = ["--robot", "tendon-two-section", "--inputs", tendon_view["tensions"]]
-    assert main(["view", str(tendon_view["est"]), *own, "--save", str(rrd), "--overwrite"]) == 0
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main(["view", str(tendon_view["est"]), *own, "--save", str(rrd), "--overwrite"]) == 0
     assert "warning" not in capsys.readouterr().err
+    assert not [w for w in seen if issubclass(w.category, ViewWarning)]
 
 
 def test_a_tendon_robots_tip_force_is_an_arrow_from_its_tip(tendon_view: dict[str, Any]) -> None:
@@ -867,6 +870,53 @@ def _tmpfs(folder: Path, options: str) -> Iterator[Path]:
         yield folder
     finally:
         subprocess.run(["umount", str(folder)], check=False, timeout=60)
+
+
+def test_the_library_replay_prints_nothing_and_warns_its_notes(
+    tendon_view: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``viewer.replay`` and ``viewer.read_view_tensions`` called from Python write nothing
+    to stdout or stderr: a tendon robot's tips drawn alone without its tensions and
+    tensions taken on a robot log's clock are :class:`ViewNote` warnings (the text
+    ``view`` says after ``continuum-mhe: note:``), tensions of another recording give
+    the :class:`ViewWarning` that the backbone misses the tip, and the line of what was
+    drawn goes to ``say``."""
+    from continuum_mhe.viewer import ViewNote, read_view_tensions, replay
+
+    robot, est = read_robot("tendon-two-section"), str(tendon_view["est"])
+    n = len(read_state_table(est, ()).t)
+    capsys.readouterr()
+    rrd = tendon_view["tmp"] / "library.rrd"
+    said: list[str] = []
+    with pytest.warns(ViewNote) as notes:
+        drawn = replay(est, robot, ViewerSink("save", rrd), points_per_section=POINTS,
+                       say=said.append)  # fmt: skip
+    assert [str(w.message) for w in notes] == [
+        "a tendon robot's backbone is drawn from its mechanics model with --inputs "
+        "TENSIONS.csv; without it, the tips alone"
+    ]
+    assert drawn == n and said == [f"wrote {rrd}: {n} of {n} estimate(s) of {robot.describe()}"]
+    # without say: the same file, and no line anywhere
+    with pytest.warns(ViewNote):
+        assert replay(est, robot, ViewerSink("save", rrd), points_per_section=POINTS) == n
+    assert capsys.readouterr() == ("", "")
+    # tensions stamped since 1970, read for an estimate of a log that starts at t0_ns
+    t0_ns = 1_700_000_000_123_456_789
+    stamped = tendon_view["tmp"] / "stamped.csv"
+    header = "t," + ",".join(f"tension_{i + 1}" for i in range(robot.n_tendons))
+    rows = [f"{1_700_000_000 + t:.3f}," + ",".join(["0.5"] * robot.n_tendons) for t in (0, 9)]
+    stamped.write_text("\n".join([header, *rows]) + "\n")
+    with pytest.warns(ViewNote, match="its times, since 1970, are taken on the log's clock"):
+        table = read_view_tensions(str(stamped), robot, t0_ns)
+    assert table.t[0] == pytest.approx(-0.123456789, abs=1e-6)
+    # another recording's tensions: the backbone misses the estimated tip
+    other = tendon_view["tmp"] / "other.csv"
+    rows = [f"{t}," + ",".join(["2.0"] * robot.n_tendons) for t in (0, 9)]
+    other.write_text("\n".join([header, *rows]) + "\n")
+    with pytest.warns(ViewWarning, match="ends up to .* mm from the estimated tip"):
+        replay(est, robot, ViewerSink("save", rrd), points_per_section=POINTS,
+               tensions=read_view_tensions(str(other), robot))  # fmt: skip
+    assert capsys.readouterr() == ("", "")
 
 
 def test_view_into_a_folder_that_takes_no_file_is_one_line_before_the_work(

@@ -76,6 +76,8 @@ _EXPORTS: dict[str, str] = {
     "simulate": "continuum_mhe.simulation.scenarios",
     "simulate_robot": "continuum_mhe.simulation.scenarios",
     "raw_readings": "continuum_mhe.simulation.raw_readings",
+    "ViewNote": "continuum_mhe.viewer.view",
+    "ViewWarning": "continuum_mhe.viewer.view",
 }
 
 __all__ = sorted([*_EXPORTS, "__version__"])
@@ -151,3 +153,4 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     )
     from continuum_mhe.simulation.raw_readings import raw_readings
     from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
+    from continuum_mhe.viewer.view import ViewNote, ViewWarning

@@ -113,36 +113,3 @@ def run_loss_benchmark(
                     }
                 )
     return rows
-
-
-def print_loss_report(rows: list[dict[str, Any]]) -> None:
-    """Rich table of :func:`run_loss_benchmark`'s rows."""
-    from rich.table import Table
-
-    from continuum_mhe.progress import table_console
-
-    table = Table(
-        title="Cost of each MHE loss (median us per sample from sample N on, the smallest "
-        "of three runs' medians, whatever --repeats; / l2: over "
-        "the same backend's l2 time on the same data; SQP it: the fast backend's mean "
-        "iterations per sample; max|d|: fast vs IPOPT, m and rad)"
-    )
-    for col in ("N", "data", "loss", "fast us", "fast / l2", "SQP it", "IPOPT us",
-                "IPOPT / l2", "max|d|", "fallbk"):  # fmt: skip
-        table.add_column(col, justify="right", no_wrap=True)
-    for r in rows:
-        table.add_row(
-            str(r["horizon"]),
-            r["data"],
-            r["loss"] if r["loss"] == "l2" else f"{r['loss']} {r['scale']:g}",
-            f"{r['fast_median_us']:.0f}",
-            f"{r['fast_over_l2']:.2f}",
-            f"{r['fast_iterations']:.2f}",
-            f"{r['ipopt_median_us']:.0f}",
-            f"{r['ipopt_over_l2']:.2f}",
-            f"{r['max_diff_vs_ipopt']:.1e}",
-            str(r["fallbacks"]),
-        )
-    console = table_console()
-    console.width = max(console.width, 110)
-    console.print(table)

@@ -16,11 +16,10 @@ from continuum_mhe.benchmark.harness import (
     REPEATS,
     ROBOT_DT,
     check_horizons,
-    print_report,
-    print_robot_report,
     run_benchmark,
     run_robot_benchmark,
 )
+from continuum_mhe.cli.benchmark_report import print_report, print_robot_report
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError

@@ -4,11 +4,14 @@ Rerun (:func:`continuum_mhe.viewer.replay`)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import warnings
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
+from typing import TextIO
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.cli.config import recorded_t0_ns
@@ -24,7 +27,7 @@ from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.io.text_rows import held_for_rereading, held_text
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.viewer import INSTALL_HINT, read_view_tensions, replay
+from continuum_mhe.viewer import INSTALL_HINT, ViewNote, read_view_tensions, replay
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--truth-shift needs --truth TRUTH.csv: it shifts the truth's times")
     sink = viewer_sink_from_args(args)
     # the estimate is read twice, the tensions again where compared with the recorded ones
-    with held_for_rereading(args.estimates, args.truth, args.inputs):
+    with held_for_rereading(args.estimates, args.truth, args.inputs), _notes_said():
         # the notes and warnings about the robot and the truth are said once the files
         # are found fit to draw
         with said_unless_refused():
@@ -47,10 +50,42 @@ def run(args: argparse.Namespace) -> int:
             tensions = _checked_tensions(args.estimates, path, robot, est_t) if path else None
         replay(
             args.estimates, robot, sink, args.truth, args.trail, args.points, tensions,
-            args.truth_shift,
+            args.truth_shift, say=_say,
         )  # fmt: skip
         _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0
+
+
+def _say(line: str) -> None:
+    """A line of the replay (what was drawn, where the web viewer serves) on stderr."""
+    print(line, file=sys.stderr)
+
+
+@contextlib.contextmanager
+def _notes_said() -> Iterator[None]:
+    """While the block runs, the view's notes (:class:`~continuum_mhe.viewer.ViewNote`)
+    are said on stderr as notes, ``continuum-mhe: note: ...``, when they are raised; the
+    other warnings are shown as before (:mod:`warnings`' display, process-wide)."""
+    saved = warnings.showwarning
+
+    def show(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        if issubclass(category, ViewNote):
+            print(f"{PROG}: note: {message}", file=sys.stderr)
+            return
+        saved(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = saved
 
 
 def _check_estimate(args: argparse.Namespace, robot: Robot) -> FloatArray:

@@ -39,13 +39,21 @@ from __future__ import annotations
 from continuum_mhe.viewer.geometry import BackboneGeometry, TendonShapes, backbone_geometry
 from continuum_mhe.viewer.replay import read_view_tensions, replay
 from continuum_mhe.viewer.sink import ViewerSink
-from continuum_mhe.viewer.view import INSTALL_HINT, BackboneView, require_rerun
+from continuum_mhe.viewer.view import (
+    INSTALL_HINT,
+    BackboneView,
+    ViewNote,
+    ViewWarning,
+    require_rerun,
+)
 
 __all__ = [
     "INSTALL_HINT",
     "BackboneGeometry",
     "BackboneView",
     "TendonShapes",
+    "ViewNote",
+    "ViewWarning",
     "ViewerSink",
     "backbone_geometry",
     "read_view_tensions",

@@ -3,8 +3,8 @@
 
 from __future__ import annotations
 
-import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -25,7 +25,7 @@ from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.viewer.geometry import TendonShapes
 from continuum_mhe.viewer.sink import ViewerSink
-from continuum_mhe.viewer.view import BackboneView
+from continuum_mhe.viewer.view import BackboneView, ViewNote, ViewWarning
 
 
 def estimated_extras(names: Sequence[str], robot: Robot) -> tuple[OutputSpec, ...]:
@@ -56,14 +56,15 @@ def read_view_tensions(path: str, robot: Robot, t0_ns: int = 0) -> Tensions:
     """The tensions file ``path`` (or a recording with its tension columns, as ``live
     --record`` writes one) for the view of a tendon robot ``robot``'s estimate: its
     times on a robot log's clock where they are since 1970 and the estimate's ``t = 0``
-    is ``t0_ns`` (ns since 1970; 0: none), as ``estimate`` took them (said in a note);
-    refused in one line for a robot without a backbone, and in mN for N."""
+    is ``t0_ns`` (ns since 1970; 0: none), as ``estimate`` took them (said in a
+    :class:`~continuum_mhe.viewer.view.ViewNote`); refused in one line for a robot without
+    a backbone, and in mN for N."""
     if robot.backbone is None:
         raise InputError(_not_a_tendon_robot(path))
     table = read_tensions(path, robot.n_tendons, other_columns=True, time_warning=False)
     table, note = on_log_clock(table, t0_ns)
     if note:
-        print(f"continuum-mhe: note: {note}", file=sys.stderr)
+        warnings.warn(note, ViewNote, stacklevel=2)
     table.check_scale(robot)  # mN for N, as estimate refuses them
     return table
 
@@ -71,23 +72,28 @@ def read_view_tensions(path: str, robot: Robot, t0_ns: int = 0) -> Tensions:
 def replay(
     estimates: str, robot: Robot, sink: ViewerSink, truth: str | None = None,
     trail_s: float = 10.0, points_per_section: int = 16, tensions: Tensions | None = None,
-    truth_shift: float = 0.0,
+    truth_shift: float = 0.0, say: Callable[[str], None] | None = None,
 ) -> int:  # fmt: skip
     """Write or show the view of an estimate CSV (and its truth). Returns the number of
     estimates drawn. A tendon robot's backbone (``robot.backbone``) is its mechanics
     model's at each row's tip force under the ``tensions``
     (:func:`read_view_tensions`); without them, its tips alone are drawn (said in a
-    note). The truth's row at time ``t`` is drawn at ``t - truth_shift`` s (a truth on
-    a clock that runs ``truth_shift`` ahead of the estimate's)."""
+    :class:`~continuum_mhe.viewer.view.ViewNote`). The truth's row at time ``t`` is drawn
+    at ``t - truth_shift`` s (a truth on a clock that runs ``truth_shift`` ahead of the
+    estimate's). A backbone that misses the estimated tip is a
+    :class:`~continuum_mhe.viewer.view.ViewWarning`. ``say`` (where given) takes the line
+    that says what was drawn and where, and a web viewer's lines (:meth:`BackboneView.
+    close`); nothing is printed."""
     tendon = None
     if robot.backbone is not None:
         outputs = tendon_outputs(robot.n_sections)
         tendon = TendonShapes(robot, points_per_section, tensions)
         if tensions is None:
-            print(
-                "continuum-mhe: note: a tendon robot's backbone is drawn from its mechanics "
-                "model with --inputs TENSIONS.csv; without it, the tips alone",
-                file=sys.stderr,
+            warnings.warn(
+                "a tendon robot's backbone is drawn from its mechanics model with --inputs "
+                "TENSIONS.csv; without it, the tips alone",
+                ViewNote,
+                stacklevel=2,
             )
     elif tensions is not None:
         raise InputError(_not_a_tendon_robot(tensions.name))
@@ -152,7 +158,7 @@ def replay(
         view.close()
     misfit = model_backbone_misfit(view.model_tip_off, robot.length)
     if misfit:  # as plot says it
-        print(f"continuum-mhe: warning: {misfit}", file=sys.stderr)
+        warnings.warn(misfit, ViewWarning, stacklevel=2)
     joined = view.joined_through_ends["estimate"]
     if joined:  # as plot draws them: not the mechanics model's backbone
         drawn_as = (
@@ -161,10 +167,11 @@ def replay(
         )
     else:
         drawn_as = ""
-    print(
-        f"{where}: {drawn} of {len(est.t)} estimate(s) of {robot.describe()}{drawn_as}{with_truth}",
-        file=sys.stderr,
-    )
+    if say is not None:
+        say(
+            f"{where}: {drawn} of {len(est.t)} estimate(s) of {robot.describe()}{drawn_as}"
+            f"{with_truth}"
+        )
     if sink.kind != "save":
-        view.close(wait=True)
+        view.close(wait=True, say=say)
     return drawn

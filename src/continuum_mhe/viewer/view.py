@@ -12,7 +12,7 @@ import sys
 import time
 import uuid
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from subprocess import Popen
 from typing import Any
@@ -67,6 +67,18 @@ FLUSH_TIMEOUT_S = 20.0
 #: file did not grow over it while its disk has less than DISK_NEARLY_FULL free is
 #: taken as stuck at once
 FLUSH_SLICE_S = 0.5
+
+
+class ViewWarning(UserWarning):
+    """What a view draws that may not be what was meant: a backbone the mechanics model
+    holds no equilibrium for, joined through its section ends, or one that misses the
+    estimated tip (another robot's or recording's tensions)."""
+
+
+class ViewNote(UserWarning):
+    """How a view took its inputs, where it is not what a reader would assume: a tendon
+    robot's tips drawn alone without its tensions, tensions taken on a robot log's
+    clock. The command line says it as a note (``continuum-mhe: note: ...``)."""
 
 
 def free_bytes(folder: Path) -> int:
@@ -519,6 +531,7 @@ class BackboneView:
         warnings.warn(
             f"{len(unsolved)} of the backbones drawn joined through their section ends: the "
             f"mechanics model holds no equilibrium under their loads; the first: {unsolved[0]}",
+            ViewWarning,
             stacklevel=3,
         )
         return joined_through_ends(geom, rows, ends), tips
@@ -637,10 +650,13 @@ class BackboneView:
         except OSError:
             return -1
 
-    def close(self, wait: bool = False, keep: bool = True) -> None:
+    def close(
+        self, wait: bool = False, keep: bool = True, say: Callable[[str], None] | None = None
+    ) -> None:
         """Finish the stream: rename the .rrd into place (without ``keep``: remove it,
         a view that failed writes nothing), or (``wait``) keep the web viewer up until
-        Ctrl-C, then stop it."""
+        Ctrl-C, then stop it; ``say`` (where given) takes the lines that say where it
+        serves and that it stopped."""
         if self._closed:
             return
         if self._undrawn is not None and self._undrawn.output is not None:
@@ -665,12 +681,14 @@ class BackboneView:
                         f"({exc}): the estimates are not drawn there"
                     ) from None
             if self.sink.kind == "web" and wait and self._web is not None:
-                print(f"serving the view at {self.sink.web_url} (Ctrl-C stops)", file=sys.stderr)
+                if say is not None:
+                    say(f"serving the view at {self.sink.web_url} (Ctrl-C stops)")
                 try:
                     while self._web.poll() is None:
                         time.sleep(0.2)
                 except KeyboardInterrupt:
-                    print("stopped serving the view", file=sys.stderr)
+                    if say is not None:
+                        say("stopped serving the view")
         finally:
             if not self._stuck and (self._tmp is not None or self.sink.kind != "save"):
                 self.rec.disconnect()  # before the server stops: no broken-connection noise
