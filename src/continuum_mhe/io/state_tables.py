@@ -32,6 +32,7 @@ from continuum_mhe.model.descriptions import (
     angle_beyond_a_turn,
     output_names,
     pcc_outputs,
+    robot_outputs,
 )
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, Status
@@ -281,11 +282,7 @@ def robot_misfit(names: Sequence[str], robot: Robot, complete: bool) -> str:
     there (an estimate, as ``estimate`` writes it); else any subset (a truth). A tendon
     robot's (a ``[backbone]``) are its mechanics model's (``theta_k`` even for one
     section, and each section's twist ``psi_k``)."""
-    outputs = output_names(pcc_outputs(robot.n_sections))
-    if robot.backbone is not None:
-        from continuum_mhe.model.tendon import tendon_outputs  # its CasADi statics: on use
-
-        outputs = output_names(tendon_outputs(robot.n_sections))
+    outputs = output_names(robot_outputs(robot))
     extra = [n for n in names if _is_section_column(n) and n not in outputs]
     missing = [n for n in outputs if n not in names] if complete else []
     if not (extra or missing):

@@ -11,12 +11,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
+
+if TYPE_CHECKING:
+    from continuum_mhe.model.robot import Robot
 
 Unit = Literal["m", "rad", "rad/s", "1", "N"]
 
@@ -88,6 +92,51 @@ def pcc_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
     for k in range(1, n_sections + 1):
         out += section_outputs(k)
     return tuple(out)
+
+
+def tendon_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
+    """The outputs of a tendon robot's mechanics model (``n_sections`` sections): the tip
+    ``x, y, z``; per section ``k`` its equivalent bend ``theta_k, phi_k`` (between its
+    end tangents), end position ``x_k, y_k, z_k`` and twist ``psi_k``; then the tip force
+    ``fx, fy, fz`` (N, base frame)."""
+    out = list(TIP_OUTPUTS)
+    for k in range(1, n_sections + 1):
+        out += [*section_outputs(k), OutputSpec(f"psi_{k}", "rad", True, section=k)]
+    out += [OutputSpec(name, "N") for name in TIP_FORCE_COLUMNS]
+    return tuple(out)
+
+
+def imu_twist_outputs(n_imus: int) -> tuple[OutputSpec, ...]:
+    """Each IMU's twist (rad, unwrapped; :func:`imu_twist_names`), as ``--imu-twist``
+    estimates it."""
+    return tuple(OutputSpec(name, "rad") for name in imu_twist_names(n_imus))
+
+
+def tension_gain_outputs(sections: Sequence[int]) -> tuple[OutputSpec, ...]:
+    """The tension gain ``tension_gain_s`` (dimensionless) of each of the ``sections``
+    (0-based; ``s`` is 1-based), as ``--estimate-tension-gain`` estimates them."""
+    return tuple(OutputSpec(f"tension_gain_{s + 1}", "1", section=s + 1) for s in sections)
+
+
+def robot_outputs(
+    robot: Robot, *, imu_twist: bool = False, tension_gain: bool = False
+) -> tuple[OutputSpec, ...]:
+    """The outputs an estimate of ``robot`` has, in the order the estimators write them:
+    a robot with a backbone (``[backbone]``), its mechanics model's
+    (:func:`tendon_outputs`), then with ``tension_gain`` each tension gain of a section
+    at whose end a tendon is anchored (:func:`tension_gain_outputs`); any other robot,
+    the constant-curvature model's (:func:`pcc_outputs`), then with ``imu_twist`` each
+    IMU's twist (:func:`imu_twist_outputs`). A :class:`UserError` for an option the
+    robot's model does not have."""
+    if robot.backbone is None:
+        if tension_gain:
+            raise UserError("tension gains are a tendon robot's (a [backbone] in the robot)")
+        twists = imu_twist_outputs(robot.n_imus) if imu_twist else ()
+        return (*pcc_outputs(robot.n_sections), *twists)
+    if imu_twist:
+        raise UserError("a tendon robot's model has no IMU twist (its sections' twist psi_k)")
+    gains = tension_gain_outputs(robot.anchored_sections) if tension_gain else ()
+    return (*tendon_outputs(robot.n_sections), *gains)
 
 
 def bend_columns(names: Sequence[str], n_sections: int) -> tuple[str, ...]:

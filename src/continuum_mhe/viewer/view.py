@@ -29,11 +29,10 @@ from continuum_mhe.model.descriptions import (
     TIP_FORCE_COLUMNS,
     OutputSpec,
     imu_twist_names,
-    pcc_outputs,
+    robot_outputs,
     section_bends,
 )
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.results import Estimate, Status
 from continuum_mhe.viewer.geometry import (
     BackboneGeometry,
@@ -192,9 +191,7 @@ class BackboneView:
         self.model_tip_off = 0.0
         #: the angles a shape is drawn from (a truth's backbone needs them): the bends,
         #: and a tendon robot's twists; not an output beyond the shape (``imu_twist``)
-        n_sec = robot.n_sections
-        shape = tendon_outputs(n_sec) if robot.backbone is not None else pcc_outputs(n_sec)
-        self._shape_angles = {o.name for o in shape if o.unit == "rad"}
+        self._shape_angles = {o.name for o in robot_outputs(robot) if o.unit == "rad"}
         names = [o.name for o in self.outputs]
         #: the tip's ``x, y, z`` among the outputs
         self._tip_columns = [names.index(c) for c in TIP_COLUMNS]
