@@ -1,5 +1,6 @@
 """A robot's outputs (``model.descriptions.robot_outputs``), as the io, the viewer and the
-command line read them, against the outputs the formulations that estimate them write."""
+command line read them, against the outputs the formulations that estimate them write;
+and its sections' ends and count, read from the outputs or from a table's names."""
 
 from __future__ import annotations
 
@@ -9,7 +10,15 @@ import pytest
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.model.descriptions import output_names, robot_outputs
+from continuum_mhe.model.descriptions import (
+    output_names,
+    robot_outputs,
+    section_bends,
+    section_count,
+    section_end_columns,
+    section_end_indices,
+    sections_with_ends,
+)
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 
@@ -76,3 +85,38 @@ def test_an_option_the_robots_model_lacks_is_refused():
         robot_outputs(tendon, imu_twist=True)
     with pytest.raises(UserError, match="no option 'imu_twist'"):  # as its formulation
         make_formulation("tendon", tendon, imu_twist=True)
+
+
+def test_a_sections_end_is_its_three_positions_among_the_outputs():
+    two = robot_outputs(pcc_robot(2))
+    tendon = robot_outputs(read_robot("tendon-two-section"), tension_gain=True)
+    for outputs in (two, tendon):
+        for k in (1, 2):
+            names = tuple(outputs[i].name for i in section_end_indices(outputs, k))
+            assert names == (f"x_{k}", f"y_{k}", f"z_{k}") == section_end_columns(k)
+    # not the twist psi_2 or the gain tension_gain_2 of section 2, nor a section past the last
+    assert section_end_indices(tendon, 3) == ()
+    assert section_end_indices(robot_outputs(pcc_robot(1)), 1) == ()  # its end is the tip
+
+
+def test_a_tables_section_ends_and_count_from_its_names():
+    names = ["t", "x", "y", "z", "x_0", "y_0", "z_0", "x_1", "y_1", "x_3", "y_3", "z_3"]
+    assert sections_with_ends(names) == [3]  # section 1 lacks z_1; no section 0
+    assert section_count(["x", "y", "z", "theta", "phi"]) == 1
+    assert section_count(["theta_1", "phi_1", "theta_2", "phi_2", "theta_4"]) == 2
+    assert section_count(["x", "y", "z"]) == 0
+
+
+@pytest.mark.parametrize("n_sections", [1, 2, 3])
+def test_section_bends_of_each_section(n_sections):
+    outputs = robot_outputs(pcc_robot(n_sections))
+    values = [0.0] * len(outputs)
+    names = output_names(outputs)
+    for k in range(n_sections):  # theta 0.1 (k + 1), phi 0.5 rad
+        th, ph = ("theta", "phi") if n_sections == 1 else (f"theta_{k + 1}", f"phi_{k + 1}")
+        values[names.index(th)], values[names.index(ph)] = 0.1 * (k + 1), 0.5
+    bends = section_bends(outputs, values)
+    assert bends.shape == (n_sections, 2)
+    for k in range(n_sections):
+        assert bends[k] == pytest.approx([0.1 * (k + 1) * 0.8775825618903728,
+                                          0.1 * (k + 1) * 0.479425538604203])  # fmt: skip

@@ -33,6 +33,8 @@ from continuum_mhe.model.descriptions import (
     output_names,
     pcc_outputs,
     robot_outputs,
+    section_end_columns,
+    sections_with_ends,
 )
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, Status
@@ -343,16 +345,11 @@ def tip_section(table: StateTable) -> int | None:
     none is given). A truth of a robot of fewer sections fits a subset of another
     robot's columns, and this tells it apart."""
     names = list(table.names)
-    if not all(c in names for c in ("x", "y", "z")):
+    if not all(c in names for c in TIP_COLUMNS):
         return None
-    tip = table.values[:, [names.index(c) for c in ("x", "y", "z")]]
-    given = sorted(
-        int(n[2:]) for n in names if n.startswith("x_") and n[2:].isdigit() and int(n[2:]) > 0
-    )  # a truth may have some sections' ends and not others'
-    for k in given:
-        if not all(f"{c}_{k}" in names for c in ("y", "z")):
-            continue
-        end = table.values[:, [names.index(f"{c}_{k}") for c in ("x", "y", "z")]]
+    tip = table.values[:, [names.index(c) for c in TIP_COLUMNS]]
+    for k in sections_with_ends(names):  # a truth may have some sections' ends, not others'
+        end = table.values[:, [names.index(c) for c in section_end_columns(k)]]
         both = np.all(np.isfinite(tip), axis=1) & np.all(np.isfinite(end), axis=1)
         if both.any() and np.abs(end[both] - tip[both]).max() <= TIP_SECTION_TOLERANCE:
             return k

@@ -9,7 +9,7 @@ column list.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
@@ -156,10 +156,45 @@ def section_outputs(k: int) -> list[OutputSpec]:
     return [
         OutputSpec(f"theta_{k}", "rad", section=k),
         OutputSpec(f"phi_{k}", "rad", True, section=k),
-        OutputSpec(f"x_{k}", "m", section=k),
-        OutputSpec(f"y_{k}", "m", section=k),
-        OutputSpec(f"z_{k}", "m", section=k),
+        *(OutputSpec(name, "m", section=k) for name in section_end_columns(k)),
     ]
+
+
+def section_end_columns(k: int) -> tuple[str, str, str]:
+    """The names of section ``k``'s (1-based) end position, ``x_k, y_k, z_k``: for a
+    table (a truth) that has names alone; with the outputs at hand,
+    :func:`section_end_indices`."""
+    x, y, z = TIP_COLUMNS
+    return f"{x}_{k}", f"{y}_{k}", f"{z}_{k}"
+
+
+def section_numbers(columns: Iterable[str], field: str) -> list[int]:
+    """The section numbers ``k`` of the columns ``{field}_k`` among ``columns``, in
+    order (a file may have some sections' columns and not others')."""
+    prefix = field + "_"
+    ks = (c[len(prefix) :] for c in columns if c.startswith(prefix))
+    return sorted(int(k) for k in ks if k.isdigit())
+
+
+def sections_with_ends(names: Sequence[str]) -> list[int]:
+    """The sections ``k`` (1-based, in order) whose end's ``x_k, y_k, z_k``
+    (:func:`section_end_columns`) are all among a table's column ``names``."""
+    return [
+        k
+        for k in section_numbers(names, TIP_COLUMNS[0])
+        if k > 0 and all(c in names for c in section_end_columns(k))
+    ]
+
+
+def section_count(names: Sequence[str]) -> int:
+    """Sections of the robot a table (an estimate) was made for, from its bend columns
+    (``theta``: one; ``theta_1 ... theta_n``: n); 0 when it has none."""
+    if "theta" in names:
+        return 1
+    n = 0
+    while f"theta_{n + 1}" in names:
+        n += 1
+    return n
 
 
 def output_names(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
@@ -173,6 +208,13 @@ def wrapped_indices(outputs: Sequence[OutputSpec]) -> tuple[int, ...]:
 def tip_position_indices(outputs: Sequence[OutputSpec]) -> tuple[int, ...]:
     """The columns of the tip's position (section 0, in m: ``x, y, z``)."""
     return tuple(i for i, o in enumerate(outputs) if o.section == 0 and o.unit == "m")
+
+
+def section_end_indices(outputs: Sequence[OutputSpec], k: int) -> tuple[int, ...]:
+    """The columns of section ``k``'s (1-based) end position (section ``k``, in m:
+    ``x_k, y_k, z_k``); none where the outputs have none (one constant-curvature
+    section, whose end is the tip: :func:`tip_position_indices`)."""
+    return tuple(i for i, o in enumerate(outputs) if o.section == k and o.unit == "m")
 
 
 def imu_suffix(i: int, n_imus: int) -> str:
@@ -215,16 +257,9 @@ def section_bends(
     """Bend vectors (n_sections, 2) rad from one row of outputs (``theta, phi`` or
     ``theta_k, phi_k``): ``(theta cos phi, theta sin phi)``."""
     names = [o.name for o in outputs]
-    if "theta" in names:
-        pairs = [(names.index("theta"), names.index("phi"))]
-    else:
-        pairs = []
-        k = 1
-        while f"theta_{k}" in names:
-            pairs.append((names.index(f"theta_{k}"), names.index(f"phi_{k}")))
-            k += 1
-    out = np.zeros((len(pairs), 2))
-    for k, (i, j) in enumerate(pairs):
+    bends = [names.index(c) for c in bend_columns(names, section_count(names))]
+    out = np.zeros((len(bends) // 2, 2))
+    for k, (i, j) in enumerate(zip(bends[::2], bends[1::2])):
         th, ph = float(values[i]), float(values[j])
         out[k] = th * math.cos(ph), th * math.sin(ph)
     return out
