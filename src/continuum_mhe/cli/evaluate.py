@@ -33,7 +33,6 @@ from continuum_mhe.evaluation.metrics import (
     compute_metrics,
     interpolated_note,
     length_misfit,
-    section_numbers,
     srmse_columns,
     truth_sparser,
 )
@@ -66,7 +65,7 @@ from continuum_mhe.io.state_tables import (
     read_state_table,
 )
 from continuum_mhe.io.text_rows import held_for_rereading
-from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
+from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS, section_numbers
 from continuum_mhe.results import Status
 
 

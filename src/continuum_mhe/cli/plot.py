@@ -16,7 +16,7 @@ import numpy as np
 from continuum_mhe.cli.input_options import add_tensions_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import InputError, UserError
-from continuum_mhe.model.descriptions import TIP_COLUMNS
+from continuum_mhe.model.descriptions import TIP_COLUMNS, section_count
 
 if TYPE_CHECKING:
     from continuum_mhe.arrays import FloatArray
@@ -108,7 +108,6 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         has_tip_force,
         lengths_from_estimate,
         lengths_misfit,
-        section_count,
     )
     from continuum_mhe.evaluation.metrics import interpolated_note, truth_sparser
     from continuum_mhe.evaluation.plotting import save

@@ -14,9 +14,9 @@ from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.estimate_csv import write_measurements, write_table, write_truth
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
+from continuum_mhe.model.descriptions import robot_outputs
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.simulation.scenarios import (
     NOISE_MODELS,
     REST_NOISE_DEG,
@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
                 f"{args.truth}: --truth names the tensions file that rest writes beside -o "
                 "for a tendon robot; give another"
             )
-        n_tendons, n_sections = robot.n_tendons, robot.n_sections
+        n_tendons, mechanics = robot.n_tendons, robot
         robot = robot.without_tendons()  # its sections' geometry reads it
     try:
         rec = simulate_robot(
@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
     true_values, outputs = rec.truth, rec.outputs
     if tensions is not None:  # the tendon robot's outputs: no twist, no tip force
-        outputs = tendon_outputs(n_sections)
+        outputs = robot_outputs(mechanics)
         pcc_names = [o.name for o in rec.outputs]
         # one section: the constant-curvature outputs are theta, phi and the tip, and
         # section 1's end is the tip

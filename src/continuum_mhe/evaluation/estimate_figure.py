@@ -22,7 +22,6 @@ from continuum_mhe.evaluation.estimate_tables import (
     has_bend_columns,
     has_tip_force,
     lengths_from_estimate,
-    section_count,
     section_shapes,
     tracked_points,
     truth_points,
@@ -31,7 +30,7 @@ from continuum_mhe.evaluation.estimate_tables import (
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, hang, plt
 from continuum_mhe.io.state_tables import StateTable, model_backbone_misfit
-from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
+from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS, section_count
 from continuum_mhe.model.pcc import backbone_points
 from continuum_mhe.results import Status
 

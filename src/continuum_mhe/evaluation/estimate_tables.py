@@ -20,7 +20,12 @@ from continuum_mhe.io.state_tables import (
     tip_section,
 )
 from continuum_mhe.io.tensions import Tensions
-from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
+from continuum_mhe.model.descriptions import (
+    TIP_COLUMNS,
+    TIP_FORCE_COLUMNS,
+    section_count,
+    section_end_columns,
+)
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import acting_tensions
 from continuum_mhe.model.tendon_statics import TendonStatics, no_equilibrium_at
@@ -44,24 +49,13 @@ class TrackedPoint:
     columns: tuple[str, str, str]
 
 
-def section_count(names: Sequence[str]) -> int:
-    """Sections of the robot an estimate was made for, from its bend columns (``theta``:
-    one; ``theta_1 ... theta_n``: n); 0 when the file has none."""
-    if "theta" in names:
-        return 1
-    n = 0
-    while f"theta_{n + 1}" in names:
-        n += 1
-    return n
-
-
 def tracked_points(names: Sequence[str]) -> tuple[TrackedPoint, ...]:
     """Every section end the file has positions of (``x_k, y_k, z_k``), the last being
     the tip; just the tip (``x, y, z``) when it has none."""
     ends = []
     k = 1
-    while all(f"{c}_{k}" in names for c in "xyz"):
-        ends.append(TrackedPoint(f"section {k} end", (f"x_{k}", f"y_{k}", f"z_{k}")))
+    while all(c in names for c in section_end_columns(k)):
+        ends.append(TrackedPoint(f"section {k} end", section_end_columns(k)))
         k += 1
     if not ends:
         return (TrackedPoint("tip", TIP_COLUMNS),)

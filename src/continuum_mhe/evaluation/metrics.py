@@ -33,6 +33,9 @@ from continuum_mhe.model.descriptions import (
     angle_beyond_a_turn,
     output_names,
     pcc_outputs,
+    section_count,
+    section_end_columns,
+    sections_with_ends,
 )
 from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.model.robot import MAX_SECTION_LENGTH
@@ -150,10 +153,8 @@ def srmse_columns(names: Sequence[str]) -> list[str]:
     (:func:`in_m_or_rad`: not a tendon robot's tip force or tension gain), the last
     section's end (``x_n, y_n, z_n`` of ``n`` sections, the tip again) left out where
     the tip is there: each point counted once."""
-    n = 0
-    while f"theta_{n + 1}" in names:
-        n += 1
-    again = {f"{c}_{n}" for c in TIP_COLUMNS} if n and set(TIP_COLUMNS) <= set(names) else set()
+    n = section_count(names)
+    again = set(section_end_columns(n)) if n and set(TIP_COLUMNS) <= set(names) else set()
     return [c for c in names if in_m_or_rad(c) and c not in again]
 
 
@@ -230,15 +231,14 @@ def compute_metrics(
     err = state_errors(est[has][:, kept], tru[has][:, kept], common)
     rmse = np.sqrt(np.nanmean(err**2, axis=0))
     col = {c: i for i, c in enumerate(common)}
-    tip = np.linalg.norm(err[:, [col["x"], col["y"], col["z"]]], axis=1)
+    tip = np.linalg.norm(err[:, [col[c] for c in TIP_COLUMNS]], axis=1)
     end_mean: dict[str, float] = {}
     end_max: dict[str, float] = {}
-    for k in section_numbers(col, "x"):  # every section end both sides have, gaps or not
-        if all(f"{c}_{k}" in col for c in "yz"):
-            e = np.linalg.norm(err[:, [col[f"x_{k}"], col[f"y_{k}"], col[f"z_{k}"]]], axis=1)
-            e = e[np.isfinite(e)]
-            if len(e):  # its three columns' gaps may leave no row with all of them
-                end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
+    for k in sections_with_ends(common):  # every section end both sides have, gaps or not
+        e = np.linalg.norm(err[:, [col[c] for c in section_end_columns(k)]], axis=1)
+        e = e[np.isfinite(e)]
+        if len(e):  # its three columns' gaps may leave no row with all of them
+            end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
     force = [col[c] for c in TIP_FORCE_COLUMNS if c in col]
     force_rms = None
     if len(force) == len(TIP_FORCE_COLUMNS):
@@ -275,14 +275,6 @@ def compared_rows(
     est = np.asarray(estimate, dtype=float)[:, [list(names).index(c) for c in common]]
     tip = np.asarray(truth, dtype=float)[:, [list(truth_names).index(c) for c in TIP_COLUMNS]]
     return np.all(np.isfinite(est), axis=1) & np.all(np.isfinite(tip), axis=1)
-
-
-def section_numbers(columns: Iterable[str], field: str) -> list[int]:
-    """The section numbers ``k`` of the columns ``{field}_k`` among ``columns``, in
-    order (a file may have some sections' columns and not others')."""
-    prefix = field + "_"
-    ks = (c[len(prefix) :] for c in columns if c.startswith(prefix))
-    return sorted(int(k) for k in ks if k.isdigit())
 
 
 #: Two-sided 95 % quantile of the standard normal: the half-width of a 95 % interval in

@@ -27,7 +27,7 @@ from continuum_mhe.io.estimate_csv import STD_PREFIX
 from continuum_mhe.io.output_files import atomic_binary_writer
 from continuum_mhe.io.robot_logs import cut_short
 from continuum_mhe.io.state_tables import StateTable
-from continuum_mhe.model.descriptions import OutputSpec, section_bends
+from continuum_mhe.model.descriptions import OutputSpec, section_bends, section_end_indices
 from continuum_mhe.model.pcc import backbone_frames
 from continuum_mhe.model.robot import Section
 from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
@@ -155,7 +155,7 @@ def estimate_poses(
     for k in range(len(bends)):
         local_r, local_p = backbone_frames(bends[k : k + 1], [lengths[k]], per_section)
         psi = float(values[names.index(f"psi_{k + 1}")])
-        end = np.array([float(values[names.index(f"{c}_{k + 1}")]) for c in "xyz"])
+        end = np.array([float(values[i]) for i in section_end_indices(outputs, k + 1)])
         base_r, base_p = rotations[-1], positions[-1]
         miss = end - (base_p + base_r @ local_p[-1])
         for j in range(1, per_section + 1):

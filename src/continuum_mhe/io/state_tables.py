@@ -32,6 +32,9 @@ from continuum_mhe.model.descriptions import (
     angle_beyond_a_turn,
     output_names,
     pcc_outputs,
+    robot_outputs,
+    section_end_columns,
+    sections_with_ends,
 )
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, Status
@@ -281,11 +284,7 @@ def robot_misfit(names: Sequence[str], robot: Robot, complete: bool) -> str:
     there (an estimate, as ``estimate`` writes it); else any subset (a truth). A tendon
     robot's (a ``[backbone]``) are its mechanics model's (``theta_k`` even for one
     section, and each section's twist ``psi_k``)."""
-    outputs = output_names(pcc_outputs(robot.n_sections))
-    if robot.backbone is not None:
-        from continuum_mhe.model.tendon import tendon_outputs  # its CasADi statics: on use
-
-        outputs = output_names(tendon_outputs(robot.n_sections))
+    outputs = output_names(robot_outputs(robot))
     extra = [n for n in names if _is_section_column(n) and n not in outputs]
     missing = [n for n in outputs if n not in names] if complete else []
     if not (extra or missing):
@@ -346,16 +345,11 @@ def tip_section(table: StateTable) -> int | None:
     none is given). A truth of a robot of fewer sections fits a subset of another
     robot's columns, and this tells it apart."""
     names = list(table.names)
-    if not all(c in names for c in ("x", "y", "z")):
+    if not all(c in names for c in TIP_COLUMNS):
         return None
-    tip = table.values[:, [names.index(c) for c in ("x", "y", "z")]]
-    given = sorted(
-        int(n[2:]) for n in names if n.startswith("x_") and n[2:].isdigit() and int(n[2:]) > 0
-    )  # a truth may have some sections' ends and not others'
-    for k in given:
-        if not all(f"{c}_{k}" in names for c in ("y", "z")):
-            continue
-        end = table.values[:, [names.index(f"{c}_{k}") for c in ("x", "y", "z")]]
+    tip = table.values[:, [names.index(c) for c in TIP_COLUMNS]]
+    for k in sections_with_ends(names):  # a truth may have some sections' ends, not others'
+        end = table.values[:, [names.index(c) for c in section_end_columns(k)]]
         both = np.all(np.isfinite(tip), axis=1) & np.all(np.isfinite(end), axis=1)
         if both.any() and np.abs(end[both] - tip[both]).max() <= TIP_SECTION_TOLERANCE:
             return k

@@ -9,14 +9,18 @@ column list.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
+
+if TYPE_CHECKING:
+    from continuum_mhe.model.robot import Robot
 
 Unit = Literal["m", "rad", "rad/s", "1", "N"]
 
@@ -90,6 +94,51 @@ def pcc_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
     return tuple(out)
 
 
+def tendon_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
+    """The outputs of a tendon robot's mechanics model (``n_sections`` sections): the tip
+    ``x, y, z``; per section ``k`` its equivalent bend ``theta_k, phi_k`` (between its
+    end tangents), end position ``x_k, y_k, z_k`` and twist ``psi_k``; then the tip force
+    ``fx, fy, fz`` (N, base frame)."""
+    out = list(TIP_OUTPUTS)
+    for k in range(1, n_sections + 1):
+        out += [*section_outputs(k), OutputSpec(f"psi_{k}", "rad", True, section=k)]
+    out += [OutputSpec(name, "N") for name in TIP_FORCE_COLUMNS]
+    return tuple(out)
+
+
+def imu_twist_outputs(n_imus: int) -> tuple[OutputSpec, ...]:
+    """Each IMU's twist (rad, unwrapped; :func:`imu_twist_names`), as ``--imu-twist``
+    estimates it."""
+    return tuple(OutputSpec(name, "rad") for name in imu_twist_names(n_imus))
+
+
+def tension_gain_outputs(sections: Sequence[int]) -> tuple[OutputSpec, ...]:
+    """The tension gain ``tension_gain_s`` (dimensionless) of each of the ``sections``
+    (0-based; ``s`` is 1-based), as ``--estimate-tension-gain`` estimates them."""
+    return tuple(OutputSpec(f"tension_gain_{s + 1}", "1", section=s + 1) for s in sections)
+
+
+def robot_outputs(
+    robot: Robot, *, imu_twist: bool = False, tension_gain: bool = False
+) -> tuple[OutputSpec, ...]:
+    """The outputs an estimate of ``robot`` has, in the order the estimators write them:
+    a robot with a backbone (``[backbone]``), its mechanics model's
+    (:func:`tendon_outputs`), then with ``tension_gain`` each tension gain of a section
+    at whose end a tendon is anchored (:func:`tension_gain_outputs`); any other robot,
+    the constant-curvature model's (:func:`pcc_outputs`), then with ``imu_twist`` each
+    IMU's twist (:func:`imu_twist_outputs`). A :class:`UserError` for an option the
+    robot's model does not have."""
+    if robot.backbone is None:
+        if tension_gain:
+            raise UserError("tension gains are a tendon robot's (a [backbone] in the robot)")
+        twists = imu_twist_outputs(robot.n_imus) if imu_twist else ()
+        return (*pcc_outputs(robot.n_sections), *twists)
+    if imu_twist:
+        raise UserError("a tendon robot's model has no IMU twist (its sections' twist psi_k)")
+    gains = tension_gain_outputs(robot.anchored_sections) if tension_gain else ()
+    return (*tendon_outputs(robot.n_sections), *gains)
+
+
 def bend_columns(names: Sequence[str], n_sections: int) -> tuple[str, ...]:
     """The bend columns ``theta_k, phi_k`` of ``n_sections`` sections, in section order,
     as a table of these column ``names`` writes them: one section's are ``theta, phi``
@@ -107,10 +156,45 @@ def section_outputs(k: int) -> list[OutputSpec]:
     return [
         OutputSpec(f"theta_{k}", "rad", section=k),
         OutputSpec(f"phi_{k}", "rad", True, section=k),
-        OutputSpec(f"x_{k}", "m", section=k),
-        OutputSpec(f"y_{k}", "m", section=k),
-        OutputSpec(f"z_{k}", "m", section=k),
+        *(OutputSpec(name, "m", section=k) for name in section_end_columns(k)),
     ]
+
+
+def section_end_columns(k: int) -> tuple[str, str, str]:
+    """The names of section ``k``'s (1-based) end position, ``x_k, y_k, z_k``: for a
+    table (a truth) that has names alone; with the outputs at hand,
+    :func:`section_end_indices`."""
+    x, y, z = TIP_COLUMNS
+    return f"{x}_{k}", f"{y}_{k}", f"{z}_{k}"
+
+
+def section_numbers(columns: Iterable[str], field: str) -> list[int]:
+    """The section numbers ``k`` of the columns ``{field}_k`` among ``columns``, in
+    order (a file may have some sections' columns and not others')."""
+    prefix = field + "_"
+    ks = (c[len(prefix) :] for c in columns if c.startswith(prefix))
+    return sorted(int(k) for k in ks if k.isdigit())
+
+
+def sections_with_ends(names: Sequence[str]) -> list[int]:
+    """The sections ``k`` (1-based, in order) whose end's ``x_k, y_k, z_k``
+    (:func:`section_end_columns`) are all among a table's column ``names``."""
+    return [
+        k
+        for k in section_numbers(names, TIP_COLUMNS[0])
+        if k > 0 and all(c in names for c in section_end_columns(k))
+    ]
+
+
+def section_count(names: Sequence[str]) -> int:
+    """Sections of the robot a table (an estimate) was made for, from its bend columns
+    (``theta``: one; ``theta_1 ... theta_n``: n); 0 when it has none."""
+    if "theta" in names:
+        return 1
+    n = 0
+    while f"theta_{n + 1}" in names:
+        n += 1
+    return n
 
 
 def output_names(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
@@ -124,6 +208,13 @@ def wrapped_indices(outputs: Sequence[OutputSpec]) -> tuple[int, ...]:
 def tip_position_indices(outputs: Sequence[OutputSpec]) -> tuple[int, ...]:
     """The columns of the tip's position (section 0, in m: ``x, y, z``)."""
     return tuple(i for i, o in enumerate(outputs) if o.section == 0 and o.unit == "m")
+
+
+def section_end_indices(outputs: Sequence[OutputSpec], k: int) -> tuple[int, ...]:
+    """The columns of section ``k``'s (1-based) end position (section ``k``, in m:
+    ``x_k, y_k, z_k``); none where the outputs have none (one constant-curvature
+    section, whose end is the tip: :func:`tip_position_indices`)."""
+    return tuple(i for i, o in enumerate(outputs) if o.section == k and o.unit == "m")
 
 
 def imu_suffix(i: int, n_imus: int) -> str:
@@ -166,16 +257,9 @@ def section_bends(
     """Bend vectors (n_sections, 2) rad from one row of outputs (``theta, phi`` or
     ``theta_k, phi_k``): ``(theta cos phi, theta sin phi)``."""
     names = [o.name for o in outputs]
-    if "theta" in names:
-        pairs = [(names.index("theta"), names.index("phi"))]
-    else:
-        pairs = []
-        k = 1
-        while f"theta_{k}" in names:
-            pairs.append((names.index(f"theta_{k}"), names.index(f"phi_{k}")))
-            k += 1
-    out = np.zeros((len(pairs), 2))
-    for k, (i, j) in enumerate(pairs):
+    bends = [names.index(c) for c in bend_columns(names, section_count(names))]
+    out = np.zeros((len(bends) // 2, 2))
+    for k, (i, j) in enumerate(zip(bends[::2], bends[1::2])):
         th, ph = float(values[i]), float(values[j])
         out[k] = th * math.cos(ph), th * math.sin(ph)
     return out

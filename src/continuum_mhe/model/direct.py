@@ -76,7 +76,7 @@ from continuum_mhe.model.descriptions import (
     MeasurementBlock,
     OutputSpec,
     direct_blocks,
-    imu_twist_names,
+    imu_twist_outputs,
 )
 from continuum_mhe.model.imu import STANDARD_GRAVITY, shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
@@ -335,7 +335,7 @@ class DirectFormulation(BendFormulation):
         base = super().outputs
         if not self.imu_twist:
             return base
-        return (*base, *(OutputSpec(name, "rad") for name in imu_twist_names(self.robot.n_imus)))
+        return (*base, *imu_twist_outputs(self.robot.n_imus))
 
     def output_sym(self, x: Sym) -> Sym:
         """``bend``'s outputs, then each IMU's twist (``imu_twist``)."""

@@ -507,6 +507,11 @@ class Robot:
         return self.backbone is not None
 
     @property
+    def anchored_sections(self) -> tuple[int, ...]:
+        """The sections (0-based, in order) at whose end a tendon is anchored."""
+        return tuple(sorted({t.section for t in self.tendons}))
+
+    @property
     def n_tendons(self) -> int:
         """The number of tendons (the tensions' columns, in the robot file's order)."""
         return len(self.tendons)

@@ -76,11 +76,11 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.descriptions import (
     TIP_FORCE_COLUMNS,
-    TIP_OUTPUTS,
     MeasurementBlock,
     OutputSpec,
     direct_blocks,
-    section_outputs,
+    tendon_outputs,
+    tension_gain_outputs,
     tilt_blocks,
 )
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
@@ -250,17 +250,6 @@ GAIN_TENSION_PRIOR_STD = 100.0
 
 
 ImuModel = Literal["tilt", "direct"]
-
-
-def tendon_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
-    """The tip ``x, y, z``; per section ``k`` its equivalent bend ``theta_k, phi_k``
-    (between its end tangents), end position ``x_k, y_k, z_k`` and twist ``psi_k``;
-    then the tip force ``fx, fy, fz`` (N, base frame)."""
-    out = list(TIP_OUTPUTS)
-    for k in range(1, n_sections + 1):
-        out += [*section_outputs(k), OutputSpec(f"psi_{k}", "rad", True, section=k)]
-    out += [OutputSpec(name, "N") for name in TIP_FORCE_COLUMNS]
-    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -585,7 +574,7 @@ class TendonFormulation(Formulation):
         anchored; else none."""
         if not self.estimate_tension_gain:
             return ()
-        return tuple(sorted({t.section for t in self.robot.tendons}))
+        return self.robot.anchored_sections
 
     @property
     def n_tension_gain(self) -> int:
@@ -706,12 +695,10 @@ class TendonFormulation(Formulation):
 
     @cached_property
     def outputs(self) -> tuple[OutputSpec, ...]:
-        """:func:`tendon_outputs`, then each tension gain ``tension_gain_s``
-        (dimensionless, the acting tension over the given one) where estimated."""
-        gains = tuple(
-            OutputSpec(f"tension_gain_{s + 1}", "1", section=s + 1)
-            for s in self.tension_gain_sections
-        )
+        """:func:`~continuum_mhe.model.descriptions.tendon_outputs`, then each tension
+        gain ``tension_gain_s`` (dimensionless, the acting tension over the given one)
+        where estimated."""
+        gains = tension_gain_outputs(self.tension_gain_sections)
         return (*tendon_outputs(self.robot.n_sections), *gains)
 
     # --- model ----------------------------------------------------------------------

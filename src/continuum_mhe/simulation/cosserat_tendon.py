@@ -61,6 +61,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, one_line_warnings
 from continuum_mhe.io.position_units import WRAPPED_BEND_DEG
+from continuum_mhe.model.descriptions import tendon_outputs
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.robot import TENDON_ROUTES, Robot
 from continuum_mhe.simulation.cosserat import ImuSettings
@@ -248,8 +249,6 @@ def straight_phi(theta: float, phi: float) -> float:
 
 def truth_columns(n_sections: int) -> list[str]:
     """The truth file's columns: those of the tendon formulation's outputs."""
-    from continuum_mhe.model.tendon import tendon_outputs
-
     return ["t", *(o.name for o in tendon_outputs(n_sections))]
 
 

@@ -20,9 +20,8 @@ from continuum_mhe.io.state_tables import (
     robot_misfit,
 )
 from continuum_mhe.io.tensions import Tensions, on_log_clock, read_tensions
-from continuum_mhe.model.descriptions import OutputSpec, imu_twist_names, pcc_outputs
+from continuum_mhe.model.descriptions import OutputSpec, robot_outputs
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.viewer.geometry import TendonShapes
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import BackboneView, ViewNote, ViewWarning
@@ -30,21 +29,18 @@ from continuum_mhe.viewer.view import BackboneView, ViewNote, ViewWarning
 
 def estimated_extras(names: Sequence[str], robot: Robot) -> tuple[OutputSpec, ...]:
     """The outputs beyond the shape that an estimate's columns ``names`` hold, named and
-    in the order the formulation that made them gives them: a tendon robot's tension gain
-    per section ``tension_gain_s`` (``--estimate-tension-gain``: the backbone is drawn
-    under the given tensions times these), or each IMU's twist ``imu_twist_i``
-    (``--imu-twist``; ``imu_twist`` for one IMU). ``live --view`` draws the same outputs
-    (its formulation's)."""
-    if robot.backbone is not None:
-        return tuple(
-            OutputSpec(f"tension_gain_{s}", "1", section=s)
-            for s in range(1, robot.n_sections + 1)
-            if f"tension_gain_{s}" in names
-        )
-    twists = imu_twist_names(robot.n_imus)
-    if all(n in names for n in twists):
-        return tuple(OutputSpec(n, "rad") for n in twists)
-    return ()
+    in the order the formulation that made them gives them (:func:`robot_outputs` with
+    the option): a tendon robot's tension gains ``tension_gain_s`` that are there
+    (``--estimate-tension-gain``: the backbone is drawn under the given tensions times
+    these), or each IMU's twist ``imu_twist_i`` where every IMU's is (``--imu-twist``;
+    ``imu_twist`` for one IMU). ``live --view`` draws the same outputs (its
+    formulation's)."""
+    tendon = robot.backbone is not None
+    shape = len(robot_outputs(robot))
+    extras = robot_outputs(robot, tension_gain=tendon, imu_twist=not tendon)[shape:]
+    if tendon:
+        return tuple(o for o in extras if o.name in names)
+    return extras if all(o.name in names for o in extras) else ()
 
 
 def _not_a_tendon_robot(name: str) -> str:
@@ -86,7 +82,6 @@ def replay(
     close`); nothing is printed."""
     tendon = None
     if robot.backbone is not None:
-        outputs = tendon_outputs(robot.n_sections)
         tendon = TendonShapes(robot, points_per_section, tensions)
         if tensions is None:
             warnings.warn(
@@ -97,12 +92,10 @@ def replay(
             )
     elif tensions is not None:
         raise InputError(_not_a_tendon_robot(tensions.name))
-    else:
-        outputs = pcc_outputs(robot.n_sections)
     est = read_estimates(estimates, "view EST.csv")
     require_an_estimate(estimates, est)
     check_estimate_fits(estimates, est.names, robot)
-    outputs = (*outputs, *estimated_extras(est.names, robot))
+    outputs = (*robot_outputs(robot), *estimated_extras(est.names, robot))
     if tendon is not None and tendon.tensions is not None and len(est.t):
         tendon.tensions.check_span(float(est.t[0]), float(est.t[-1]))  # milliseconds?
     cols = [est.names.index(o.name) for o in outputs]

@@ -29,11 +29,11 @@ from continuum_mhe.model.descriptions import (
     TIP_FORCE_COLUMNS,
     OutputSpec,
     imu_twist_names,
-    pcc_outputs,
+    robot_outputs,
     section_bends,
+    section_end_indices,
 )
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.results import Estimate, Status
 from continuum_mhe.viewer.geometry import (
     BackboneGeometry,
@@ -204,9 +204,7 @@ class BackboneView:
         self.model_tip_off = 0.0
         #: the angles a shape is drawn from (a truth's backbone needs them): the bends,
         #: and a tendon robot's twists; not an output beyond the shape (``imu_twist``)
-        n_sec = robot.n_sections
-        shape = tendon_outputs(n_sec) if robot.backbone is not None else pcc_outputs(n_sec)
-        self._shape_angles = {o.name for o in shape if o.unit == "rad"}
+        self._shape_angles = {o.name for o in robot_outputs(robot) if o.unit == "rad"}
         names = [o.name for o in self.outputs]
         #: the tip's ``x, y, z`` among the outputs
         self._tip_columns = [names.index(c) for c in TIP_COLUMNS]
@@ -511,8 +509,8 @@ class BackboneView:
                 self.outputs[j].name in col for j in self._twist_columns
             ):  # an estimate's IMU twists (a truth has none)
                 geom = with_imu_twists(self.robot, geom, ordered[:, self._twist_columns])
-            return geom, values[:, [col[c] for c in "xyz"]]  # the rows' own tips
-        tips = values[:, [col[c] for c in "xyz"]]
+            return geom, values[:, [col[c] for c in TIP_COLUMNS]]  # the rows' own tips
+        tips = values[:, [col[c] for c in TIP_COLUMNS]]
         if self.tendon.tensions is None or not all(c in col for c in TIP_FORCE_COLUMNS):
             return None, tips
         forces = values[:, [col[c] for c in TIP_FORCE_COLUMNS]]
@@ -523,8 +521,8 @@ class BackboneView:
         n_sec = self.robot.n_sections
         ends = np.repeat(tips[rows][:, None, :], n_sec, axis=1)  # the tip, where no end
         for k in range(1, n_sec + 1):
-            named = [f"{c}_{k}" for c in "xyz"]
-            if all(c in col for c in named):
+            named = self._section_end_names(k)
+            if named and all(c in col for c in named):
                 ends[:, k - 1] = values[rows][:, [col[c] for c in named]]
             elif k < n_sec:  # a truth without its section ends: one line base to tip
                 ends[:, k - 1] = tips[rows] * k / n_sec
@@ -535,6 +533,11 @@ class BackboneView:
             stacklevel=3,
         )
         return joined_through_ends(geom, rows, ends), tips
+
+    def _section_end_names(self, k: int) -> list[str]:
+        """The names of section ``k``'s end position among the outputs (``x_k, y_k,
+        z_k``; none where the outputs have none: one constant-curvature section)."""
+        return [self.outputs[i].name for i in section_end_indices(self.outputs, k)]
 
     def _draws_shape_from(self, name: str) -> bool:
         """Whether a truth's column ``name`` is one the backbone is drawn from: a bend
@@ -557,7 +560,8 @@ class BackboneView:
         values = np.asarray(values, dtype=float)
         some = [j for j in range(len(names)) if np.isfinite(values[:, j]).any()]
         names, values = [names[j] for j in some], values[:, some]
-        end_columns = {f"{c}_{k}" for k in range(1, self.robot.n_sections + 1) for c in "xyz"}
+        sections = range(1, self.robot.n_sections + 1)
+        end_columns = {c for k in sections for c in self._section_end_names(k)}
         points = [j for j, c in enumerate(names) if c in TIP_COLUMNS or c in end_columns]
         whole = np.all(np.isfinite(values[:, points]), axis=1)
         shape = [j for j, c in enumerate(names) if j not in points and self._draws_shape_from(c)]
@@ -571,7 +575,7 @@ class BackboneView:
         drawn = np.flatnonzero(whole)
         joined = np.concatenate([[False], np.diff(drawn) == 1])  # no trail across a gap
         t, values = t[whole], values[whole]
-        tips = values[:, [col[c] for c in "xyz"]]
+        tips = values[:, [col[c] for c in TIP_COLUMNS]]
         geom = None
         if self.tendon is not None or all(
             o.name in col for o in self.outputs if o.name in self._shape_angles
@@ -583,9 +587,13 @@ class BackboneView:
             else None
         )
         self._send_shapes("truth", t, geom, tips, joined, forces)
-        ends = [k for k in range(1, self.robot.n_sections + 1) if f"x_{k}" in col]
+        ends = [
+            named
+            for named in map(self._section_end_names, sections)
+            if named and all(c in col for c in named)
+        ]
         if ends:
-            pts = np.stack([values[:, [col[f"{c}_{k}"] for c in "xyz"]] for k in ends], axis=1)
+            pts = np.stack([values[:, [col[c] for c in named]] for named in ends], axis=1)
             self.rec.send_columns(
                 "world/truth/section_ends",
                 indexes=[self.rr.TimeColumn("t", duration=nanoseconds(t))],
