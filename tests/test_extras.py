@@ -93,18 +93,12 @@ def test_reproduce_scheduler_without_dask_writes_no_folder(monkeypatch, tmp_path
     assert not out.exists()
 
 
-@pytest.mark.parametrize(
-    "module", ["continuum_mhe.simulation.cosserat", "continuum_mhe.simulation.cosserat_sections"]
-)
-def test_rod_generators_without_pyelastica(monkeypatch, tmp_path, capsys, module):
-    import importlib
-
+@pytest.mark.parametrize("command", ["single", "sections"])
+def test_rod_generators_without_pyelastica(monkeypatch, tmp_path, capsys, command):
     _block(monkeypatch, "elastica")
-    gen = importlib.import_module(module)
-    target = tmp_path / "rod.csv" if module.endswith("cosserat") else tmp_path
-    argv = ["-o", str(target)]
-    assert gen.main(argv) == 2
-    _one_error_line(capsys.readouterr().err, "rod", f"python -m {module}")
+    target = tmp_path / "rod.csv" if command == "single" else tmp_path / "out"
+    assert main(["rod", command, "-o", str(target)]) == 2
+    _one_error_line(capsys.readouterr().err, "rod")
     assert list(tmp_path.iterdir()) == []
 
 

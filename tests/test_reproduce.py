@@ -203,6 +203,10 @@ def test_report_prose_reads_the_configuration(quick_run: Path) -> None:
     assert "whole run and over the first N = 17 samples" in text
     assert "N = 23, seed 0" in text
     assert "Few seeds" not in text
+    # the command line's generator, whatever the shipped settings record as theirs
+    assert (
+        "Regenerate it with `continuum-mhe rod single -o rod.csv --seed 0 --duration 20`." in text
+    )
     results["exp3_rod"]["generator"] = None  # a recording from elsewhere
     assert "with no generator settings beside it" in rp.render_report(results)
 

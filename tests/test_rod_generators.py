@@ -33,6 +33,11 @@ from continuum_mhe.simulation.cosserat_sections import (
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 
 
+def _rod_sections(argv: list[str]) -> int:
+    """``continuum-mhe rod sections ARGV``'s exit status."""
+    return main(["rod", "sections", *argv])
+
+
 def _rot_z(a: np.ndarray) -> np.ndarray:
     c, s = np.cos(a), np.sin(a)
     out = np.zeros((*a.shape, 3, 3))
@@ -172,7 +177,7 @@ def test_rod_generator_short_run(tmp_path: Path) -> None:
     cosserat.write_recording(path, rec)
     back = cosserat.read_recording(path).columns
     np.testing.assert_allclose(back["roll"], cols["roll"], rtol=1e-6, atol=1e-9)
-    assert cosserat.main(["-o", str(tmp_path / "x.csv"), "--duration", "-1"]) == 2
+    assert main(["rod", "single", "-o", str(tmp_path / "x.csv"), "--duration", "-1"]) == 2
 
 
 @pytest.mark.slow
@@ -194,9 +199,10 @@ def test_shipped_rod_recording_comes_from_its_generator_settings() -> None:
 @pytest.mark.slow
 def test_rod_generator_writes_its_settings_beside_the_recording(tmp_path: Path) -> None:
     out = tmp_path / "rod.csv"
-    assert cosserat.main(["-o", str(out), "--duration", "0.1", "--seed", "3"]) == 0
+    assert main(["rod", "single", "-o", str(out), "--duration", "0.1", "--seed", "3"]) == 0
     info = cosserat.read_generator_info(out)
     assert info is not None and (info["seed"], info["duration"]) == (3, 0.1)
+    assert info["generator"] == "continuum-mhe rod single"
     assert info["rod"] == dataclasses.asdict(cosserat.RodSettings())
     (tmp_path / "rod_info.json").write_text("{")
     with pytest.raises(ValueError, match="rod_info.json"):
@@ -204,32 +210,30 @@ def test_rod_generator_writes_its_settings_beside_the_recording(tmp_path: Path) 
 
 
 def test_the_rod_generator_refuses_a_missing_folder_before_it_simulates(tmp_path, capsys) -> None:
-    """``python -m continuum_mhe.simulation.cosserat -o DIR/x.csv`` with no DIR: one line,
+    """``continuum-mhe rod single -o DIR/x.csv`` with no DIR: one line,
     exit 2, before the minute of simulation (not a traceback after it)."""
     pytest.importorskip("elastica")
-    from continuum_mhe.simulation import cosserat
 
-    assert cosserat.main(["-o", str(tmp_path / "none" / "x.csv"), "--duration", "0.1"]) == 2
+    assert main(["rod", "single", "-o", str(tmp_path / "none" / "x.csv"), "--duration", "0.1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "folder" in err[0] and "does not exist" in err[0]
 
 
 def test_the_rod_generator_asks_for_its_output_and_replaces_none_unasked(tmp_path, capsys) -> None:
-    """``python -m continuum_mhe.simulation.cosserat`` without ``-o`` is refused (no
+    """``continuum-mhe rod single`` without ``-o`` is refused (no
     default inside the installed package, whose shipped recording it would replace),
     and an existing file (or its settings beside it) without ``--overwrite`` is one line,
     exit 2, before the simulation, the file left as it was."""
     pytest.importorskip("elastica")
-    from continuum_mhe.simulation import cosserat
 
     with pytest.raises(SystemExit) as info:
-        cosserat.main(["--duration", "0.1"])
+        main(["rod", "single", "--duration", "0.1"])
     assert info.value.code == 2
     assert "the following arguments are required: -o/--output" in capsys.readouterr().err
     out = tmp_path / "rod.csv"
     for existing in (out, tmp_path / "rod_info.json"):
         existing.write_text("kept\n")
-        assert cosserat.main(["-o", str(out), "--duration", "0.1"]) == 2
+        assert main(["rod", "single", "-o", str(out), "--duration", "0.1"]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--overwrite" in err[0] and existing.name in err[0]
         assert existing.read_text() == "kept\n"
@@ -244,7 +248,6 @@ def test_the_section_rod_generator_makes_its_folder_and_refuses_a_mistyped_path(
     folder in a folder that does not exist, or a file, is one line, exit 2. (The bend
     recording's simulation and writer are stood in for: the folder is the point.)"""
     from continuum_mhe.simulation import cosserat_sections
-    from continuum_mhe.simulation.cosserat_sections import main as generate
 
     def write_bend(out: Path, name: str, *args: object, **kwargs: object) -> Path:
         (out / f"{name}_bend.csv").write_text("t\n0\n")
@@ -253,15 +256,20 @@ def test_the_section_rod_generator_makes_its_folder_and_refuses_a_mistyped_path(
     monkeypatch.setattr(cosserat_sections, "bend_trajectory", lambda *a: None)
     monkeypatch.setattr(cosserat_sections, "write_bend_recording", write_bend)
     new = tmp_path / "DIR"
-    assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(new)]) == 0
+    assert _rod_sections(["--scenario", "planar-s", "--bend-only", "-o", str(new)]) == 0
     assert (new / "planar-s_bend.csv").stat().st_size > 0
     capsys.readouterr()
-    assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(tmp_path / "a" / "b")]) == 2
+    assert (
+        _rod_sections(["--scenario", "planar-s", "--bend-only", "-o", str(tmp_path / "a" / "b")])
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].endswith(f"folder {tmp_path / 'a'} does not exist"), err
     assert not (tmp_path / "a").exists()
     (tmp_path / "file").write_text("x\n")
-    assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(tmp_path / "file")]) == 2
+    assert (
+        _rod_sections(["--scenario", "planar-s", "--bend-only", "-o", str(tmp_path / "file")]) == 2
+    )
     assert capsys.readouterr().err.strip().endswith("exists and is not a folder")
 
 
@@ -275,25 +283,24 @@ def test_the_section_rod_generator_picks_a_stable_step_and_says_a_divergence(
     traceback); a shear ratio that is not a ratio is refused in one line."""
     pytest.importorskip("elastica")
     from continuum_mhe.simulation.cosserat_sections import BASE_SIM_DT, default_sim_dt
-    from continuum_mhe.simulation.cosserat_sections import main as generate
 
     assert default_sim_dt(1.0 / 3.0) == BASE_SIM_DT == default_sim_dt(0.1)
     assert default_sim_dt(2.0) < 1e-5 and default_sim_dt(5.0) < 5e-6
     assert default_sim_dt(5.0) == pytest.approx(0.9 * BASE_SIM_DT / math.sqrt(15.0))
     argv = ["--scenario", "spatial", "--shear-ratio", "5", "--duration", "0.2"]
-    assert generate([*argv, "--sim-dt", "2e-5", "-o", str(tmp_path / "d")]) == 2
+    assert _rod_sections([*argv, "--sim-dt", "2e-5", "-o", str(tmp_path / "d")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "diverged" in err[0] and "--sim-dt 2e-05" in err[0], err
     assert not (tmp_path / "d").exists()
     for bad in ("-1", "0", "nan"):
-        assert generate(["--shear-ratio", bad, "-o", str(tmp_path / "e")]) == 2
+        assert _rod_sections(["--shear-ratio", bad, "-o", str(tmp_path / "e")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--shear-ratio must be G / E > 0" in err[0], err
 
 
 # --- the generators' refusals: before any simulation ----------------------------------------
-SECTIONS_PROG = "python -m continuum_mhe.simulation.cosserat_sections"
-TENDON_PROG = "python -m continuum_mhe.simulation.cosserat_tendon"
+#: how the command line's errors begin
+ERROR = "continuum-mhe: error:"
 
 
 def _straight_frame(n_elements: int = 30, length: float = 0.3) -> tuple[np.ndarray, ...]:
@@ -347,12 +354,11 @@ def test_a_step_that_blows_the_rod_up_is_one_line_and_writes_nothing(
     recorded millisecond: one line naming ``--sim-dt``, exit 2, no folder (it wrote all
     six files of a 7.5 m tip, exit 0)."""
     pytest.importorskip("elastica")
-    from continuum_mhe.simulation.cosserat_sections import main as generate
 
     out = tmp_path / "d"
-    assert generate(["--sim-dt", "5e-5", "--duration", "0.05", "-o", str(out)]) == 2
+    assert _rod_sections(["--sim-dt", "5e-5", "--duration", "0.05", "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith(f"{SECTIONS_PROG}: error: rod simulation"), err
+    assert len(err) == 1 and err[0].startswith(f"{ERROR} rod simulation"), err
     assert "strained" in err[0] and "--sim-dt 5e-05: give a shorter step" in err[0], err
     assert not out.exists()
 
@@ -393,31 +399,108 @@ def test_the_section_rod_generator_refuses_bad_numbers_before_it_simulates(
 
     monkeypatch.setattr(cosserat_sections, "simulate_sections", no_simulation)
     out = tmp_path / "out"
-    assert cosserat_sections.main([*argv, "-o", str(out)]) == 2
+    assert main(["rod", "sections", *argv, "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith(f"{SECTIONS_PROG}: error: {said}"), err
+    assert len(err) == 1 and err[0].startswith(f"{ERROR} {said}"), err
     assert list(tmp_path.iterdir()) == []
 
 
-def test_both_generators_help_names_them_as_run_and_says_each_default(
-    capsys: pytest.CaptureFixture[str],
-) -> None:
-    """Both tools call themselves ``python -m continuum_mhe.simulation.NAME`` (not
-    ``cosserat_tendon.py``), and the section generator's ``--scenario``
-    and ``--seed`` say what they are and their default."""
-    from continuum_mhe.simulation import cosserat_sections, cosserat_tendon
+#: Each generator's ``--help`` after its usage line (at 100 columns), word for word as
+#: the generator's own parser wrote it when it ran as a module: each subcommand keeps
+#: every option, default and help text of its generator.
+GENERATOR_HELP = {
+    "single": """\
+Simulate a cable-driven Cosserat rod with a tip MPU9250-like IMU and write the recording CSV.
 
-    for module, prog in ((cosserat_sections, SECTIONS_PROG), (cosserat_tendon, TENDON_PROG)):
+options:
+  -h, --help            show this help message and exit
+  -o OUTPUT, --output OUTPUT
+                        CSV to write, its settings beside it as NAME_info.json (the shipped
+                        recording is src/continuum_mhe/data/rod_planar.csv in a clone of the
+                        repository)
+  --overwrite           replace an existing -o file (else refused)
+  --duration DURATION   seconds (default 20)
+  --seed SEED           sensor noise seed (default 0)
+""",
+    "sections": """\
+Simulate a two-section Cosserat rod with an IMU at each section's end.
+
+options:
+  -h, --help            show this help message and exit
+  -o OUT, --out OUT     folder for the files
+  --scenario {planar-s,spatial}
+                        the couples' motion: planar-s (an S in one plane) or spatial (bending
+                        planes turning; bends past 90 degrees) (default planar-s)
+  --name NAME           file name prefix (default: the scenario)
+  --duration DURATION   seconds, 0.02 (the IMUs' sample time) to 600 (default 12)
+  --shear-ratio SHEAR_RATIO
+                        G / E, above 0 and at most 100 (default 1/3)
+  --sim-dt SIM_DT       integration step in s, 1e-7 to 1e-3 (default: 2e-5, shorter for a stiffer
+                        torsion: default_sim_dt)
+  --drive {base,tendon}
+                        couples fixed in the base frame (default) or in each section's frame
+                        (tendon)
+  --calibrated          IMUs without accelerometer bias and board misalignment (as after a
+                        calibration); noise, quantisation and gyro bias stay
+  --seed SEED           draws the IMUs' errors and noise, an integer >= 0 (default 0)
+  --bend-only           write only NAME_bend.csv (the bend calibration recording of the IMUs that
+                        these options give the recording)
+""",
+    "tendon": """\
+Recordings of a tendon-driven robot that its estimator's model did not generate.
+
+options:
+  -h, --help            show this help message and exit
+  --scenario {unloaded,planar-s,force-08,force-29,twist-08,twist-29,static}
+                        the motion (default: unloaded)
+  --duration DURATION   s, 0.02 (the IMUs' sample time) to 600; the shipped recordings' is 8
+                        (default: 8.0)
+  --robot ROBOT         a robot file (or shipped name) of two sections with an IMU at each end
+                        (default: tendon-two-section)
+  --name NAME           the files' prefix, the scenario's name if not given (default: None)
+  --route {continuous,disks}
+                        the tendons' path: continuous along the backbone at their radius, or
+                        straight from disk to disk, as through a real robot's spacer disks
+                        (default: the robot file's tendon_route, continuous where it gives none)
+  --segments-per-disk SEGMENTS_PER_DISK
+                        the discrete rod's segments between two disks, 1 to 32: more resolve
+                        tendons drawn from disk to disk on widely spaced disks (each doubling
+                        takes about eight times as long) (default: 4)
+  --seed SEED           draws the IMUs' errors and noise, an integer >= 0 (default: 0)
+  -o OUTPUT, --output OUTPUT
+                        the folder to write to (made in a folder that exists) (default: None)
+""",
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("command", list(GENERATOR_HELP))
+def test_each_generators_help_lists_the_options_it_had(
+    command: str, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``continuum-mhe rod COMMAND --help`` calls itself so, and its description and
+    options are those the generator had as a module's command line, word for word."""
+    monkeypatch.setenv("COLUMNS", "100")  # argparse wraps at the terminal's width
+    with pytest.raises(SystemExit) as exit_:
+        main(["rod", command, "--help"])
+    assert exit_.value.code == 0
+    text = capsys.readouterr().out
+    assert text.startswith(f"usage: continuum-mhe rod {command} [-h]"), text[:80]
+    assert text.split("\n\n", 1)[1] == GENERATOR_HELP[command]
+
+
+def test_rod_lists_its_three_generators(capsys: pytest.CaptureFixture[str]) -> None:
+    """``continuum-mhe rod`` without a generator, or with a misspelt one, is one line
+    naming the three, exit 2."""
+    for argv, said in (
+        ([], "the following arguments are required: COMMAND"),
+        (["sigle"], "'sigle' is not a command: expected one of single, sections, tendon; "
+         "did you mean single?"),
+    ):  # fmt: skip
         with pytest.raises(SystemExit) as exit_:
-            module.main(["--help"])
-        assert exit_.value.code == 0
-        text = " ".join(capsys.readouterr().out.split())
-        assert text.startswith(f"usage: {prog} "), text[:80]
-    with pytest.raises(SystemExit):
-        cosserat_sections.main(["--help"])
-    text = " ".join(capsys.readouterr().out.split())
-    assert "planar-s (an S in one plane) or spatial" in text and "(default planar-s)" in text
-    assert "draws the IMUs' errors and noise, an integer >= 0 (default 0)" in text
+            main(["rod", *argv])
+        assert exit_.value.code == 2
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert line.startswith(f"continuum-mhe rod: error: {said}"), line
 
 
 def _tendon_robot(tmp_path: Path, edit: tuple[str, str] = ("", "")) -> Path:
@@ -475,10 +558,10 @@ def test_the_tendon_generator_refuses_bad_arguments_before_it_simulates(
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
     if "-o" not in argv:
         argv += ["-o", str(tmp_path / "out")]
-    assert cosserat_tendon.main(argv) == 2
+    assert main(["rod", "tendon", *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     said = said.replace("{tmp}", str(tmp_path))
-    assert len(err) == 1 and err[0].startswith(f"{TENDON_PROG}: error: {said}"), err
+    assert len(err) == 1 and err[0].startswith(f"{ERROR} {said}"), err
     assert sorted(tmp_path.iterdir()) == before
 
 
@@ -495,11 +578,11 @@ def test_an_equilibrium_the_tendon_generator_cannot_find_is_one_line(
 
     monkeypatch.setattr(cosserat_tendon, "energy_equilibrium", not_converged)
     robot, out = _tendon_robot(tmp_path), tmp_path / "out"
-    assert cosserat_tendon.main(["--robot", str(robot), "--duration", "0.1", "-o", str(out)]) == 2
+    assert main(["rod", "tendon", "--robot", str(robot), "--duration", "0.1", "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
     assert err[0].startswith(
-        f"{TENDON_PROG}: error: {robot}: the rod's energy minimisation did not converge at "
+        f"{ERROR} {robot}: the rod's energy minimisation did not converge at "
         "t = 0.00 s (--scenario unloaded): the tensions, sized for tendon-two-section"
     ), err
     assert "a stiffer backbone" in err[0] and not out.exists()

@@ -1038,12 +1038,10 @@ def test_the_recording_generator_refuses_a_robot_it_does_not_write(
     """The tendon-robot generator writes two sections with an IMU at each end: another
     robot is one line and exit 2, nothing written (not the shipped robot's two-IMU files
     and truth under a one-section robot's name, tendon-two-section in its info)."""
-    from continuum_mhe.simulation import cosserat_tendon
-
     path = tmp_path / "one.toml"
     path.write_text(TENDON_FILE)
     out = tmp_path / "out"
-    assert cosserat_tendon.main(["--robot", str(path), "-o", str(out)]) == 2
+    assert main(["rod", "tendon", "--robot", str(path), "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "writes two-section robots with an IMU at each section's end" in err[0]
     assert "not 1 section (0.2 m), IMUs at 1@0.5" in err[0] and not out.exists()
@@ -1059,7 +1057,7 @@ def test_the_recording_generator_refuses_a_robot_it_does_not_write(
         (turned, "IMU 2 has a mount_rpy: the tendon-robot generator reads each IMU in its"),
     ):
         path.write_text(text)
-        assert cosserat_tendon.main(["--robot", str(path), "-o", str(out)]) == 2
+        assert main(["rod", "tendon", "--robot", str(path), "-o", str(out)]) == 2
         (line,) = capsys.readouterr().err.strip().splitlines()
         assert said in line and not out.exists(), line
 
@@ -1082,14 +1080,14 @@ def test_the_recording_generator_refuses_sections_without_disks_and_warns_in_one
     robot.write_text("\n".join(lines).replace("angle = 240", "angle = 4.712"))
     out = tmp_path / "out"
     r = subprocess.run(
-        [sys.executable, "-m", "continuum_mhe.simulation.cosserat_tendon", "--robot",
-         str(robot), "--duration", "0.04", "-o", str(out)],
+        [sys.executable, "-m", "continuum_mhe.cli", "rod", "tendon", "--robot", str(robot),
+         "--duration", "0.04", "-o", str(out)],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert r.returncode == 2, r.stderr
     err = r.stderr.strip().splitlines()
     assert len(err) == 2, r.stderr
-    prog = "python -m continuum_mhe.simulation.cosserat_tendon"
+    prog = "continuum-mhe"
     assert err[0].startswith(f"{prog}: warning: ") and "(4.712 rad is 270 degrees)" in err[0]
     assert err[1].startswith(f"{prog}: error: {robot}: section 1 has no spacer disks")
     assert not out.exists()
@@ -1107,7 +1105,7 @@ def test_simulate_refuses_a_tendon_robot(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("continuum-mhe: error: tendon-two-section: a tendon")
     assert "the scenarios but rest (straight and still) are the bends of a" in err[0]
-    assert "continuum_mhe.simulation.cosserat_tendon" in err[0] and not out.exists()
+    assert "continuum-mhe rod tendon" in err[0] and not out.exists()
 
 
 def test_an_imu_count_off_for_a_tendon_robot_asks_for_its_robot_file(
@@ -2284,14 +2282,13 @@ OTHER_ROBOT = Path(__file__).parent / "data" / "tendon_other_robot"
 
 def test_rows_after_a_restart_of_a_model_that_did_not_follow_are_not_ok(tmp_path: Path) -> None:
     """A robot unlike the shipped one (``tests/data/tendon_other_robot``: steel, 0.25 +
-    0.15 m, four tendons a section; its ``unloaded`` made by ``python -m
-    continuum_mhe.simulation.cosserat_tendon --scenario unloaded --duration 8 --robot
-    robot.toml``, seed 0), estimated with its sections' lengths swapped: the rows are
-    ``drifted``. The single EKF (the robot loaded, without the free-of-load hypothesis)
-    restarts on readings that contradict it; a restart clears the IMU error states whose
-    change shows the model error, so the rows after it would look ``ok`` (two, 20 to 24 mm
-    off, 18 of their standard deviations); within the probation time of the last drifted
-    row they are not trusted."""
+    0.15 m, four tendons a section; its ``unloaded`` made by ``continuum-mhe rod tendon
+    --scenario unloaded --duration 8 --robot robot.toml``, seed 0), estimated with its
+    sections' lengths swapped: the rows are ``drifted``. The single EKF (the robot loaded,
+    without the free-of-load hypothesis) restarts on readings that contradict it; a restart
+    clears the IMU error states whose change shows the model error, so the rows after it
+    would look ``ok`` (two, 20 to 24 mm off, 18 of their standard deviations); within the
+    probation time of the last drifted row they are not trusted."""
     from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import open_input

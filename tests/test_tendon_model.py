@@ -373,8 +373,8 @@ def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) 
     ``tendon_route`` by default, ``--route`` another, and its info says which."""
     import json
 
+    from continuum_mhe.cli import main
     from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
-    from continuum_mhe.simulation.cosserat_tendon import main as generate
 
     length = 0.2
     robot = Robot((Section(length, 3.0, 4),), (ImuPlacement(0, 1.0),), "z-up", BACKBONE,
@@ -390,13 +390,13 @@ def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) 
     text = (DATA.parent / "robots" / "tendon_two_section.toml").read_text()
     robot_file = tmp_path / "r.toml"  # two disks a section: a quick rod
     robot_file.write_text('tendon_route = "disks"\n' + text.replace("disks = 10", "disks = 2"))
-    assert generate(["--robot", str(robot_file), "--segments-per-disk", "0", "-o",
+    assert main(["rod", "tendon", "--robot", str(robot_file), "--segments-per-disk", "0", "-o",
                      str(tmp_path / "none")]) == 2  # fmt: skip
     assert not (tmp_path / "none").exists()
     for extra, route in (([], "disks"), (["--route", "continuous"], "continuous")):
         out = tmp_path / f"rec-{route}"
         argv = ["--robot", str(robot_file), "--duration", "0.1", "-o", str(out), *extra]
-        assert generate(argv) == 0
+        assert main(["rod", "tendon", *argv]) == 0
         assert json.loads((out / "unloaded_info.json").read_text())["route"] == route
 
 

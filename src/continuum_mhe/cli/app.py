@@ -110,7 +110,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = build_parser(only=word)
     args, unknown = parser.parse_known_args(argv)
     (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    command = commands.choices[args.command]
+    command = _given_command(commands.choices[args.command], args)
     unknown = _late_positionals(command, args, unknown)
     if unknown:  # said by the command's parser, so the usage shown is the command's
         command.error(f"unrecognized arguments: {' '.join(unknown)}")
@@ -148,6 +148,18 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
         args.options_parser = command  # the record is written anew once defaults resolve
         args.options_record = options_record(command, args)
     return args
+
+
+def _given_command(
+    command: argparse.ArgumentParser, args: argparse.Namespace
+) -> argparse.ArgumentParser:
+    """The parser of the subcommand given (``rod tendon``'s), for a command of
+    subcommands; else ``command``."""
+    while True:
+        subs = [a for a in command._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subs:
+            return command
+        command = subs[0].choices[getattr(args, subs[0].dest)]
 
 
 def _refuse_empty_values(command: argparse.ArgumentParser, args: argparse.Namespace) -> None:
@@ -219,7 +231,8 @@ def _run_command(argv: Sequence[str] | None) -> int:
     args: argparse.Namespace | None = None
     try:  # a signal while the parser imports the commands ends the run as one too
         args = _parse(argv)
-        check_option_ranges(args)
+        if not getattr(args, "own_option_ranges", False):  # (rod's generators: their own)
+            check_option_ranges(args)
         check_robot_replaces(args)
         code = int(args.func(args))
     except BaseException as exc:  # noqa: BLE001 - sorted out just below

@@ -23,7 +23,9 @@ class Command:
     """One ``continuum-mhe`` command: its name, its one-line help (``continuum-mhe
     --help``) and the module of :mod:`continuum_mhe.cli` that implements it. That module
     defines ``add_arguments(parser)`` and ``run(args) -> int`` (the exit status), and may
-    define ``DESCRIPTION``, the longer text of ``continuum-mhe NAME --help``."""
+    define ``DESCRIPTION``, the longer text of ``continuum-mhe NAME --help``. A command
+    of subcommands (``rod``) adds them as subparsers whose destination is not
+    ``command``; the full command line reads the options of the one given."""
 
     name: str
     help: str
@@ -34,6 +36,11 @@ class Command:
 COMMANDS: tuple[Command, ...] = (
     Command("demo", "simulate paper3d, run MHE, EKF and UKF, print errors, plot", "demo"),
     Command("simulate", "write a synthetic measurement CSV and its truth", "simulate"),
+    Command(
+        "rod",
+        "write Cosserat-rod recordings that the estimators' models did not generate",
+        "rod",
+    ),
     Command("estimate", "estimate shape and tip from a recording (CSV, ROS bag, MCAP)", "estimate"),
     Command("evaluate", "errors of an estimate CSV against a truth CSV", "evaluate"),
     Command(

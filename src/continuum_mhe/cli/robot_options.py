@@ -44,7 +44,7 @@ def add_robot_option(
         text = (
             "constant-curvature robot file (sections, IMUs, mounting; see README), or a "
             f"shipped one's name ({names}); a tendon robot's recordings come from "
-            "python -m continuum_mhe.simulation.cosserat_tendon"
+            "continuum-mhe rod tendon"
         )
     if replaces:
         *first, last = replaces

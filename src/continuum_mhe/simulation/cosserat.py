@@ -22,16 +22,13 @@ The paper's Sec. 3.3 recordings are not public. This module builds a stand-in th
 Regenerate the shipped example (needs the ``rod`` extra, ``pip install
 continuum-mhe[rod]``)::
 
-    python -m continuum_mhe.simulation.cosserat -o src/continuum_mhe/data/rod_planar.csv --overwrite
+    continuum-mhe rod single -o src/continuum_mhe/data/rod_planar.csv --overwrite
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import sys
-from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,9 +38,13 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.extras import import_problem, missing, require
+from continuum_mhe.extras import require
 from continuum_mhe.model.imu import STANDARD_GRAVITY, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import shape_from_bend, tip_position
+
+#: The command that writes these recordings (:func:`write_generated_recording`), as
+#: :func:`generator_info` records it.
+GENERATOR = "continuum-mhe rod single"
 
 #: Columns of the recording CSV (SI units: s, rad, rad/s, m).
 COLUMNS = (
@@ -413,7 +414,7 @@ def read_recording(path: str | Path) -> RodRecording:
         if missing:  # (an estimate or measurement file, not a rod recording)
             raise InputError(
                 f"{rows.name}: not a rod recording: missing column(s) {', '.join(missing)} "
-                f"(a recording of python -m continuum_mhe.simulation.cosserat has {hint})"
+                f"(a recording of {GENERATOR} has {hint})"
             )
         idx = column_indices(rows, COLUMNS)
         values: list[list[float]] = []
@@ -454,7 +455,7 @@ def generator_info(
 ) -> dict[str, Any]:
     """What made a recording: the command, the rod, the sensor, its length and seed."""
     return {
-        "generator": "python -m continuum_mhe.simulation.cosserat",
+        "generator": GENERATOR,
         "duration": duration,
         "seed": seed,
         "rod": asdict(rod),
@@ -484,50 +485,26 @@ def default_data_path() -> Path:
     return Path(__file__).resolve().parent.parent / "data" / "rod_planar.csv"
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(
-        prog="python -m continuum_mhe.simulation.cosserat",
-        description="Simulate a cable-driven Cosserat rod with a tip MPU9250-like IMU "
-        "and write the recording CSV.",
-    )
-    p.add_argument(
-        "-o", "--output", required=True,
-        help="CSV to write, its settings beside it as NAME_info.json (the shipped recording "
-        "is src/continuum_mhe/data/rod_planar.csv in a clone of the repository)",
-    )  # fmt: skip
-    p.add_argument(
-        "--overwrite", action="store_true", help="replace an existing -o file (else refused)"
-    )
-    p.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
-    p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
-    args = p.parse_args(argv)
-    if (why := import_problem("elastica")) is not None:  # one line, before anything is written
-        print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation', why)}",
-              file=sys.stderr)  # fmt: skip
-        return 2
-    if not (math.isfinite(args.duration) and args.duration > 0):
-        print(f"{p.prog}: error: --duration must be positive", file=sys.stderr)
-        return 2
-    from continuum_mhe.errors import InputError
-    from continuum_mhe.io.output_files import check_output_target
+def write_generated_recording(
+    output: str | Path,
+    duration: float = 20.0,
+    seed: int = 0,
+    overwrite: bool = False,
+    rod: RodSettings | None = None,
+    imu: ImuSettings | None = None,
+) -> RodRecording:
+    """Simulate a recording (:func:`make_recording`) and write it to ``output`` with its
+    settings beside it (:func:`info_path`, :func:`generator_info`); returns it. Both
+    targets are checked before the simulation (a missing folder, a directory, an
+    existing file without ``overwrite``: :class:`~continuum_mhe.errors.InputError`)."""
+    from continuum_mhe.io.output_files import atomic_writer, check_output_target
 
-    try:  # a missing folder or a directory: said before the minute of simulation
-        check_output_target(args.output, overwrite=args.overwrite)
-        check_output_target(info_path(args.output), overwrite=args.overwrite)
-    except InputError as exc:
-        print(f"{p.prog}: error: {exc}", file=sys.stderr)
-        return 2
-    rod, imu = RodSettings(), ImuSettings()
-    rec = make_recording(rod, imu, args.duration, args.seed)
-    write_recording(args.output, rec)
-    from continuum_mhe.io.output_files import atomic_writer
-
-    with atomic_writer(info_path(args.output)) as fh:
-        json.dump(generator_info(rod, imu, args.duration, args.seed), fh, indent=2)
+    check_output_target(output, overwrite=overwrite)
+    check_output_target(info_path(output), overwrite=overwrite)
+    rod, imu = rod or RodSettings(), imu or ImuSettings()
+    rec = make_recording(rod, imu, duration, seed)
+    write_recording(output, rec)
+    with atomic_writer(info_path(output)) as fh:
+        json.dump(generator_info(rod, imu, duration, seed), fh, indent=2)
         fh.write("\n")
-    print(f"wrote {len(rec.columns['t'])} samples to {args.output}", file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return rec

@@ -54,11 +54,11 @@ Outputs, per recording (``write_section_recording``):
 
 Regenerate (needs the ``rod`` extra)::
 
-    python -m continuum_mhe.simulation.cosserat_sections --scenario planar-s -o DIR
-    python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR
-    python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR \
+    continuum-mhe rod sections --scenario planar-s -o DIR
+    continuum-mhe rod sections --scenario spatial -o DIR
+    continuum-mhe rod sections --scenario spatial -o DIR \
         --shear-ratio 5 --sim-dt 5e-6 --name spatial-stiff-torsion
-    python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR \
+    continuum-mhe rod sections --scenario spatial -o DIR \
         --drive tendon --name spatial-tendon
 
 ``--bend-only`` writes only ``NAME_bend.csv`` (the same options as the recording: the
@@ -73,11 +73,9 @@ naming ``--sim-dt``, before anything is written.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -88,7 +86,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.extras import import_problem, missing, require
+from continuum_mhe.extras import require
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import rotation_bend
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at, section_frames_from_bends
@@ -550,6 +548,24 @@ def write_bend_recording(
     return _write_imu_table(out / f"{name}_bend.csv", t, f, w)
 
 
+def write_bend_only(
+    out: Path,
+    name: str,
+    settings: SectionRodSettings,
+    duration: float,
+    imu: ImuSettings = DEFAULT_IMU,
+    seed: int = 0,
+) -> Path:
+    """``NAME_bend.csv`` alone (:func:`write_bend_recording`), with the IMUs' constant
+    errors of a recording of ``duration`` s drawn from ``seed``, as
+    :func:`write_section_recording` draws them, without simulating that recording; the
+    folder ``out`` is made once the bend is simulated. Returns the file's path."""
+    n = recording_samples(settings, duration, imu)
+    bend = bend_trajectory(settings)
+    out.mkdir(exist_ok=True)  # (as the tendon generator makes its folder)
+    return write_bend_recording(out, name, settings, imu, seed, n, trajectory=bend)
+
+
 def write_section_recording(
     out: Path,
     name: str,
@@ -650,117 +666,3 @@ def default_sim_dt(shear_ratio: float) -> float:
         raise UserError(f"shear_ratio must be > 0, got {shear_ratio!r}")
     ratio = (1.0 / 3.0) / shear_ratio
     return BASE_SIM_DT if ratio >= 1.0 else 0.9 * BASE_SIM_DT * math.sqrt(ratio)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    from continuum_mhe.io.output_files import check_new_folder
-
-    p = argparse.ArgumentParser(
-        prog="python -m continuum_mhe.simulation.cosserat_sections",
-        description="Simulate a two-section Cosserat rod with an IMU at each section's end.",
-    )
-    p.add_argument("-o", "--out", required=True, help="folder for the files")
-    p.add_argument(
-        "--scenario",
-        choices=SCENARIOS,
-        default="planar-s",
-        help="the couples' motion: planar-s (an S in one plane) or spatial (bending "
-        "planes turning; bends past 90 degrees) (default planar-s)",
-    )
-    p.add_argument("--name", help="file name prefix (default: the scenario)")
-    p.add_argument(
-        "--duration",
-        type=float,
-        default=12.0,
-        help=f"seconds, 0.02 (the IMUs' sample time) to {MAX_DURATION_S:g} (default 12)",
-    )
-    p.add_argument(
-        "--shear-ratio",
-        type=float,
-        default=1.0 / 3.0,
-        help=f"G / E, above 0 and at most {MAX_SHEAR_RATIO:g} (default 1/3)",
-    )
-    p.add_argument(
-        "--sim-dt",
-        type=float,
-        default=None,
-        help="integration step in s, 1e-7 to 1e-3 (default: 2e-5, shorter for a stiffer "
-        "torsion: default_sim_dt)",
-    )
-    p.add_argument(
-        "--drive",
-        choices=DRIVES,
-        default="base",
-        help="couples fixed in the base frame (default) or in each section's frame (tendon)",
-    )
-    p.add_argument(
-        "--calibrated",
-        action="store_true",
-        help="IMUs without accelerometer bias and board misalignment (as after a "
-        "calibration); noise, quantisation and gyro bias stay",
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=0,
-        help="draws the IMUs' errors and noise, an integer >= 0 (default 0)",
-    )
-    p.add_argument(
-        "--bend-only",
-        action="store_true",
-        help="write only NAME_bend.csv (the bend calibration recording of the IMUs that "
-        "these options give the recording)",
-    )
-    args = p.parse_args(argv)
-    if (why := import_problem("elastica")) is not None:  # one line, before anything is written
-        print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation', why)}",
-              file=sys.stderr)  # fmt: skip
-        return 2
-    imu = CALIBRATED_IMU if args.calibrated else DEFAULT_IMU
-    out = Path(args.out)
-    name = args.name or args.scenario
-    try:  # every argument, and the folder, before anything is simulated or written
-        if not (0.0 < args.shear_ratio <= MAX_SHEAR_RATIO):  # NaN too
-            raise UserError(
-                f"--shear-ratio must be G / E > 0 and at most {MAX_SHEAR_RATIO:g}, got "
-                f"{args.shear_ratio:g}"
-            )
-        lo, hi = SIM_DT_RANGE
-        if args.sim_dt is not None and not (lo <= args.sim_dt <= hi):
-            raise UserError(
-                f"--sim-dt must be a step of {lo:g} to {hi:g} s (the records' spacing), "
-                f"got {args.sim_dt:g}"
-            )
-        check_generator_arguments(args.duration, args.seed, imu.sample_dt)
-        check_file_prefix(name)
-        check_new_folder(out, overwrite=True, names=())
-    except UserError as exc:
-        print(f"{p.prog}: error: {exc}", file=sys.stderr)
-        return 2
-    sim_dt = default_sim_dt(args.shear_ratio) if args.sim_dt is None else args.sim_dt
-    settings = SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=sim_dt, drive=args.drive)
-    try:
-        if args.bend_only:
-            n = recording_samples(settings, args.duration, imu)
-            bend = bend_trajectory(settings)
-            out.mkdir(exist_ok=True)  # (as the tendon generator makes its folder)
-            path = write_bend_recording(out, name, settings, imu, args.seed, n, trajectory=bend)
-            print(path, file=sys.stderr)
-            return 0
-        info = write_section_recording(
-            out, name, settings, args.scenario, args.duration, imu=imu, seed=args.seed
-        )
-    except RodDivergedError as err:  # the explicit integrator past its stable step
-        print(
-            f"{p.prog}: error: {err} with --sim-dt {sim_dt:g}: give a shorter step "
-            f"(default_sim_dt gives {default_sim_dt(args.shear_ratio):g} for this "
-            "--shear-ratio; halve it if that diverges); nothing written",
-            file=sys.stderr,
-        )
-        return 2
-    print(json.dumps(info), file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

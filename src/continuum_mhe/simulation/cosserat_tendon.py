@@ -41,17 +41,14 @@ formulation's estimates) and ``NAME_info.json`` (the largest bends, twist and fo
 
 Regenerate (CasADi and its IPOPT, no extra)::
 
-    python -m continuum_mhe.simulation.cosserat_tendon --scenario unloaded -o DIR
+    continuum-mhe rod tendon --scenario unloaded -o DIR
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import sys
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -59,17 +56,15 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import UserError, one_line_warnings
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.position_units import WRAPPED_BEND_DEG
 from continuum_mhe.model.descriptions import tendon_outputs
 from continuum_mhe.model.imu import STANDARD_GRAVITY
-from continuum_mhe.model.robot import TENDON_ROUTES, Robot
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.simulation.cosserat import ImuSettings
 from continuum_mhe.simulation.cosserat_sections import (
     DEFAULT_IMU,
     SectionTrajectory,
-    check_file_prefix,
-    check_generator_arguments,
     imu_samples,
 )
 
@@ -366,101 +361,6 @@ def write_tendon_recording(
 #: tensions and states do not fit in memory (1e9 s: a numpy memory error).
 MAX_DURATION_S = 600.0
 
-PROG = "python -m continuum_mhe.simulation.cosserat_tendon"
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    from continuum_mhe.io.output_files import check_new_folder
-    from continuum_mhe.io.robot_file import read_robot
-
-    p = argparse.ArgumentParser(
-        prog=PROG,
-        description=__doc__.split("\n\n")[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    p.add_argument("--scenario", choices=SCENARIOS, default="unloaded", help="the motion")
-    p.add_argument(
-        "--duration",
-        type=float,
-        default=8.0,
-        help=f"s, {RECORD_DT:g} (the IMUs' sample time) to {MAX_DURATION_S:g}; the shipped "
-        "recordings' is 8",
-    )
-    p.add_argument(
-        "--robot",
-        default="tendon-two-section",
-        help="a robot file (or shipped name) of two sections with an IMU at each end",
-    )
-    p.add_argument("--name", help="the files' prefix, the scenario's name if not given")
-    p.add_argument(
-        "--route",
-        choices=TENDON_ROUTES,
-        default=argparse.SUPPRESS,
-        help="the tendons' path: continuous along the backbone at their radius, or "
-        "straight from disk to disk, as through a real robot's spacer disks (default: the "
-        "robot file's tendon_route, continuous where it gives none)",
-    )
-    p.add_argument(
-        "--segments-per-disk",
-        type=int,
-        default=SEGMENTS_PER_DISK,
-        help="the discrete rod's segments between two disks, 1 to 32: more resolve tendons "
-        "drawn from disk to disk on widely spaced disks (each doubling takes about eight "
-        "times as long)",
-    )
-    p.add_argument(
-        "--seed", type=int, default=0, help="draws the IMUs' errors and noise, an integer >= 0"
-    )
-    p.add_argument(
-        "-o",
-        "--output",
-        type=Path,
-        required=True,
-        help="the folder to write to (made in a folder that exists)",
-    )
-    a = p.parse_args(argv)
-    name = a.name or a.scenario
-    with one_line_warnings(p.prog):
-        try:  # the arguments, the folder and the robot before anything is simulated
-            check_generator_arguments(
-                a.duration, a.seed, max(RECORD_DT, DEFAULT_IMU.sample_dt), MAX_DURATION_S
-            )
-            check_file_prefix(name)
-            if not 1 <= a.segments_per_disk <= 32:
-                raise UserError(
-                    f"--segments-per-disk {a.segments_per_disk} is outside its valid range [1, 32]"
-                )
-            check_new_folder(a.output, overwrite=True, names=())
-            robot = read_robot(a.robot)  # its errors name the file
-        except UserError as exc:
-            print(f"{p.prog}: error: {exc}", file=sys.stderr)
-            return 2
-        try:
-            check_generated_robot(robot)
-        except UserError as exc:  # a robot it does not write
-            print(f"{p.prog}: error: {a.robot}: {exc}", file=sys.stderr)
-            return 2
-        try:
-            info = write_tendon_recording(
-                a.output, name, robot, a.scenario, a.duration, TendonRodSettings(), a.seed,
-                robot_name=a.robot, route=getattr(a, "route", robot.tendon_route),
-                segments_per_disk=a.segments_per_disk,
-            )  # fmt: skip
-        except UserError as exc:
-            print(f"{p.prog}: error: {exc}", file=sys.stderr)
-            return 2
-        except EquilibriumError as exc:
-            print(
-                f"{p.prog}: error: {a.robot}: {exc} (--scenario {a.scenario}): the tensions, "
-                "sized for tendon-two-section, likely bend or twist this robot further than "
-                "its rod can follow (a backbone far softer, or tendons further out); a "
-                "stiffer backbone or tendons nearer to it bend less; nothing written",
-                file=sys.stderr,
-            )
-            return 2
-    print(json.dumps(info), file=sys.stderr)
-    return 0
-
 
 # --- the quasi-static peer: a discrete rod's energy minimised -----------------------------
 def _rotvec_sym(w: Any) -> Any:
@@ -612,7 +512,3 @@ def quasi_static_trajectory(
     ends = (end_seg[0] + 1, end_seg[1] + 1)
     sections = SectionTrajectory(t, nodes, dirs, vel, omega, np.zeros(n_rec), ends)
     return TendonTrajectory(sections, dirs, tensions, force)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

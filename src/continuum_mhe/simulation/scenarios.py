@@ -195,8 +195,8 @@ def simulate_robot(
     Raises:
         UserError: for a tendon robot but ``rest`` (straight and still, its tendons
             slack: the readings of its sections' geometry; its other recordings come
-            from :mod:`continuum_mhe.simulation.cosserat_tendon`), or a scenario the
-            robot's sections and IMUs do not fit.
+            from :mod:`continuum_mhe.simulation.cosserat_tendon`, ``continuum-mhe rod
+            tendon``), or a scenario the robot's sections and IMUs do not fit.
     """
     from continuum_mhe.model.bend import BendFormulation
 
@@ -207,8 +207,8 @@ def simulate_robot(
         raise UserError(
             f"a tendon robot ({robot.describe()}): the scenarios but rest (straight and "
             "still) are the bends of a constant-curvature robot without tensions; a "
-            "tendon robot's recordings (tensions, tip force) come from python -m "
-            "continuum_mhe.simulation.cosserat_tendon (two sections, an IMU at each end)"
+            "tendon robot's recordings (tensions, tip force) come from continuum-mhe rod "
+            "tendon (two sections, an IMU at each end)"
         )
     if scenario not in _SHAPES and scenario not in (*MULTI_SECTION_SCENARIOS, "rest"):
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")

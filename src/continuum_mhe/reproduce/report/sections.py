@@ -18,6 +18,7 @@ from continuum_mhe.reproduce.report.format import (
     _total_time_peak,
     verdict,
 )
+from continuum_mhe.simulation.cosserat import GENERATOR
 
 
 def _range_deg(example: dict[str, Any], column: int) -> str:
@@ -110,7 +111,9 @@ def _exp2(d: dict[str, Any]) -> list[str]:
 
 
 def _rod_description(gen: dict[str, Any] | None) -> str:
-    """The rod and its sensor, from the generator settings saved beside the recording."""
+    """The rod and its sensor, from the generator settings saved beside the recording,
+    and the command that makes it again (the command line's, whatever the settings
+    record as their generator)."""
     if gen is None:
         return "was given with --rod-csv, with no generator settings beside it."
     rod, imu = gen["rod"], gen["imu"]
@@ -125,7 +128,7 @@ def _rod_description(gen: dict[str, Any] | None) -> str:
         f"noise {imu['accel_noise']:g} m/s^2, bias {imu['accel_bias']:g} m/s^2 and "
         f"misalignment {imu['misalignment_deg']:g} deg (1 sigma, drawn once), "
         f"{imu['bits']}-bit +-{imu['accel_range'] / g:.0f} g) giving roll and pitch; seed "
-        f"{gen['seed']}, {gen['duration']:g} s. Regenerate it with `{gen['generator']} "
+        f"{gen['seed']}, {gen['duration']:g} s. Regenerate it with `{GENERATOR} -o rod.csv "
         f"--seed {gen['seed']} --duration {gen['duration']:g}`."
     )
 
