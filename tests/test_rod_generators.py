@@ -640,3 +640,25 @@ def test_the_section_truth_of_a_straight_rod_has_phi_0_and_no_minus_zero(
     for path in tmp_path.glob("s_*.csv"):
         cells = path.read_text().replace("\n", ",").split(",")
         assert "-0" not in cells, path.name
+
+
+@pytest.mark.parametrize(
+    ("module", "command"),
+    [("cosserat", "single"), ("cosserat_sections", "sections"), ("cosserat_tendon", "tendon")],
+)
+def test_a_generators_module_run_as_a_script_names_its_command(module, command) -> None:
+    """``python -m continuum_mhe.simulation.MODULE`` writes nothing and exits 2 with the
+    one line that names the command line's ``rod`` subcommand (not a silent success)."""
+    import subprocess
+    import sys
+
+    run = subprocess.run(
+        [sys.executable, "-m", f"continuum_mhe.simulation.{module}", "-o", "x.csv"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert (run.returncode, run.stdout) == (2, "")
+    assert run.stderr == (
+        f"continuum-mhe: error: this module is not a command: run continuum-mhe rod {command}\n"
+    )

@@ -508,3 +508,13 @@ def write_generated_recording(
         json.dump(generator_info(rod, imu, duration, seed), fh, indent=2)
         fh.write("\n")
     return rec
+
+
+if __name__ == "__main__":  # the generator's command is the command line's
+    import sys
+
+    print(
+        "continuum-mhe: error: this module is not a command: run continuum-mhe rod single",
+        file=sys.stderr,
+    )
+    raise SystemExit(2)

@@ -666,3 +666,13 @@ def default_sim_dt(shear_ratio: float) -> float:
         raise UserError(f"shear_ratio must be > 0, got {shear_ratio!r}")
     ratio = (1.0 / 3.0) / shear_ratio
     return BASE_SIM_DT if ratio >= 1.0 else 0.9 * BASE_SIM_DT * math.sqrt(ratio)
+
+
+if __name__ == "__main__":  # the generator's command is the command line's
+    import sys
+
+    print(
+        "continuum-mhe: error: this module is not a command: run continuum-mhe rod sections",
+        file=sys.stderr,
+    )
+    raise SystemExit(2)

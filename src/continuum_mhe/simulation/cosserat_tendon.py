@@ -512,3 +512,13 @@ def quasi_static_trajectory(
     ends = (end_seg[0] + 1, end_seg[1] + 1)
     sections = SectionTrajectory(t, nodes, dirs, vel, omega, np.zeros(n_rec), ends)
     return TendonTrajectory(sections, dirs, tensions, force)
+
+
+if __name__ == "__main__":  # the generator's command is the command line's
+    import sys
+
+    print(
+        "continuum-mhe: error: this module is not a command: run continuum-mhe rod tendon",
+        file=sys.stderr,
+    )
+    raise SystemExit(2)
