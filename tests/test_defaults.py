@@ -1040,3 +1040,14 @@ def test_the_bound_notice_of_an_unobservable_robot_names_a_determined_bend_on_it
         "bound too: the robot may bend further than the bound allows; raise theta_max in "
         "the robot file R if it bends so far"
     ), line
+    only_determined = np.zeros((2, f.ny))
+    only_determined[:, names.index("theta_1")] = 1.5708  # no free bend on its bound
+    bends = BendsOnBound(f)
+    bends.add(only_determined, ["uncertain", "uncertain"])
+    line = bends.notice(2, "mhe", True, raise_it, observable=False)
+    assert line is not None and line.endswith(
+        "and the robot's IMUs do not determine its shape (check-robot tells); but the IMUs "
+        "determine the bend of section(s) 1, which reached the bound: the robot may bend "
+        "further than the bound allows; raise theta_max in the robot file R if it bends so far"
+    ), line
+    assert "drift" not in line

@@ -758,8 +758,8 @@ def test_the_firmware_header_of_a_tendon_robot_names_what_to_change(tmp_path: Pa
 def test_the_live_plot_traces_the_estimated_tip_and_shows_a_robot_bent_below_its_base() -> None:
     """``live --plot`` traces the estimate's own tip (``x, y, z``), not the end of the
     arcs it draws from the bends: a tendon robot's tip under load lies off the arcs of
-    its equivalent bends. A robot whose sections bend past 90 degrees is drawn below
-    its base too."""
+    its equivalent bends. A robot whose sections together bend past 90 degrees is drawn
+    below its base too."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -781,4 +781,5 @@ def test_the_live_plot_traces_the_estimated_tip_and_shows_a_robot_bent_below_its
     assert np.linalg.norm(body[:, -1] - [-0.05, 0.01, 0.27]) > 0.01  # the arcs end elsewhere
     assert plot.ax.get_zlim()[0] == pytest.approx(-0.3)
     assert LivePlot((0.2,), (1.5,)).ax.get_zlim()[0] == 0.0
+    assert LivePlot((0.1, 0.1, 0.1), (1.0, 1.0, 1.0)).ax.get_zlim()[0] == pytest.approx(-0.3)
     matplotlib.pyplot.close("all")

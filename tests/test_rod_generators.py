@@ -662,3 +662,33 @@ def test_a_generators_module_run_as_a_script_names_its_command(module, command) 
     assert run.stderr == (
         f"continuum-mhe: error: this module is not a command: run continuum-mhe rod {command}\n"
     )
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["single", "-o", "{tmp}/s.csv", "--seed", "-1", "--duration", "0.05"],
+         "continuum-mhe: error: --seed must be an integer >= 0, got -1"),
+        (["single", "-o", "{tmp}/s.csv", "--duration", "1e9"],
+         "continuum-mhe: error: --duration must be at most 600 s"),
+        (["tendon", "-o", ""],
+         "continuum-mhe rod tendon: error: argument -o/--output: an empty value"),
+    ],
+)  # fmt: skip
+def test_the_rod_commands_refuse_a_seed_a_duration_and_an_empty_output_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    argv: list[str], said: str,
+) -> None:  # fmt: skip
+    """``rod single``'s seed and duration are held to the other generators' limits, and
+    ``rod tendon -o ''`` is an empty value (not the current folder): one line, exit 2,
+    nothing written anywhere."""
+    monkeypatch.chdir(tmp_path)
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    try:
+        status = main(["rod", *argv])
+    except SystemExit as exc:  # the parser's own refusal
+        status = exc.code
+    assert status == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(said), err
+    assert list(tmp_path.iterdir()) == []

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import re
 import sys
 import warnings
 from collections import defaultdict
@@ -685,9 +686,18 @@ def test_view_says_when_the_models_backbone_misses_the_estimated_tip(
     assert "youngs_modulus = 30e9" in soft.read_text()
     rrd = tendon_view["tmp"] / "soft.rrd"
     said = "backbone at the estimate's tip force and the tensions ends up to"
-    with pytest.warns(ViewWarning, match=said):  # the command's warning line
-        assert main(["view", str(tendon_view["est"]), "--robot", str(soft), "--inputs",
-                     tendon_view["tensions"], "--save", str(rrd)]) == 0  # fmt: skip
+    capsys.readouterr()
+    for action in ("error", "ignore"):  # the command's line, whatever -W says
+        with warnings.catch_warnings():
+            warnings.simplefilter(action)
+            argv = ["view", str(tendon_view["est"]), "--robot", str(soft), "--inputs",
+                    tendon_view["tensions"], "--save", str(rrd), "--overwrite"]  # fmt: skip
+            assert main(argv) == 0
+        err = capsys.readouterr().err
+        assert f"continuum-mhe: warning: {rrd}" not in err  # the line names no file twice
+        assert [line for line in err.splitlines() if said in line] == [
+            line for line in err.splitlines() if line.startswith("continuum-mhe: warning: ")
+        ] and said in err, err
     own = ["--robot", "tendon-two-section", "--inputs", tendon_view["tensions"]]
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
@@ -810,14 +820,18 @@ def test_a_tendon_row_without_an_equilibrium_is_joined_through_its_section_ends(
     est.write_text("".join(text))
     rrd = tendon_view["tmp"] / "unsolved.rrd"
     capsys.readouterr()
-    first = r"^1 of the backbones drawn joined through their section ends: .* the row at t = "
-    with pytest.warns(UserWarning, match=first):
-        argv = ["view", str(est), "--robot", "tendon-two-section", "--inputs",
-                tendon_view["tensions"], "--save", str(rrd), "--points", str(POINTS)]  # fmt: skip
-        assert main(argv) == 0
+    first = (
+        r"^continuum-mhe: warning: 1 of the backbones drawn joined through their section "
+        r"ends: .* the row at t = "
+    )
+    argv = ["view", str(est), "--robot", "tendon-two-section", "--inputs",
+            tendon_view["tensions"], "--save", str(rrd), "--points", str(POINTS)]  # fmt: skip
+    assert main(argv) == 0
     robot, table = read_robot("tendon-two-section"), read_state_table(est, ())
     n = len(table.t)
-    said = capsys.readouterr().err.strip().splitlines()[-1]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert [line for line in err if re.match(first, line)], err  # the command's warning
+    said = err[-1]
     assert said == (
         f"wrote {rrd}: {n} of {n} estimate(s) of {robot.describe()} (1 of them joined "
         "through their section ends: no equilibrium under their loads)"

@@ -38,6 +38,7 @@ from continuum_mhe.stream.protocol import (
     VALUES_PER_IMU,
     GarbledLine,
     LineFormat,
+    RawLimits,
     field_count_hint,
     line_fields,
     parse_line,
@@ -870,8 +871,11 @@ def collect(
     seconds: float,
     say: Any,
     n_tensions: int = 0,
+    limits: Sequence[RawLimits] = (),
 ) -> tuple[FloatArray, FloatArray]:
-    """Samples from the port over ``seconds`` of device time (device messages shown).
+    """Samples from the port over ``seconds`` of device time (device messages shown);
+    ``limits``: each IMU's plausibility limits of a raw line (``live``'s, from its
+    robot file's full scales), or empty for the default's.
 
     A robot with ``n_tensions`` tendons may send its tensions after the IMUs' fields
     (as ``live`` reads them) or not: a line of either length is a sample, and its
@@ -933,7 +937,7 @@ def collect(
             try:
                 text = payload.decode("ascii")
                 carried = n_tensions if text.count(",") + 1 == with_tensions else 0
-                sample = parse_line(text, fmt, n_imus, carried)
+                sample = parse_line(text, fmt, n_imus, carried, limits)
                 if sample is not None and sample.problems:  # calibration needs every IMU
                     raise GarbledLine(sample.problems[0])
             except (UnicodeDecodeError, GarbledLine) as exc:

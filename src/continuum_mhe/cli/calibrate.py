@@ -41,7 +41,7 @@ from continuum_mhe.io.sample_rows import DROPOUT_HINT
 from continuum_mhe.io.text_rows import READINGS_READER
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX, Robot
-from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat
+from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat, raw_limits
 from continuum_mhe.stream.reader import stderr_say
 
 
@@ -130,8 +130,9 @@ def run(args: argparse.Namespace) -> int:
         fmt, source = args.format, args.port
         _check_gyro_bound_applies(args, fmt, source)  # before recording for --seconds
         t, values = collect(
-            args.port, args.baud, fmt, robot.n_imus, args.seconds, say, robot.n_tendons
-        )
+            args.port, args.baud, fmt, robot.n_imus, args.seconds, say, robot.n_tendons,
+            tuple(raw_limits(p.accel_range, p.gyro_range) for p in robot.imus),
+        )  # fmt: skip
     gyro_std = STILL_GYRO_STD if args.still_gyro_std is None else args.still_gyro_std
     if unit := rest_gravity_problem(values, fmt, robot.n_imus):
         raise InputError(f"{source}: {unit}")

@@ -103,10 +103,14 @@ def _single_arguments(p: argparse.ArgumentParser) -> None:
 
 def run_single(args: argparse.Namespace) -> int:
     from continuum_mhe.simulation import cosserat
+    from continuum_mhe.simulation.cosserat_sections import check_generator_arguments
 
     _require_elastica()
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise InputError("--duration must be positive")
+    # the same duration and seed limits as the other generators' (memory, the seeds the
+    # random generator takes)
+    check_generator_arguments(args.duration, args.seed, 0.0)
     # its targets are checked before the minute of simulation
     rec = cosserat.write_generated_recording(
         args.output, args.duration, args.seed, overwrite=args.overwrite
@@ -267,7 +271,6 @@ def _tendon_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "-o",
         "--output",
-        type=Path,
         required=True,
         help="the folder to write to (made in a folder that exists)",
     )
@@ -293,7 +296,8 @@ def run_tendon(args: argparse.Namespace) -> int:
         raise InputError(
             f"--segments-per-disk {args.segments_per_disk} is outside its valid range [1, 32]"
         )
-    check_new_folder(args.output, overwrite=True, names=())
+    output = Path(args.output)
+    check_new_folder(output, overwrite=True, names=())
     robot = read_robot(args.robot)  # its errors name the file
     try:
         ct.check_generated_robot(robot)
@@ -301,7 +305,7 @@ def run_tendon(args: argparse.Namespace) -> int:
         raise InputError(f"{args.robot}: {exc}") from None
     try:
         info = ct.write_tendon_recording(
-            args.output, name, robot, args.scenario, args.duration, ct.TendonRodSettings(),
+            output, name, robot, args.scenario, args.duration, ct.TendonRodSettings(),
             args.seed, robot_name=args.robot, route=getattr(args, "route", robot.tendon_route),
             segments_per_disk=args.segments_per_disk,
         )  # fmt: skip

@@ -27,7 +27,7 @@ from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.io.text_rows import held_for_rereading, held_text
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.viewer import INSTALL_HINT, ViewNote, read_view_tensions, replay
+from continuum_mhe.viewer import INSTALL_HINT, ViewNote, ViewWarning, read_view_tensions, replay
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,8 +64,12 @@ def _say(line: str) -> None:
 @contextlib.contextmanager
 def _notes_said() -> Iterator[None]:
     """While the block runs, the view's notes (:class:`~continuum_mhe.viewer.ViewNote`)
-    are said on stderr as notes, ``continuum-mhe: note: ...``, when they are raised; the
-    other warnings are shown as before (:mod:`warnings`' display, process-wide)."""
+    are said on stderr as notes, ``continuum-mhe: note: ...``, and its warnings
+    (``ViewWarning``) as warnings, ``continuum-mhe: warning: ...``, when they are raised; the
+    other warnings are shown as before (:mod:`warnings`' display, process-wide). The
+    view's notes and warnings (``ViewWarning``) are shown whatever the warning filters
+    (``-W``, ``PYTHONWARNINGS``) say: they are the command's output, not the library's
+    to be filtered."""
     saved = warnings.showwarning
 
     def show(
@@ -79,11 +83,17 @@ def _notes_said() -> Iterator[None]:
         if issubclass(category, ViewNote):
             print(f"{PROG}: note: {message}", file=sys.stderr)
             return
+        if issubclass(category, ViewWarning):
+            print(f"{PROG}: warning: {message}", file=sys.stderr)
+            return
         saved(message, category, filename, lineno, file, line)
 
     warnings.showwarning = show
     try:
-        yield
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", ViewNote)
+            warnings.simplefilter("always", ViewWarning)
+            yield
     finally:
         warnings.showwarning = saved
 

@@ -137,10 +137,13 @@ class BendsOnBound:
         drift = "drift to the bound" if holds else "drift to the bound and past it"
         free = not observable or self.partial == self.count
         if not observable:
+            free_reached = any(self.largest[k] > 0 for k in self._free)
             further = (
                 "and the robot's IMUs do not determine its shape: the bends they leave "
                 f"free {drift} (one IMU per section determines them; "
                 "check-robot tells)"
+                if free_reached or not self._free
+                else "and the robot's IMUs do not determine its shape (check-robot tells)"
             )
             seen = [k for k, big in enumerate(self.largest) if big > 0 and k not in self._free]
             if seen and self._free:
@@ -158,7 +161,7 @@ class BendsOnBound:
                     )
                 further += (
                     f"; but the IMUs determine the bend of section(s) {named}, which "
-                    f"reached the bound too: {why}"
+                    f"reached the bound{' too' if free_reached else ''}: {why}"
                 )
         elif self.partial == self.count:
             further = (

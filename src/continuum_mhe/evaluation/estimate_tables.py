@@ -23,6 +23,7 @@ from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
     TIP_FORCE_COLUMNS,
+    bend_columns,
     section_count,
     section_end_columns,
 )
@@ -66,11 +67,7 @@ def tracked_points(names: Sequence[str]) -> tuple[TrackedPoint, ...]:
 def has_bend_columns(names: Sequence[str], n_sections: int) -> bool:
     """Whether a table has every section's bend columns (``theta, phi`` for one section,
     ``theta_k, phi_k`` for each of several): what :func:`section_shapes` reads."""
-    if n_sections == 1 and "theta" in names:
-        return "phi" in names
-    return n_sections > 0 and all(
-        f"{c}_{k}" in names for k in range(1, n_sections + 1) for c in ("theta", "phi")
-    )
+    return n_sections > 0 and set(bend_columns(names, n_sections)) <= set(names)
 
 
 def section_shapes(table: StateTable, n_sections: int) -> tuple[FloatArray, FloatArray]:

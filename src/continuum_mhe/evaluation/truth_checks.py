@@ -28,7 +28,7 @@ from continuum_mhe.evaluation.metrics import (
 from continuum_mhe.io.csv_files import MS_LIKE_STEP_S
 from continuum_mhe.io.position_units import tip_direction_problem
 from continuum_mhe.io.state_tables import StateTable
-from continuum_mhe.model.descriptions import TIP_COLUMNS
+from continuum_mhe.model.descriptions import TIP_COLUMNS, section_end_columns, sections_with_ends
 
 #: ``evaluate`` warns where the truth shifted in time fits the estimate with a mean tip
 #: error below this share of the unshifted one, itself at least :data:`SHIFT_MIN_ERROR`
@@ -92,10 +92,10 @@ def _clock_shift(est: StateTable, truth: StateTable, length: float) -> tuple[str
     tip, a section end they do determine shows the offset that the tip's error hides);
     None without."""
     points: list[tuple[str, tuple[str, ...]]] = [("mean tip error", tuple(TIP_COLUMNS))]
-    for name in est.names:
-        end = tuple(f"{c}_{name[2:]}" for c in TIP_COLUMNS)
-        if name.startswith("x_") and all(c in est.names and c in truth.names for c in end):
-            points.append((f"mean error of section {name[2:]}'s end", end))
+    for k in sections_with_ends(est.names):
+        end = section_end_columns(k)
+        if all(c in truth.names for c in end):
+            points.append((f"mean error of section {k}'s end", end))
     for what, columns in points:
         e = est.values[:, [est.names.index(c) for c in columns]]
         shift = best_time_shift(

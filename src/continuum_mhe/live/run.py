@@ -288,7 +288,8 @@ class LivePlot:
 
     def __init__(self, lengths: tuple[float, ...], theta_max: tuple[float, ...] = ()) -> None:
         """``lengths``: the sections' lengths, m; ``theta_max``: their bending bounds, rad
-        (a robot that can bend past 90 degrees is drawn below its base too)."""
+        (a robot whose sections together can bend past 90 degrees is drawn below its base
+        too)."""
         import matplotlib.pyplot as plt
 
         self.plt = plt
@@ -300,7 +301,7 @@ class LivePlot:
         s = length
         self.ax.set_xlim(-s, s)
         self.ax.set_ylim(-s, s)
-        self.ax.set_zlim(-s if any(t > math.pi / 2 for t in theta_max) else 0.0, s)
+        self.ax.set_zlim(-s if sum(theta_max) > math.pi / 2 else 0.0, s)
         self.ax.set_xlabel("x (m)")
         self.ax.set_ylabel("y (m)")
         self.ax.set_zlabel("z (m)")

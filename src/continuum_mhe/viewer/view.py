@@ -663,10 +663,18 @@ class BackboneView:
     ) -> None:
         """Finish the stream: rename the .rrd into place (without ``keep``: remove it,
         a view that failed writes nothing), or (``wait``) keep the web viewer up until
-        Ctrl-C, then stop it; ``say`` (where given) takes the lines that say where it
-        serves and that it stopped."""
+        Ctrl-C, then stop it; ``say`` takes the lines that say where it serves and that
+        it stopped (without it they are :class:`ViewNote` warnings: a call that blocks
+        until Ctrl-C says where to look)."""
         if self._closed:
             return
+
+        def said(line: str) -> None:
+            if say is not None:
+                say(line)
+            else:
+                warnings.warn(line, ViewNote, stacklevel=3)
+
         if self._undrawn is not None and self._undrawn.output is not None:
             # the last estimate, which max_hz left undrawn: the view ends where live did
             self.rec.set_time("t", duration=nanoseconds(self._undrawn.t))
@@ -689,14 +697,12 @@ class BackboneView:
                         f"({exc}): the estimates are not drawn there"
                     ) from None
             if self.sink.kind == "web" and wait and self._web is not None:
-                if say is not None:
-                    say(f"serving the view at {self.sink.web_url} (Ctrl-C stops)")
+                said(f"serving the view at {self.sink.web_url} (Ctrl-C stops)")
                 try:
                     while self._web.poll() is None:
                         time.sleep(0.2)
                 except KeyboardInterrupt:
-                    if say is not None:
-                        say("stopped serving the view")
+                    said("stopped serving the view")
         finally:
             if not self._stuck and (self._tmp is not None or self.sink.kind != "save"):
                 self.rec.disconnect()  # before the server stops: no broken-connection noise
