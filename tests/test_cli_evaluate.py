@@ -1115,3 +1115,24 @@ def test_the_srmse_sums_the_columns_in_m_and_rad_alone() -> None:
     assert m.rmse["tension_gain_1"] == pytest.approx(0.5)
     assert m.srmse == pytest.approx(0.001)
     assert srmse_columns(names) == ["x", "y", "z"]
+
+
+def test_a_length_warning_of_several_sections_asks_for_the_robot_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Files of a two-section robot scored on a robot file of other section lengths: the
+    length warning asks for the robot file they were made with (``--length`` gives one
+    section alone)."""
+    robot, other = tmp_path / "r.toml", tmp_path / "long.toml"
+    body = "[[section]]\nlength = {a}\n[[section]]\nlength = {b}\n[[imu]]\nsection = 1\n"
+    robot.write_text('mounting = "z-up"\n' + body.format(a=0.15, b=0.15) + "[[imu]]\nsection = 2\n")
+    other.write_text('mounting = "z-up"\n' + body.format(a=0.3, b=0.3) + "[[imu]]\nsection = 2\n")
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "spatial", "--robot", str(robot), "-o", str(meas), "--truth",
+                 str(truth), "--duration", "2"]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est), "--robot", str(robot),
+                 "--method", "ekf"]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth), "--robot", str(other)]) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "made for a robot of" in ln]
+    assert said and all(ln.endswith("; pass the --robot it was made with") for ln in said), said

@@ -321,7 +321,11 @@ def _evaluate(args: argparse.Namespace) -> int:
     )
     # the robot from the estimate's options line: a truth that misfits it is another
     # robot's (its --length would misfit the estimate instead)
-    given_length = "pass the --length (or --robot) it was made with"
+    given_length = (
+        "pass the --length (or --robot) it was made with"
+        if robot.n_sections == 1
+        else "pass the --robot it was made with"
+    )
     other = "the estimate's robot (its options line) is another: score it against its robot's truth"
     recorded = not robot_given(args) and robot.lengths != (DEFAULT_LENGTH,)
     misfits = [
