@@ -405,9 +405,8 @@ def test_the_section_rod_generator_refuses_bad_numbers_before_it_simulates(
     assert list(tmp_path.iterdir()) == []
 
 
-#: Each generator's ``--help`` after its usage line (at 100 columns), word for word as
-#: the generator's own parser wrote it when it ran as a module: each subcommand keeps
-#: every option, default and help text of its generator.
+#: Each generator's ``--help`` after its usage line (at 100 columns), word for word: every
+#: option, default and help text of each subcommand.
 GENERATOR_HELP = {
     "single": """\
 Simulate a cable-driven Cosserat rod with a tip MPU9250-like IMU and write the recording CSV.
@@ -428,6 +427,7 @@ Simulate a two-section Cosserat rod with an IMU at each section's end.
 options:
   -h, --help            show this help message and exit
   -o OUT, --out OUT     folder for the files
+  --overwrite           replace the recording's files in -o where they exist (else refused)
   --scenario {planar-s,spatial}
                         the couples' motion: planar-s (an S in one plane) or spatial (bending
                         planes turning; bends past 90 degrees) (default planar-s)
@@ -469,6 +469,8 @@ options:
   --seed SEED           draws the IMUs' errors and noise, an integer >= 0 (default: 0)
   -o OUTPUT, --output OUTPUT
                         the folder to write to (made in a folder that exists) (default: None)
+  --overwrite           replace the recording's files in -o where they exist (else refused)
+                        (default: False)
 """,
 }  # fmt: skip
 
@@ -692,3 +694,38 @@ def test_the_rod_commands_refuse_a_seed_a_duration_and_an_empty_output_in_one_li
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(said), err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["sections", "tendon"])
+def test_a_rod_recording_is_not_replaced_without_overwrite(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """A folder that holds a recording of the same name: ``rod sections`` and ``rod
+    tendon`` refuse in one line naming the first file, exit 2, before they simulate and
+    with the files as they were; another ``--name`` in that folder is written."""
+    from continuum_mhe.simulation import cosserat_sections, cosserat_tendon
+
+    module = cosserat_sections if command == "sections" else cosserat_tendon
+    out = tmp_path / "rec"
+    out.mkdir()
+    kept = out / f"{'planar-s' if command == 'sections' else 'unloaded'}_tilt.csv"
+    kept.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n")
+
+    simulated: list[str] = []
+
+    def no_simulation(out: Path, name: str, *args: object, **kwargs: object) -> dict:
+        simulated.append(name)
+        return {}
+
+    for writer in ("write_section_recording", "write_tendon_recording"):
+        if hasattr(module, writer):
+            monkeypatch.setattr(module, writer, no_simulation)
+    assert main(["rod", command, "-o", str(out), "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {out}/"), err
+    assert "exists; give --overwrite to replace it" in err[0]
+    assert kept.read_text() == "t,roll_1,pitch_1,roll_2,pitch_2\n" and simulated == []
+    assert main(["rod", command, "-o", str(out), "--duration", "0.1", "--name", "other"]) == 0
+    assert main(["rod", command, "-o", str(out), "--duration", "0.1", "--overwrite"]) == 0
+    assert simulated == ["other", kept.name.split("_")[0]]

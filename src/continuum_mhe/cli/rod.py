@@ -110,12 +110,13 @@ def run_single(args: argparse.Namespace) -> int:
         raise InputError("--duration must be positive")
     # the same duration and seed limits as the other generators' (memory, the seeds the
     # random generator takes)
-    check_generator_arguments(args.duration, args.seed, 0.0)
+    check_generator_arguments(args.duration, args.seed, cosserat.ImuSettings().sample_dt)
     # its targets are checked before the minute of simulation
     rec = cosserat.write_generated_recording(
         args.output, args.duration, args.seed, overwrite=args.overwrite
     )
-    print(f"wrote {len(rec.columns['t'])} samples to {args.output}", file=sys.stderr)
+    n = len(rec.columns["t"])
+    print(f"wrote {n} sample{'s' if n != 1 else ''} to {args.output}", file=sys.stderr)
     return 0
 
 
@@ -129,6 +130,11 @@ def _sections_arguments(p: argparse.ArgumentParser) -> None:
     )
 
     p.add_argument("-o", "--out", required=True, help="folder for the files")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the recording's files in -o where they exist (else refused)",
+    )
     p.add_argument(
         "--scenario",
         choices=SCENARIOS,
@@ -204,7 +210,7 @@ def run_sections(args: argparse.Namespace) -> int:
         )
     cs.check_generator_arguments(args.duration, args.seed, imu.sample_dt)
     cs.check_file_prefix(name)
-    check_new_folder(out, overwrite=True, names=())
+    check_new_folder(out, args.overwrite, cs.recording_files(name, args.bend_only))
     sim_dt = cs.default_sim_dt(args.shear_ratio) if args.sim_dt is None else args.sim_dt
     settings = cs.SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=sim_dt, drive=args.drive)
     try:
@@ -274,6 +280,11 @@ def _tendon_arguments(p: argparse.ArgumentParser) -> None:
         required=True,
         help="the folder to write to (made in a folder that exists)",
     )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the recording's files in -o where they exist (else refused)",
+    )
 
 
 def run_tendon(args: argparse.Namespace) -> int:
@@ -297,7 +308,7 @@ def run_tendon(args: argparse.Namespace) -> int:
             f"--segments-per-disk {args.segments_per_disk} is outside its valid range [1, 32]"
         )
     output = Path(args.output)
-    check_new_folder(output, overwrite=True, names=())
+    check_new_folder(output, args.overwrite, ct.recording_files(name))
     robot = read_robot(args.robot)  # its errors name the file
     try:
         ct.check_generated_robot(robot)

@@ -548,6 +548,15 @@ def write_bend_recording(
     return _write_imu_table(out / f"{name}_bend.csv", t, f, w)
 
 
+def recording_files(name: str, bend_only: bool = False) -> tuple[str, ...]:
+    """The files a recording named ``name`` writes in its folder (the module docstring):
+    ``NAME_bend.csv`` alone with ``bend_only``."""
+    if bend_only:
+        return (f"{name}_bend.csv",)
+    kinds = ("raw.csv", "tilt.csv", "truth.csv", "info.json", "rest.csv", "bend.csv")
+    return tuple(f"{name}_{kind}" for kind in kinds)
+
+
 def write_bend_only(
     out: Path,
     name: str,

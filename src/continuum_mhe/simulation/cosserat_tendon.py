@@ -247,6 +247,12 @@ def truth_columns(n_sections: int) -> list[str]:
     return ["t", *(o.name for o in tendon_outputs(n_sections))]
 
 
+def recording_files(name: str) -> tuple[str, ...]:
+    """The files a recording named ``name`` writes in its folder (the module docstring)."""
+    kinds = ("raw.csv", "tilt.csv", "tensions.csv", "truth.csv", "info.json")
+    return tuple(f"{name}_{kind}" for kind in kinds)
+
+
 def write_tendon_recording(
     out: Path,
     name: str,
