@@ -66,8 +66,10 @@ def test_evaluate_of_a_one_row_estimate_says_so(tmp_path, capsys):
 
 
 def test_evaluate_with_a_wrong_truth_shift_names_the_shift_that_fits(tmp_path, capsys):
-    """Files on one clock compared with ``--truth-shift 1.9``: the refusal names the
-    shift that lines them up, none (not -1.9, which names 1.9 in turn)."""
+    """Files on one clock compared with ``--truth-shift 1.9``: the refusal says that the
+    files' own times match and the shift given moved the truth off them (not that a
+    shift of -1.9 would fit, which names 1.9 in turn; nor a clock that did not start
+    at 0)."""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas), "--truth",
                  str(truth)]) == 0  # fmt: skip
@@ -76,7 +78,10 @@ def test_evaluate_with_a_wrong_truth_shift_names_the_shift_that_fits(tmp_path, c
     for shift in ("1.9", "-1.9"):
         assert main(["evaluate", str(est), str(truth), "--truth-shift", shift]) == 2
         err = capsys.readouterr().err
-        assert err.count("\n") == 1 and "--truth-shift 0 (leave --truth-shift out)" in err, err
+        assert err.count("\n") == 1 and err.endswith(
+            f"; the files' own times match: --truth-shift {shift} moved the truth off them "
+            "(leave --truth-shift out)\n"
+        ), err
 
 
 def test_evaluate_of_a_one_row_truth_says_so(tmp_path, capsys):
@@ -1136,3 +1141,11 @@ def test_a_length_warning_of_several_sections_asks_for_the_robot_file(
     assert main(["evaluate", str(est), str(truth), "--robot", str(other)]) == 0
     said = [ln for ln in capsys.readouterr().err.splitlines() if "made for a robot of" in ln]
     assert said and all(ln.endswith("; pass the --robot it was made with") for ln in said), said
+
+
+def test_the_largest_far_off_ratio_is_written_beyond_the_limit() -> None:
+    """An ok row 4.03 std off is counted beyond the 4 std limit, and written so: "4.03",
+    not the "4.0" that reads as within it; ratios well beyond keep one decimal."""
+    from continuum_mhe.cli.evaluate import _beyond
+
+    assert [_beyond(r) for r in (4.03, 4.0004, 6.0, 25.64)] == ["4.03", "4.0004", "6.0", "25.6"]

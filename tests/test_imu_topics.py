@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import math
 import re
+import sys
 import warnings
 from pathlib import Path
 from typing import Any
@@ -742,3 +743,33 @@ def test_a_bags_metadata_file_names_the_folder(tmp_path: Path, capsys) -> None:
         err = capsys.readouterr().err.strip()
         assert err.endswith(f"the metadata file of a ROS 2 bag: give the bag's folder, {bag}")
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_a_missing_topic_given_out_of_number_order_is_refused_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--topic /imu3 --topic /imu1`` on a log without ``/imu3``: the refusal is the
+    command's one line, without the warning that the names number the topics in another
+    order (said only once the topics are read)."""
+    rec = raw_imu_recording(read_robot("two-section"), 1.0)
+    stamps = T0_NS + np.arange(len(rec.t), dtype=np.int64) * DT_NS
+    imus = [
+        {"stamps": stamps, "acc": G * rec.z[:, 6 * k : 6 * k + 3],
+         "gyr": rec.z[:, 6 * k + 3 : 6 * k + 6]}
+        for k in range(2)
+    ]  # fmt: skip
+    log = write_mcap_topics(tmp_path / "x.mcap", imus)
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        # shown on stderr as a command's warnings are outside the test runner
+        warnings.showwarning = lambda m, c, f, n, file=None, line=None: sys.stderr.write(
+            warnings.formatwarning(m, c, f, n, line)
+        )
+        status = main(["estimate", str(log), "-o", str(out), "--robot", "two-section",
+                       "--topic", "/imu3", "--topic", "/imu1"])  # fmt: skip
+    err = capsys.readouterr().err.splitlines()
+    assert status == 2 and len(err) == 1, err
+    assert err[0].startswith(f"continuum-mhe: error: {log}: no topic '/imu3'"), err
+    assert not out.exists()

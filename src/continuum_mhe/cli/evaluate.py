@@ -406,13 +406,23 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _beyond(ratio: float) -> str:
+    """``ratio`` (beyond :data:`FAR_STD`) to one decimal, or to as many more as show it
+    beyond (4.03 is "4.03", not the "4.0" that reads as within)."""
+    for decimals in range(1, 7):
+        text = f"{ratio:.{decimals}f}"
+        if float(text) > FAR_STD:
+            return text
+    return text
+
+
 def format_far(c: Calibration, t_worst: float | None = None) -> str:
     """The ok rows far outside their standard deviations, as a line of ``evaluate``
     (``t_worst``: the time of the row with the largest ratio, s)."""
     far = f"{c.tip_far} of {c.tip_far_of} more than {FAR_STD:g} std off on a tip axis ("
     if c.tip_far_of:
         at = f" at t = {time_text(t_worst)} s" if t_worst is not None else ""
-        largest = "a zero std" if math.isinf(c.tip_far_worst) else f"{c.tip_far_worst:.1f} std"
+        largest = "a zero std" if math.isinf(c.tip_far_worst) else f"{_beyond(c.tip_far_worst)} std"
         far += f"the largest {largest}{at}; "
     return f"ok rows far off      {far}about 2 in 10,000 rows where the std is right)"
 

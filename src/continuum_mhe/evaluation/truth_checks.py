@@ -467,6 +467,12 @@ def offset_hint(
     total = given_shift - offset  # the truth read at t + total lines the times up
     shift = "0 (leave --truth-shift out)" if abs(total) < 1e-9 else seconds_text(total)
     matched = len(match_rows(t_est, t_truth + offset)[0])  # as evaluate matches rows
+    if matched >= WARN_MATCHED * len(t_est) and abs(total) < 1e-9 and given_shift != 0.0:
+        # the files' own times match: the shift given moved the truth off them
+        return (
+            f"; the files' own times match: {shift_option} {seconds_text(given_shift)} moved "
+            f"the truth off them (leave {shift_option} out)"
+        )
     if matched >= WARN_MATCHED * len(t_est):
         return (
             f"; the estimate's times are the truth's {seconds_text(offset, '+')} s (a clock that "

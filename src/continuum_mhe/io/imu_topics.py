@@ -315,7 +315,6 @@ def read_imu_topics(
         raise InputError(f"{p}: a --topic is given twice ({', '.join(topics)})")
     if tolerance_s is not None and not (np.isfinite(tolerance_s) and tolerance_s > 0):
         raise InputError(f"--pair-tolerance must be positive seconds, got {tolerance_s}")
-    warn_numbers_out_of_order(str(p), topics)
     logs = [read_imu_log(p, topic, skip_bad) for topic in topics]
     stamps = [_stamps_ns(log) for log in logs]
     # half of IMU 1's median sample period: the default tolerance, and the clock check's
@@ -325,7 +324,6 @@ def read_imu_topics(
         if len(stamps[0]) < 2:
             raise InputError(f"{p}: topic {topics[0]} has one sample: pass --pair-tolerance")
         tolerance_s = half_period_s
-    warn_clocks_apart(str(p), logs, half_period_s)
     tolerance_ns = int(round(tolerance_s * 1e9))
     idx = pair_stamps(stamps, tolerance_ns)
     for topic, i in zip(topics[1:], idx[1:]):
@@ -338,6 +336,10 @@ def read_imu_topics(
     timeline = fill_outages(stamps, 2.0 * half_period_s * 1e9, tolerance_ns)
     if len(timeline) > len(stamps[0]):
         idx = pair_stamps([timeline, *stamps], tolerance_ns)[1:]
+    # the topics are read and paired: what they may get wrong is said now, after the
+    # refusals above (a refusal is its one line alone)
+    warn_numbers_out_of_order(str(p), topics)
+    warn_clocks_apart(str(p), logs, half_period_s)
     # IMU 1's first stamp: a topic that starts later leaves t = 0 where a tensions file
     # counted from the log's start of IMU 1 has it
     t0 = int(stamps[0][0])

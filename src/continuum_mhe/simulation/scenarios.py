@@ -222,9 +222,9 @@ def simulate_robot(
         )  # fmt: skip
     if one_section != (robot.n_sections == 1):
         shapes = (*(_SHAPES if robot.n_sections == 1 else MULTI_SECTION_SCENARIOS), "rest")
-        needs = "one section" if one_section else "two or more sections"
+        needs = "one section" if one_section else "two or more sections (--robot)"
         raise UserError(
-            f"scenario {scenario!r} is for a robot of {needs} (--robot); for this robot "
+            f"scenario {scenario!r} is for a robot of {needs}; for this robot "
             f"({robot.describe()}) choose from {', '.join(sorted(shapes))}"
         )
     noise_deg = default_noise_deg(scenario, noise_deg)
