@@ -688,6 +688,8 @@ def test_demo_of_a_tendon_robot_names_the_robot_and_its_help_offers_none(tmp_pat
     assert main(["demo", "--robot", "tendon-two-section", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("continuum-mhe: error: tendon-two-section: a tendon")
+    assert "the demo simulates the motions of a constant-curvature robot" in err[0]
+    assert "continuum-mhe rod tendon, estimated with --inputs" in err[0]
     assert not out.exists()
     cc = shipped_robots(tendons=False)
     assert "two-section" in cc and "tendon-two-section" not in cc

@@ -41,6 +41,13 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out or DEFAULT_OUT)
     robot = robot_from_args(args) if args.robot else Robot.single(0.2)
+    if robot.tendons:  # the demo simulates constant-curvature motions
+        raise InputError(
+            f"{args.robot}: a tendon robot ({robot.describe()}): the demo simulates the "
+            "motions of a constant-curvature robot without tensions; a tendon robot's "
+            "recordings (tensions, tip force) come from continuum-mhe rod tendon, "
+            "estimated with --inputs (docs/tendon.md)"
+        )
     # the default folder is the demo's own: a second demo there replaces its files
     check_new_folder(out, args.overwrite or args.out is None, demo_files(robot))
     scenario: ScenarioName = "paper3d" if robot.n_sections == 1 else "spatial"

@@ -16,7 +16,6 @@ sample time to its longest recording), not the other commands' shared ones.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from collections.abc import Callable
@@ -216,9 +215,9 @@ def run_sections(args: argparse.Namespace) -> int:
     try:
         if args.bend_only:
             path = cs.write_bend_only(out, name, settings, args.duration, imu, args.seed)
-            print(path, file=sys.stderr)
+            print(f"wrote {path}", file=sys.stderr)
             return 0
-        info = cs.write_section_recording(
+        cs.write_section_recording(
             out, name, settings, args.scenario, args.duration, imu=imu, seed=args.seed
         )
     except cs.RodDivergedError as err:  # the explicit integrator past its stable step
@@ -227,8 +226,15 @@ def run_sections(args: argparse.Namespace) -> int:
             f"{cs.default_sim_dt(args.shear_ratio):g} for this --shear-ratio; halve it if "
             "that diverges); nothing written"
         ) from None
-    print(json.dumps(info), file=sys.stderr)
+    print(_wrote(out, cs.recording_files(name)), file=sys.stderr)
     return 0
+
+
+def _wrote(folder: Path, files: tuple[str, ...]) -> str:
+    """The line that says what a recording wrote: its files in ``folder``, its measures
+    (floors, largest bends, twist, force) in the ``_info.json`` among them."""
+    info = next(f for f in files if f.endswith("_info.json"))
+    return f"wrote {', '.join(files)} in {folder} (the recording's measures in {info})"
 
 
 # --- rod tendon ----------------------------------------------------------------------------
@@ -315,7 +321,7 @@ def run_tendon(args: argparse.Namespace) -> int:
     except UserError as exc:  # a robot it does not write
         raise InputError(f"{args.robot}: {exc}") from None
     try:
-        info = ct.write_tendon_recording(
+        ct.write_tendon_recording(
             output, name, robot, args.scenario, args.duration, ct.TendonRodSettings(),
             args.seed, robot_name=args.robot, route=getattr(args, "route", robot.tendon_route),
             segments_per_disk=args.segments_per_disk,
@@ -327,5 +333,5 @@ def run_tendon(args: argparse.Namespace) -> int:
             "follow (a backbone far softer, or tendons further out); a stiffer backbone or "
             "tendons nearer to it bend less; nothing written"
         ) from None
-    print(json.dumps(info), file=sys.stderr)
+    print(_wrote(output, ct.recording_files(name)), file=sys.stderr)
     return 0
