@@ -457,7 +457,7 @@ options:
                         (default: 8.0)
   --robot ROBOT         a robot file (or shipped name) of two sections with an IMU at each end
                         (default: tendon-two-section)
-  --name NAME           the files' prefix, the scenario's name if not given (default: None)
+  --name NAME           the files' prefix, the scenario's name if not given
   --route {continuous,disks}
                         the tendons' path: continuous along the backbone at their radius, or
                         straight from disk to disk, as through a real robot's spacer disks
@@ -468,9 +468,8 @@ options:
                         takes about eight times as long) (default: 4)
   --seed SEED           draws the IMUs' errors and noise, an integer >= 0 (default: 0)
   -o OUTPUT, --output OUTPUT
-                        the folder to write to (made in a folder that exists) (default: None)
+                        the folder to write to (made in a folder that exists)
   --overwrite           replace the recording's files in -o where they exist (else refused)
-                        (default: False)
 """,
 }  # fmt: skip
 

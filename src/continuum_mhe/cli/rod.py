@@ -63,12 +63,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
             help=helps["tendon"],
             description="Recordings of a tendon-driven robot that its estimator's model did "
             "not generate.",
-            formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+            formatter_class=_SetDefaultsShown,
         )
     )
     # the generators check their own ranges (run_single, run_sections, run_tendon), in
     # their own words, after the PyElastica check
     p.set_defaults(own_option_ranges=True)
+
+
+class _SetDefaultsShown(argparse.ArgumentDefaultsHelpFormatter):
+    """Each option's default in its help, where it has one to show (not a required
+    option's or an unset one's None, nor a flag's False)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default is None or action.default is False:
+            return action.help
+        return super()._get_help_string(action)
 
 
 def run(args: argparse.Namespace) -> int:
