@@ -1581,3 +1581,22 @@ def test_truth_shift_draws_the_truth_on_the_estimates_clock(
     assert main(["view", str(est), "--truth-shift", "0.5", "--save", str(shifted)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--truth-shift needs --truth" in err
+
+
+def test_a_viewer_sink_of_an_unknown_kind_or_a_str_path_and_a_replay_of_no_robot(
+    tmp_path: Path,
+) -> None:
+    """``ViewerSink('file', ...)`` is one ``UserError`` naming the kinds (it started a web
+    viewer, then failed with a bare ``KeyError`` and left the server running); a path
+    given as a ``str`` is taken as a ``Path``; ``replay`` of a robot's name instead of a
+    ``Robot`` is a ``UserError`` naming the argument, before anything starts."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.viewer import ViewerSink, replay
+
+    with pytest.raises(UserError, match=r"^ViewerSink kind must be one of save, spawn, web, "):
+        ViewerSink("file", tmp_path / "v.rrd")  # type: ignore[arg-type]
+    sink = ViewerSink("save", str(tmp_path / "v.rrd"))  # type: ignore[arg-type]
+    assert sink.path == tmp_path / "v.rrd"
+    with pytest.raises(UserError, match=r"robot"):
+        replay(str(tmp_path / "e.csv"), "two-section", sink)  # type: ignore[arg-type]
+    assert not (tmp_path / "v.rrd").exists()

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from continuum_mhe.errors import InputError, UserError
+from continuum_mhe.errors import InputError, UserError, expect_type
 from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
 from continuum_mhe.io.position_units import position_unit_problem
 from continuum_mhe.io.state_tables import (
@@ -80,6 +80,8 @@ def replay(
     :class:`~continuum_mhe.viewer.view.ViewWarning`. ``say`` (where given) takes the line
     that says what was drawn and where, and a web viewer's lines (:meth:`BackboneView.
     close`); nothing is printed."""
+    expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
+    expect_type("sink", sink, ViewerSink, "a ViewerSink ('save' with a .rrd path, 'web')")
     tendon = None
     if robot.backbone is not None:
         tendon = TendonShapes(robot, points_per_section, tensions)

@@ -15,10 +15,11 @@ from typing import Literal
 from urllib.parse import quote
 
 from continuum_mhe.display import display_problem
-from continuum_mhe.errors import InputError
+from continuum_mhe.errors import InputError, UserError
 
 LOOPBACK = "127.0.0.1"
 SinkKind = Literal["save", "spawn", "web"]
+SINK_KINDS: tuple[SinkKind, ...] = ("save", "spawn", "web")
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,14 @@ class ViewerSink:
     grpc_port: int = 9876
 
     def __post_init__(self) -> None:
+        if self.kind not in SINK_KINDS:
+            raise UserError(
+                f"ViewerSink kind must be one of {', '.join(SINK_KINDS)}, got {self.kind!r}"
+            )
+        if self.path is not None and not isinstance(self.path, Path):
+            if not isinstance(self.path, (str, os.PathLike)):
+                raise UserError(f"ViewerSink path must be a file path, got {self.path!r}")
+            object.__setattr__(self, "path", Path(self.path))  # a path given as a str
         if self.kind == "save" and (self.path is None or self.path.suffix.lower() != ".rrd"):
             raise InputError(f"{self.path}: the view is saved as a Rerun file ending in .rrd")
         for name in ("web_port", "grpc_port"):
