@@ -906,8 +906,9 @@ def test_the_library_replay_prints_nothing_and_warns_its_notes(
         drawn = replay(est, robot, ViewerSink("save", rrd), points_per_section=POINTS,
                        say=said.append)  # fmt: skip
     assert [str(w.message) for w in notes] == [
-        "a tendon robot's backbone is drawn from its mechanics model with --inputs "
-        "TENSIONS.csv; without it, the tips alone"
+        "a tendon robot's backbone is drawn from its mechanics model with its tensions "
+        "(--inputs TENSIONS.csv; tensions=read_view_tensions(...) in Python); without "
+        "them, the tips alone"
     ]
     assert drawn == n and said == [f"wrote {rrd}: {n} of {n} estimate(s) of {robot.describe()}"]
     # without say: the same file, and no line anywhere

@@ -87,8 +87,9 @@ def replay(
         tendon = TendonShapes(robot, points_per_section, tensions)
         if tensions is None:
             warnings.warn(
-                "a tendon robot's backbone is drawn from its mechanics model with --inputs "
-                "TENSIONS.csv; without it, the tips alone",
+                "a tendon robot's backbone is drawn from its mechanics model with its "
+                "tensions (--inputs TENSIONS.csv; tensions=read_view_tensions(...) in "
+                "Python); without them, the tips alone",
                 ViewNote,
                 stacklevel=2,
             )
