@@ -1142,7 +1142,7 @@ def test_a_rest_in_another_acceleration_unit_is_refused_naming_the_unit(
 
 def test_a_bend_plane_in_radians_is_said(capsys: pytest.CaptureFixture[str]) -> None:
     """--bend-phi is in degrees: 1.5708 (a quarter turn in radians) is said; 90 is not."""
-    from continuum_mhe.cli.calibrate import radians_like_degrees
+    from continuum_mhe.calibration.robot_calibration import radians_like_degrees
 
     rod = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
     args = ["--from", str(rod / "spatial_rest.csv"), "--bend", str(rod / "spatial_bend.csv")]
@@ -1551,3 +1551,109 @@ def test_a_board_on_its_side_keeps_the_robot_file_s_roll(
         assert code == 0 and "IMU 1's x axis lies within 0." in err
         assert "of gravity at rest" in err and "the robot file's roll (0 degrees) is kept" in err
         assert re.search(r"--mount-rpy 0,(89\.9\d*|90),0 ", out), out
+
+
+ROD2 = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+
+
+@pytest.mark.parametrize("bent", [False, True])
+def test_calibrate_robot_gives_the_robot_that_write_robot_writes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], bent: bool
+) -> None:
+    """The library's calibrate_robot on the shipped spatial run (with its bend towards
+    phi = 0, or without) returns the robot that ``calibrate --write-robot`` writes, read
+    back from the file: each IMU's mount_rpy and gyro_bias, the rest of it the robot
+    file's; its report is the command's standard output."""
+    from continuum_mhe import RobotCalibration, calibrate_robot
+    from continuum_mhe.io import read_robot
+
+    rest, bend = ROD2 / "spatial_rest.csv", ROD2 / "spatial_bend.csv"
+    out = tmp_path / "cal.toml"
+    more = ("--bend", str(bend)) if bent else ()
+    code, stdout, err = _calibrate_main(
+        capsys, "--from", str(rest), *more, "--robot", "two-section", "--write-robot", str(out)
+    )
+    assert code == 0, err
+    written = read_robot(str(out))
+    given = read_robot("two-section")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the shipped run is calibrated without a warning
+        result = calibrate_robot(given, rest, bend=bend if bent else None)
+    assert isinstance(result, RobotCalibration)
+    assert result.robot == written
+    assert result.robot != given  # measured: not the file's zeros
+    assert [imu.mount_rpy for imu in result.robot.imus] == [imu.mount_rpy for imu in written.imus]
+    assert [imu.gyro_bias for imu in result.robot.imus] == [imu.gyro_bias for imu in written.imus]
+    assert result.report + "\n" == stdout
+    assert (result.yaws is not None) == bent
+    if bent:  # the yaws measured from the bend are those written (to the file's 0.001 deg)
+        assert result.yaws is not None
+        for imu, yaw in zip(written.imus, result.yaws):
+            assert imu.mount_rpy[2] == round(yaw.yaw_deg, 3) + 0.0
+
+
+def test_calibrate_robot_refuses_as_the_command_does(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A recording of the robot moving (the planar-S run) is refused by calibrate_robot
+    in an InputError whose message is the command's one-line error, as is a
+    --bend-phi without a bend."""
+    from continuum_mhe import InputError, calibrate_robot
+    from continuum_mhe.io import read_robot
+
+    moving = ROD2 / "planar-s_raw.csv"
+    code, stdout, err = _calibrate_main(capsys, "--from", str(moving), "--robot", "two-section")
+    assert code == 2 and stdout == "" and err.count("\n") == 1
+    with pytest.raises(InputError) as refused:
+        calibrate_robot(read_robot("two-section"), moving)
+    assert err == f"continuum-mhe: error: {refused.value}\n"
+    assert "the robot moved" in str(refused.value)
+    with pytest.raises(InputError, match=r"^--bend-phi needs --bend BEND.csv$"):
+        calibrate_robot(read_robot("two-section"), ROD2 / "spatial_rest.csv", bend_phi_deg=90.0)
+
+
+def test_calibrate_robot_warns_as_python_warnings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A rest recording with two readings missing, IMU 2's board turned over (x and z
+    negated), and a bend plane that looks given in radians: calibrate_robot says each
+    as a CalibrationWarning (nothing printed), the lines the command prints as its
+    warnings, in the same order."""
+    from continuum_mhe import CalibrationWarning, calibrate_robot
+    from continuum_mhe.io import read_robot
+
+    lines = (ROD2 / "spatial_rest.csv").read_text().splitlines()
+    names = lines[0].split(",")
+    flip = [names.index(c) for c in ("ax_2", "az_2", "gx_2", "gz_2")]
+    rows = []
+    for k, ln in enumerate(lines[1:]):
+        v = ln.split(",")
+        for j in flip:
+            v[j] = repr(-float(v[j]))
+        if k in (50, 200):
+            v[names.index("ay_1")] = ""  # a dropout
+        rows.append(",".join(v))
+    rest = tmp_path / "turned_rest.csv"
+    rest.write_text("\n".join([lines[0], *rows]) + "\n")
+    bend = ROD2 / "spatial_bend.csv"
+    code, stdout, err = _calibrate_main(
+        capsys, "--from", str(rest), "--bend", str(bend), "--bend-phi", "0.5",
+        "--robot", "two-section",
+    )  # fmt: skip
+    assert code == 0, err
+    said = [ln for ln in err.splitlines() if ln.startswith("continuum-mhe: warning: ")]
+    assert len(said) == 3 and len(err.splitlines()) == 3, err
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = calibrate_robot(read_robot("two-section"), rest, bend=bend, bend_phi_deg=0.5)
+    assert capsys.readouterr() == ("", "")
+    assert result.report + "\n" == stdout
+    assert all(w.category is CalibrationWarning for w in caught)
+    assert [f"continuum-mhe: warning: {w.message}" for w in caught] == said
+    assert "IMU 2 (of 2) reads gravity 178 degrees" in said[0]
+    assert "2 of 601 row(s) with a reading missing" in said[1]
+    assert said[2].startswith("continuum-mhe: warning: --bend-phi 0.5 is in degrees")
+    with warnings.catch_warnings():  # as an error where a script asks for one
+        warnings.simplefilter("error", CalibrationWarning)
+        with pytest.raises(CalibrationWarning, match="reads gravity 178 degrees"):
+            calibrate_robot(read_robot("two-section"), rest)

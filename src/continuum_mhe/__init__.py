@@ -4,7 +4,8 @@ Public surface::
 
     from continuum_mhe import (Robot, Section, ImuPlacement, NoiseSettings, MHESettings,
                                RecoverySettings, make_formulation, make_estimator,
-                               simulate, simulate_robot, Measurement, backbone_points)
+                               simulate, simulate_robot, Measurement, backbone_points,
+                               calibrate_robot)
     from continuum_mhe.io import read_measurements, write_estimates
 
 The names are imported on first use (PEP 562), so that ``continuum-mhe --help`` and
@@ -30,6 +31,10 @@ _EXPORTS: dict[str, str] = {
     "MovingHorizonEstimator": "continuum_mhe.estimators",
     "UnscentedKalmanFilter": "continuum_mhe.estimators",
     "make_estimator": "continuum_mhe.estimators",
+    "CalibrationNote": "continuum_mhe.calibration.robot_calibration",
+    "CalibrationWarning": "continuum_mhe.calibration.robot_calibration",
+    "RobotCalibration": "continuum_mhe.calibration.robot_calibration",
+    "calibrate_robot": "continuum_mhe.calibration.robot_calibration",
     "FieldError": "continuum_mhe.errors",
     "InputError": "continuum_mhe.errors",
     "SampleTimeError": "continuum_mhe.errors",
@@ -97,6 +102,12 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
+    from continuum_mhe.calibration.robot_calibration import (
+        CalibrationNote,
+        CalibrationWarning,
+        RobotCalibration,
+        calibrate_robot,
+    )
     from continuum_mhe.errors import (
         FieldError,
         InputError,
