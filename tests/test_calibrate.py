@@ -1649,6 +1649,7 @@ def test_calibrate_robot_warns_as_python_warnings(
     assert capsys.readouterr() == ("", "")
     assert result.report + "\n" == stdout
     assert all(w.category is CalibrationWarning for w in caught)
+    assert {w.filename for w in caught} == {__file__}  # the caller's line, not the library's
     assert [f"continuum-mhe: warning: {w.message}" for w in caught] == said
     assert "IMU 2 (of 2) reads gravity 178 degrees" in said[0]
     assert "2 of 601 row(s) with a reading missing" in said[1]
@@ -1657,3 +1658,52 @@ def test_calibrate_robot_warns_as_python_warnings(
         warnings.simplefilter("error", CalibrationWarning)
         with pytest.raises(CalibrationWarning, match="reads gravity 178 degrees"):
             calibrate_robot(read_robot("two-section"), rest)
+
+
+def test_calibrate_robot_refuses_arguments_the_command_refuses() -> None:
+    """The library's still spreads, bend plane, robot and topics are held as the
+    command's options are (one ``UserError`` naming the argument, before anything is
+    read): a NaN or infinite spread calibrated a moving run, 0 divided by zero; the
+    bounds are the command's ``--still-acc-std`` and ``--still-gyro-std`` ranges."""
+    from continuum_mhe import calibrate_robot
+    from continuum_mhe.calibration.robot_calibration import (
+        STILL_ACC_STD_MAX,
+        STILL_GYRO_STD_MAX,
+    )
+    from continuum_mhe.cli.options import OPTION_RANGES
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io import read_robot
+
+    assert (OPTION_RANGES["still_acc_std"].hi, OPTION_RANGES["still_gyro_std"].hi) == (
+        STILL_ACC_STD_MAX, STILL_GYRO_STD_MAX,
+    )  # fmt: skip
+    robot, moving = read_robot("two-section"), str(ROD2 / "planar-s_raw.csv")
+    for kwargs, said in (
+        ({"still_acc_std": math.nan}, "still_acc_std must be above 0 and at most 10 m/s^2"),
+        ({"still_acc_std": math.inf}, "still_acc_std must be above 0"),
+        ({"still_acc_std": 0.0}, "still_acc_std must be above 0"),
+        ({"still_gyro_std": -1.0}, "still_gyro_std must be above 0 and at most 5 rad/s"),
+        ({"still_acc_std": "0.2"}, "still_acc_std must be a number"),
+        ({"bend_phi_deg": "90"}, "bend_phi_deg must be a number"),
+        ({"topics": "/imu1"}, "topics must be a sequence of topic names"),
+    ):
+        with pytest.raises(UserError, match=f"^{re.escape(said)}"):
+            calibrate_robot(robot, moving, **kwargs)
+    with pytest.raises(UserError, match="^robot must be a Robot"):
+        calibrate_robot("two-section", moving)  # type: ignore[arg-type]
+
+
+def test_the_calibrate_command_says_its_warnings_under_an_error_filter(capsys) -> None:
+    """``calibrate --from`` with a bend whose plane looks given in radians, under ``-W
+    error``: its warning is its own line, exit 0 (not an internal error from the
+    library's warning)."""
+    import warnings as _warnings
+
+    capsys.readouterr()
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("error")
+        status = main(["calibrate", "--from", str(ROD2 / "spatial_rest.csv"), "--robot",
+                       "two-section", "--bend", str(ROD2 / "spatial_bend.csv"),
+                       "--bend-phi", "0.5"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert status == 0 and "continuum-mhe: warning: " in err, err

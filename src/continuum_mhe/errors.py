@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 import sys
 import warnings
 from collections.abc import Iterable, Iterator
@@ -156,3 +157,14 @@ def one_line_warnings(prog: str) -> Iterator[None]:
         yield
     finally:
         warnings.formatwarning = saved
+
+
+def outside_stacklevel() -> int:
+    """The ``warnings.warn`` stacklevel, for a warning raised in the function that calls
+    this, of the first caller outside this package: a warning of the library names the
+    user's line, not the library's."""
+    package = os.path.dirname(os.path.abspath(__file__))
+    frame, level = sys._getframe(1), 1
+    while frame.f_back is not None and frame.f_code.co_filename.startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level

@@ -38,7 +38,14 @@ from continuum_mhe.calibration.at_rest import (
     rolls_kept,
 )
 from continuum_mhe.calibration.bend import YawCalibration, tilt_order_warning
-from continuum_mhe.errors import InputError, time_text
+from continuum_mhe.errors import (
+    InputError,
+    UserError,
+    expect_type,
+    outside_stacklevel,
+    real_number,
+    time_text,
+)
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.robot_logs import is_robot_log, refuse_bag_metadata
 from continuum_mhe.io.sample_rows import DROPOUT_HINT
@@ -57,8 +64,8 @@ class CalibrationWarning(UserWarning):
 
 class CalibrationNote(UserWarning):
     """How a calibration took its readings, where it is not what a reader would assume:
-    an accelerometer read in another unit of gravity, a board's roll that a rest does not
-    show kept from the robot. The command line says it as a note
+    an accelerometer whose magnitude is more than 2 % from g (a scale or offset error),
+    a board's roll that a rest does not show kept from the robot. The command line says it as a note
     (``continuum-mhe: note: ...``)."""
 
 
@@ -105,6 +112,31 @@ def check_recordings(rest: str, bend: str | None = None, topics: Sequence[str] =
         raise InputError(
             "--topic chooses the IMUs of a ROS bag or MCAP file given to --from or --bend"
         )
+
+
+#: The still robot's spreads the calibration takes: above 0, and at most this much
+#: (an accelerometer's, m/s^2: a spread of 1 g is no robot at rest; a gyro's, rad/s:
+#: beyond it, degrees); the command's ``--still-acc-std`` and ``--still-gyro-std``.
+STILL_ACC_STD_MAX = 10.0
+STILL_GYRO_STD_MAX = 5.0
+
+
+def _check_arguments(
+    robot: object, bend_phi_deg: object, acc_std: object, gyro_std: object, topics: object
+) -> None:
+    """A one-line :class:`~continuum_mhe.errors.UserError` naming the argument of
+    :func:`calibrate_robot` that is not what it takes."""
+    expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
+    if isinstance(topics, (str, bytes)):
+        raise UserError(f"topics must be a sequence of topic names, one per IMU, got {topics!r}")
+    if bend_phi_deg is not None:
+        real_number("bend_phi_deg", bend_phi_deg)  # its range: the bend's own check
+    for name, value, most, unit in (
+        ("still_acc_std", acc_std, STILL_ACC_STD_MAX, "m/s^2"),
+        ("still_gyro_std", gyro_std, STILL_GYRO_STD_MAX, "rad/s"),
+    ):
+        if value is not None and not 0.0 < real_number(name, value) <= most:
+            raise UserError(f"{name} must be above 0 and at most {most:g} {unit}, got {value!r}")
 
 
 def calibrate_robot(
@@ -156,9 +188,10 @@ def calibrate_robot(
         CalibrationWarning: readings left out, a board upside down, IMUs not straight
             at rest, a plane that looks given in radians, tilts in the bend out of the
             IMUs' order.
-        CalibrationNote: an accelerometer read in another unit of gravity, a roll kept
-            from the robot.
+        CalibrationNote: an accelerometer whose magnitude is more than 2 % from g (a
+            scale or offset error), a roll kept from the robot.
     """
+    _check_arguments(robot, bend_phi_deg, still_acc_std, still_gyro_std, topics)
     source = os.fspath(rest)
     bend_path = None if bend is None else os.fspath(bend)
     check_recordings(source, bend_path, topics)
@@ -223,7 +256,7 @@ def calibrate_readings(
     if unit := rest_gravity_problem(values, fmt, robot.n_imus):
         raise InputError(f"{source}: {unit}")
     if scaled := rest_gravity_note(values, fmt, robot.n_imus):
-        warnings.warn(f"{source}: {scaled}", CalibrationNote, stacklevel=2)
+        warnings.warn(f"{source}: {scaled}", CalibrationNote, stacklevel=outside_stacklevel())
     fix = "the board must send radians" if from_port else "pass --degrees"
     moved = motion_at_rest(
         values, fmt, robot.n_imus, still_acc_std, gyro_std, None if degrees else fix
@@ -244,7 +277,7 @@ def calibrate_readings(
                 "degrees from that yaw (its section's bending plane turned half a turn): a "
                 "bend in a known plane (--bend) measures it"
             )
-        warnings.warn(f"{source}: {flipped}", CalibrationWarning, stacklevel=2)
+        warnings.warn(f"{source}: {flipped}", CalibrationWarning, stacklevel=outside_stacklevel())
     knocks: list[str] = []
     if fmt == "raw":
         values, knocks = knocks_at_rest(t, values, robot.n_imus, still_acc_std, gyro_std)
@@ -254,12 +287,12 @@ def calibrate_readings(
     except InputError as exc:  # name the recording
         raise InputError(f"{source}: {exc}") from None
     if left_out:
-        warnings.warn(left_out, CalibrationWarning, stacklevel=2)
+        warnings.warn(left_out, CalibrationWarning, stacklevel=outside_stacklevel())
     for knock in knocks:
-        warnings.warn(f"{source}: {knock}", CalibrationWarning, stacklevel=2)
+        warnings.warn(f"{source}: {knock}", CalibrationWarning, stacklevel=outside_stacklevel())
     tilted = rest_tilt_warning(cal, robot.mounting, fix, [imu.mount_rpy[2] for imu in robot.imus])
     if tilted:
-        warnings.warn(f"{source}: {tilted}", CalibrationWarning, stacklevel=2)
+        warnings.warn(f"{source}: {tilted}", CalibrationWarning, stacklevel=outside_stacklevel())
     if fmt == "raw":
         cal, kept = rolls_kept(cal, [imu.mount_rpy[0] for imu in robot.imus])
         for i in kept:
@@ -276,7 +309,7 @@ def calibrate_readings(
                 f"gravity, which a rest does not show, so {roll_from} (--bend measures the "
                 "turn about gravity)",
                 CalibrationNote,
-                stacklevel=2,
+                stacklevel=outside_stacklevel(),
             )
     bent = None
     if bend:
@@ -286,7 +319,7 @@ def calibrate_readings(
                 f"--bend-phi {phi:g} is in degrees: radians? ({phi:g} rad is "
                 f"{math.degrees(phi):.4g} degrees: give --bend-phi {math.degrees(phi):.4g})",
                 CalibrationWarning,
-                stacklevel=2,
+                stacklevel=outside_stacklevel(),
             )
         try:
             bend_topics = tuple(topics) if is_robot_log(Path(bend)) else ()
@@ -296,7 +329,7 @@ def calibrate_readings(
         places = [(imu.section, imu.at) for imu in robot.imus]
         reach = [s.theta_max for s in robot.sections]
         if order := tilt_order_warning(places, bent[2], reach):
-            warnings.warn(f"{bend}: {order}", CalibrationWarning, stacklevel=2)
+            warnings.warn(f"{bend}: {order}", CalibrationWarning, stacklevel=outside_stacklevel())
     file_yaws = [imu.mount_rpy[2] for imu in robot.imus]
     report = format_report(cal, source, bent, file_yaws, robot.mounting)
     yaws = None if bent is None else tuple(bent[2])

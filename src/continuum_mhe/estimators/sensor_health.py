@@ -22,8 +22,6 @@ formulation states them so (:meth:`~continuum_mhe.model.formulations.Formulation
 from __future__ import annotations
 
 import math
-import os
-import sys
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -41,6 +39,7 @@ from continuum_mhe.errors import (
     expect_type,
     is_integer,
     masked_as_missing,
+    outside_stacklevel,
     time_text,
 )
 from continuum_mhe.estimators import start_check
@@ -141,16 +140,6 @@ def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
         f"{who}: treated as frozen (a dropout) while {repeats}; --freeze 0 turns this off "
         "(RecoverySettings(freeze=None) in Python)"
     )
-
-
-def _outside_stacklevel() -> int:
-    """The ``warnings.warn`` stacklevel of the first caller outside this package (a
-    warning of the library names the user's line, not ours)."""
-    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    frame, level = sys._getframe(1), 1
-    while frame.f_back is not None and frame.f_code.co_filename.startswith(package):
-        frame, level = frame.f_back, level + 1
-    return level
 
 
 class PythonInference:
@@ -290,7 +279,7 @@ class Estimator(Generic[InferenceT]):
                 f"observable, so every estimate is marked uncertain "
                 f"({formulation.observable_hint})",
                 UnobservableShapeWarning,
-                stacklevel=_outside_stacklevel(),
+                stacklevel=outside_stacklevel(),
             )
         self._consistency = ConsistencyCheck(formulation)
         self._direct_rows = direct_blocks(formulation)
@@ -515,7 +504,7 @@ class Estimator(Generic[InferenceT]):
         that converts each sample before stepping it has converted one."""
         if not self._mount_said:
             self._mount_said = True
-            warn_mount_not_applied(self.formulation.robot, stacklevel=_outside_stacklevel() + 1)
+            warn_mount_not_applied(self.formulation.robot, stacklevel=outside_stacklevel() + 1)
 
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
