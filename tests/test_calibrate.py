@@ -1707,3 +1707,36 @@ def test_the_calibrate_command_says_its_warnings_under_an_error_filter(capsys) -
                        "--bend-phi", "0.5"])  # fmt: skip
     err = capsys.readouterr().err
     assert status == 0 and "continuum-mhe: warning: " in err, err
+
+
+def test_a_short_rest_with_a_board_turned_over_is_refused_without_a_warning_first(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A rest of 0.2 s with IMU 2's board turned over: the refusal (too short) is the
+    library's one error, also where a script turns warnings into errors (the board's
+    warning came first and took its place), and the command's one line."""
+    import warnings as _warnings
+
+    from continuum_mhe import calibrate_robot
+    from continuum_mhe.errors import InputError
+    from continuum_mhe.io import read_robot
+
+    lines = (ROD2 / "spatial_rest.csv").read_text().splitlines()
+    names = lines[0].split(",")
+    flip = [names.index(c) for c in ("ax_2", "az_2", "gx_2", "gz_2")]
+    rows = []
+    for ln in lines[1:11]:  # 10 samples at 50 Hz
+        v = ln.split(",")
+        for j in flip:
+            v[j] = repr(-float(v[j]))
+        rows.append(",".join(v))
+    rest = tmp_path / "short_rest.csv"
+    rest.write_text("\n".join([lines[0], *rows]) + "\n")
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("error")
+        with pytest.raises(InputError, match="calibration needs the robot still"):
+            calibrate_robot(read_robot("two-section"), rest)
+    capsys.readouterr()
+    assert main(["calibrate", "--from", str(rest), "--robot", "two-section"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {rest}: "), err

@@ -242,6 +242,8 @@ def calibrate_readings(
     (n, 6 per IMU raw, n, 2 per IMU tilt: ``fmt``) from ``source`` (a file, or the
     serial port where ``from_port``: its readings are not counted for dropouts, and a
     tilt recording in degrees is the board's to fix)."""
+    # what it warns of, said once the calibration holds: a refusal is its one error alone
+    held: list[tuple[str, type[Warning]]] = []
     left_out = ""  # said once the calibration holds
     if not from_port:
         missing = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
@@ -256,7 +258,7 @@ def calibrate_readings(
     if unit := rest_gravity_problem(values, fmt, robot.n_imus):
         raise InputError(f"{source}: {unit}")
     if scaled := rest_gravity_note(values, fmt, robot.n_imus):
-        warnings.warn(f"{source}: {scaled}", CalibrationNote, stacklevel=outside_stacklevel())
+        held.append((f"{source}: {scaled}", CalibrationNote))
     fix = "the board must send radians" if from_port else "pass --degrees"
     moved = motion_at_rest(
         values, fmt, robot.n_imus, still_acc_std, gyro_std, None if degrees else fix
@@ -277,7 +279,7 @@ def calibrate_readings(
                 "degrees from that yaw (its section's bending plane turned half a turn): a "
                 "bend in a known plane (--bend) measures it"
             )
-        warnings.warn(f"{source}: {flipped}", CalibrationWarning, stacklevel=outside_stacklevel())
+        held.append((f"{source}: {flipped}", CalibrationWarning))
     knocks: list[str] = []
     if fmt == "raw":
         values, knocks = knocks_at_rest(t, values, robot.n_imus, still_acc_std, gyro_std)
@@ -287,12 +289,12 @@ def calibrate_readings(
     except InputError as exc:  # name the recording
         raise InputError(f"{source}: {exc}") from None
     if left_out:
-        warnings.warn(left_out, CalibrationWarning, stacklevel=outside_stacklevel())
+        held.append((left_out, CalibrationWarning))
     for knock in knocks:
-        warnings.warn(f"{source}: {knock}", CalibrationWarning, stacklevel=outside_stacklevel())
+        held.append((f"{source}: {knock}", CalibrationWarning))
     tilted = rest_tilt_warning(cal, robot.mounting, fix, [imu.mount_rpy[2] for imu in robot.imus])
     if tilted:
-        warnings.warn(f"{source}: {tilted}", CalibrationWarning, stacklevel=outside_stacklevel())
+        held.append((f"{source}: {tilted}", CalibrationWarning))
     if fmt == "raw":
         cal, kept = rolls_kept(cal, [imu.mount_rpy[0] for imu in robot.imus])
         for i in kept:
@@ -303,23 +305,25 @@ def calibrate_readings(
                 if robot_file
                 else f"its roll is taken as {rpy[0]:g} (no robot file gives one)"
             )
-            warnings.warn(
-                f"{source}: IMU {i}'s x axis lies within {90 - abs(rpy[1]):.1f} degrees of "
-                f"gravity at rest (pitch {rpy[1]:.2f} degrees): its roll turns it about "
-                f"gravity, which a rest does not show, so {roll_from} (--bend measures the "
-                "turn about gravity)",
-                CalibrationNote,
-                stacklevel=outside_stacklevel(),
+            held.append(
+                (
+                    f"{source}: IMU {i}'s x axis lies within {90 - abs(rpy[1]):.1f} degrees of "
+                    f"gravity at rest (pitch {rpy[1]:.2f} degrees): its roll turns it about "
+                    f"gravity, which a rest does not show, so {roll_from} (--bend measures the "
+                    "turn about gravity)",
+                    CalibrationNote,
+                )
             )
     bent = None
     if bend:
         phi = 0.0 if bend_phi_deg is None else bend_phi_deg
         if radians_like_degrees(phi):
-            warnings.warn(
-                f"--bend-phi {phi:g} is in degrees: radians? ({phi:g} rad is "
-                f"{math.degrees(phi):.4g} degrees: give --bend-phi {math.degrees(phi):.4g})",
-                CalibrationWarning,
-                stacklevel=outside_stacklevel(),
+            held.append(
+                (
+                    f"--bend-phi {phi:g} is in degrees: radians? ({phi:g} rad is "
+                    f"{math.degrees(phi):.4g} degrees: give --bend-phi {math.degrees(phi):.4g})",
+                    CalibrationWarning,
+                )
             )
         try:
             bend_topics = tuple(topics) if is_robot_log(Path(bend)) else ()
@@ -329,10 +333,12 @@ def calibrate_readings(
         places = [(imu.section, imu.at) for imu in robot.imus]
         reach = [s.theta_max for s in robot.sections]
         if order := tilt_order_warning(places, bent[2], reach):
-            warnings.warn(f"{bend}: {order}", CalibrationWarning, stacklevel=outside_stacklevel())
+            held.append((f"{bend}: {order}", CalibrationWarning))
     file_yaws = [imu.mount_rpy[2] for imu in robot.imus]
     report = format_report(cal, source, bent, file_yaws, robot.mounting)
     yaws = None if bent is None else tuple(bent[2])
+    for message, category in held:
+        warnings.warn(message, category, stacklevel=outside_stacklevel())
     return RobotCalibration(_calibrated(robot, cal, yaws), cal, yaws, report)
 
 
