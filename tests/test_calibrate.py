@@ -1612,6 +1612,27 @@ def test_calibrate_robot_refuses_as_the_command_does(
         calibrate_robot(read_robot("two-section"), ROD2 / "spatial_rest.csv", bend_phi_deg=90.0)
 
 
+def _board_2_turned_over(
+    path: Path, samples: int | None = None, dropouts: tuple[int, ...] = ()
+) -> Path:
+    """The shipped ``spatial_rest.csv`` (its first ``samples`` rows, or all) with IMU 2's
+    board turned over (x and z negated) and IMU 1's ``ay`` empty in the rows
+    ``dropouts`` (0-based), written to ``path``."""
+    lines = (ROD2 / "spatial_rest.csv").read_text().splitlines()
+    names = lines[0].split(",")
+    flip = [names.index(c) for c in ("ax_2", "az_2", "gx_2", "gz_2")]
+    rows = []
+    for k, ln in enumerate(lines[1:] if samples is None else lines[1 : samples + 1]):
+        v = ln.split(",")
+        for j in flip:
+            v[j] = repr(-float(v[j]))
+        if k in dropouts:
+            v[names.index("ay_1")] = ""  # a dropout
+        rows.append(",".join(v))
+    path.write_text("\n".join([lines[0], *rows]) + "\n")
+    return path
+
+
 def test_calibrate_robot_warns_as_python_warnings(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -1622,19 +1643,7 @@ def test_calibrate_robot_warns_as_python_warnings(
     from continuum_mhe import CalibrationWarning, calibrate_robot
     from continuum_mhe.io import read_robot
 
-    lines = (ROD2 / "spatial_rest.csv").read_text().splitlines()
-    names = lines[0].split(",")
-    flip = [names.index(c) for c in ("ax_2", "az_2", "gx_2", "gz_2")]
-    rows = []
-    for k, ln in enumerate(lines[1:]):
-        v = ln.split(",")
-        for j in flip:
-            v[j] = repr(-float(v[j]))
-        if k in (50, 200):
-            v[names.index("ay_1")] = ""  # a dropout
-        rows.append(",".join(v))
-    rest = tmp_path / "turned_rest.csv"
-    rest.write_text("\n".join([lines[0], *rows]) + "\n")
+    rest = _board_2_turned_over(tmp_path / "turned_rest.csv", dropouts=(50, 200))
     bend = ROD2 / "spatial_bend.csv"
     code, stdout, err = _calibrate_main(
         capsys, "--from", str(rest), "--bend", str(bend), "--bend-phi", "0.5",
@@ -1721,17 +1730,7 @@ def test_a_short_rest_with_a_board_turned_over_is_refused_without_a_warning_firs
     from continuum_mhe.errors import InputError
     from continuum_mhe.io import read_robot
 
-    lines = (ROD2 / "spatial_rest.csv").read_text().splitlines()
-    names = lines[0].split(",")
-    flip = [names.index(c) for c in ("ax_2", "az_2", "gx_2", "gz_2")]
-    rows = []
-    for ln in lines[1:11]:  # 10 samples at 50 Hz
-        v = ln.split(",")
-        for j in flip:
-            v[j] = repr(-float(v[j]))
-        rows.append(",".join(v))
-    rest = tmp_path / "short_rest.csv"
-    rest.write_text("\n".join([lines[0], *rows]) + "\n")
+    rest = _board_2_turned_over(tmp_path / "short_rest.csv", samples=10)  # 0.2 s at 50 Hz
     with _warnings.catch_warnings():
         _warnings.simplefilter("error")
         with pytest.raises(InputError, match="calibration needs the robot still"):
