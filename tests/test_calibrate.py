@@ -1700,6 +1700,8 @@ def test_calibrate_robot_refuses_arguments_the_command_refuses() -> None:
             calibrate_robot(robot, moving, **kwargs)
     with pytest.raises(UserError, match="^robot must be a Robot"):
         calibrate_robot("two-section", moving)  # type: ignore[arg-type]
+    with pytest.raises(UserError, match="^require_raw must be "):
+        calibrate_robot(robot, moving, require_raw=True)  # type: ignore[arg-type]
 
 
 def test_the_calibrate_command_says_its_warnings_under_an_error_filter(capsys) -> None:

@@ -192,6 +192,8 @@ def calibrate_robot(
             scale or offset error), a roll kept from the robot.
     """
     _check_arguments(robot, bend_phi_deg, still_acc_std, still_gyro_std, topics)
+    expect_type("robot_file", robot_file, bool, "True or False")
+    expect_type("require_raw", require_raw, str, "what needs a raw recording, or ''")
     source = os.fspath(rest)
     bend_path = None if bend is None else os.fspath(bend)
     check_recordings(source, bend_path, topics)
