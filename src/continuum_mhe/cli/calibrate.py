@@ -4,17 +4,13 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
 import sys
-import warnings
-from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.calibration.at_rest import STILL_ACC_STD, STILL_GYRO_STD, Calibration, collect
-from continuum_mhe.calibration.bend import YawCalibration
+from continuum_mhe.calibration.at_rest import STILL_ACC_STD, STILL_GYRO_STD, collect
 from continuum_mhe.calibration.robot_calibration import (
     CalibrationNote,
     CalibrationWarning,
@@ -22,6 +18,7 @@ from continuum_mhe.calibration.robot_calibration import (
     calibrate_robot,
     check_recordings,
 )
+from continuum_mhe.cli.held_notes import said_as_lines
 from continuum_mhe.cli.options import add_overwrite_option, given_options
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
@@ -38,41 +35,6 @@ def _check_gyro_bound_applies(args: argparse.Namespace, fmt: LineFormat, source:
     """Refuse ``--still-gyro-std`` on a recording without a gyro (it would do nothing)."""
     if args.still_gyro_std is not None and fmt != "raw":
         raise InputError(f"{source}: --still-gyro-std needs a raw recording (this one is {fmt})")
-
-
-@contextlib.contextmanager
-def _said() -> Iterator[None]:
-    """While the block runs, the calibration's notes (:class:`~continuum_mhe.calibration.
-    robot_calibration.CalibrationNote`) are said on stderr as notes, ``continuum-mhe:
-    note: ...``, and its warnings (``CalibrationWarning``) as warnings, ``continuum-mhe:
-    warning: ...``, when they are raised, whatever the warning filters say: they are the
-    command's output; the other warnings are shown as before."""
-    saved = warnings.showwarning
-
-    def show(
-        message: Warning | str,
-        category: type[Warning],
-        filename: str,
-        lineno: int,
-        file: TextIO | None = None,
-        line: str | None = None,
-    ) -> None:
-        if issubclass(category, CalibrationNote):
-            print(f"{PROG}: note: {message}", file=sys.stderr)
-            return
-        if issubclass(category, CalibrationWarning):
-            print(f"{PROG}: warning: {message}", file=sys.stderr)
-            return
-        saved(message, category, filename, lineno, file, line)
-
-    warnings.showwarning = show
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("always", CalibrationNote)
-            warnings.simplefilter("always", CalibrationWarning)
-            yield
-    finally:
-        warnings.showwarning = saved
 
 
 def run(args: argparse.Namespace) -> int:
@@ -117,14 +79,15 @@ def run(args: argparse.Namespace) -> int:
         "robot_file": bool(args.robot),
         "require_raw": "--write-robot" if args.write_robot else "",
     }
-    with _said():
+    with said_as_lines(CalibrationNote, CalibrationWarning):
         if args.source:
             result = calibrate_robot(robot, args.source, **options)
         else:
             result = calibrate_readings(robot, *_recorded(args, robot), from_port=True, **options)
     print(result.report)
     if args.write_robot:
-        _write_robot(args, robot, result.rest, result.yaws)
+        assert result.robot is not None  # a raw recording (the command requires one)
+        _write_robot(args, robot, result.robot, bent=result.yaws is not None)
     return 0
 
 
@@ -150,21 +113,12 @@ def _recorded(
     return source, t, values, fmt
 
 
-def _write_robot(
-    args: argparse.Namespace,
-    robot: Robot,
-    cal: Calibration,
-    yaws: tuple[YawCalibration, ...] | None,
-) -> None:
-    """The robot file (``--robot``'s, comments kept) with each IMU's measured mounting
-    (the yaw from ``--bend``, else the file's own) and gyro bias, to ``--write-robot``."""
-    mounts = []
-    for i, imu in enumerate(cal.imus):
-        assert imu.mount_rpy is not None  # a raw recording (checked before)
-        roll, pitch, _ = imu.mount_rpy
-        yaw = yaws[i].yaw_deg if yaws else robot.imus[i].mount_rpy[2]
-        mounts.append((roll, pitch, yaw))
-    biases = [tuple(float(v) for v in imu.mean[3:6]) for imu in cal.imus]
+def _write_robot(args: argparse.Namespace, robot: Robot, calibrated: Robot, bent: bool) -> None:
+    """The robot file (``--robot``'s, comments kept) with the ``calibrated`` robot's
+    mountings (the yaw from ``--bend`` where ``bent``, else the file's own) and gyro
+    biases, to ``--write-robot``."""
+    mounts = [imu.mount_rpy for imu in calibrated.imus]
+    biases = [imu.gyro_bias for imu in calibrated.imus]
     text = with_imu_calibration(
         robot_source_text(args.robot, robot), mounts, biases, args.write_robot
     )
@@ -172,7 +126,7 @@ def _write_robot(
         fh.write(text)
     whence = (
         "from --bend"
-        if yaws
+        if bent
         else "kept from the robot file: gravity does not show it, --bend measures it; a "
         "board turned about the backbone by a yaw the file does not give reads its "
         "section's bending plane turned by as much"

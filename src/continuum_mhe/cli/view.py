@@ -4,18 +4,15 @@ Rerun (:func:`continuum_mhe.viewer.replay`)."""
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import sys
 import warnings
-from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
-from typing import TextIO
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.cli.config import recorded_t0_ns
-from continuum_mhe.cli.held_notes import said_unless_refused
+from continuum_mhe.cli.held_notes import said_as_lines, said_unless_refused
 from continuum_mhe.cli.input_options import add_tensions_option
 from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_args
 from continuum_mhe.cli.options import add_overwrite_option
@@ -35,7 +32,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--truth-shift needs --truth TRUTH.csv: it shifts the truth's times")
     sink = viewer_sink_from_args(args)
     # the estimate is read twice, the tensions again where compared with the recorded ones
-    with held_for_rereading(args.estimates, args.truth, args.inputs), _notes_said():
+    with (
+        held_for_rereading(args.estimates, args.truth, args.inputs),
+        said_as_lines(ViewNote, ViewWarning),
+    ):
         # the notes and warnings about the robot and the truth are said once the files
         # are found fit to draw
         with said_unless_refused():
@@ -59,43 +59,6 @@ def run(args: argparse.Namespace) -> int:
 def _say(line: str) -> None:
     """A line of the replay (what was drawn, where the web viewer serves) on stderr."""
     print(line, file=sys.stderr)
-
-
-@contextlib.contextmanager
-def _notes_said() -> Iterator[None]:
-    """While the block runs, the view's notes (:class:`~continuum_mhe.viewer.ViewNote`)
-    are said on stderr as notes, ``continuum-mhe: note: ...``, and its warnings
-    (``ViewWarning``) as warnings, ``continuum-mhe: warning: ...``, when they are raised; the
-    other warnings are shown as before (:mod:`warnings`' display, process-wide). The
-    view's notes and warnings (``ViewWarning``) are shown whatever the warning filters
-    (``-W``, ``PYTHONWARNINGS``) say: they are the command's output, not the library's
-    to be filtered."""
-    saved = warnings.showwarning
-
-    def show(
-        message: Warning | str,
-        category: type[Warning],
-        filename: str,
-        lineno: int,
-        file: TextIO | None = None,
-        line: str | None = None,
-    ) -> None:
-        if issubclass(category, ViewNote):
-            print(f"{PROG}: note: {message}", file=sys.stderr)
-            return
-        if issubclass(category, ViewWarning):
-            print(f"{PROG}: warning: {message}", file=sys.stderr)
-            return
-        saved(message, category, filename, lineno, file, line)
-
-    warnings.showwarning = show
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("always", ViewNote)
-            warnings.simplefilter("always", ViewWarning)
-            yield
-    finally:
-        warnings.showwarning = saved
 
 
 def _check_estimate(args: argparse.Namespace, robot: Robot) -> FloatArray:

@@ -59,6 +59,10 @@ class RawLimits:
     gyro_range: float | None = None
 
 
+#: The limits of an IMU whose robot file declares no full scale beyond the default's.
+DEFAULT_RAW_LIMITS = RawLimits()
+
+
 def raw_limits(accel_range: float | None, gyro_range: float | None) -> RawLimits:
     """The limits of an IMU whose robot file declares these full scales (m/s^2, rad/s,
     or None): the margin over a declared full scale beyond the default's, else the
@@ -211,7 +215,7 @@ def parse_line(
     first_kind = ""  # the first problem's cause, without its values
     for i in range(n_imus):
         try:
-            limit = limits[i] if limits else RawLimits()
+            limit = limits[i] if limits else DEFAULT_RAW_LIMITS
             values += _imu_values(parts[1 + k * i : 1 + k * (i + 1)], fmt, i, n_imus, limit)
         except GarbledLine as exc:
             if n_imus == 1:
@@ -247,7 +251,7 @@ def beyond_range(
     """Why raw ``values`` (one IMU's six, ``imu`` 0-based) are beyond the sensor's range
     (``limits``, the default's where None): the first field out of range, the limit and
     the likely unit mistake."""
-    lim = limits if limits is not None else RawLimits()
+    lim = limits if limits is not None else DEFAULT_RAW_LIMITS
     gyro_scale = (
         f"the robot file's gyro_range {lim.gyro_range:g} rad/s"
         if lim.gyro_range is not None
