@@ -59,7 +59,6 @@ def test_a_display_that_does_not_answer_is_named_before_the_viewer_starts(
     """``live --view`` and ``view`` with a ``DISPLAY`` whose server is gone: one line
     naming it, exit 2, before the port or the viewer (not a wait, for ever and past
     Ctrl-C, for a Rerun viewer that never comes up)."""
-    pytest.importorskip("rerun")
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setenv("DISPLAY", f":{FREE_DISPLAY}")
     est = tmp_path / "e.csv"
@@ -75,7 +74,6 @@ def test_a_display_that_does_not_answer_is_named_before_the_viewer_starts(
 def test_live_plot_names_a_display_that_does_not_answer(monkeypatch: pytest.MonkeyPatch) -> None:
     """``--plot`` with a ``DISPLAY`` whose server is gone says so, not that the backend
     is not interactive (whose advice, an interactive backend, failed without a word)."""
-    pytest.importorskip("matplotlib")
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setenv("DISPLAY", f":{FREE_DISPLAY}")
     why = plot_unavailable()
@@ -88,7 +86,6 @@ def test_a_backend_that_mplbackend_does_not_name_is_said_or_not_used(tmp_path: P
     ``live --plot`` says why it shows no window in one line, as it does for a missing
     display (each in a fresh interpreter: matplotlib reads the variable once, at its
     import)."""
-    pytest.importorskip("matplotlib")
     est, fig = tmp_path / "e.csv", tmp_path / "e.png"
     est.write_text("t,x,y,z,theta,phi\n0,0,0,0.2,0,0\n0.05,0,0,0.2,0,0\n")
     env = {**os.environ, "MPLBACKEND": "nonsense"}

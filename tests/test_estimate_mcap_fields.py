@@ -16,8 +16,6 @@ import pytest
 from continuum_mhe.cli import main
 from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
 
-pytest.importorskip("mcap")
-
 DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
 
 
@@ -172,7 +170,6 @@ def _imu_log(src: Path, path: Path, t0_ns: int, n: int) -> Path:
 def test_an_estimate_mcap_of_a_robot_log_records_its_t0_ns(tmp_path: Path) -> None:
     """The estimate CSV of a robot log has a ``t0_ns`` line; the MCAP's metadata record
     holds the same ``t0_ns``, and every message is stamped ``t0_ns + t``."""
-    pytest.importorskip("rosbags")
     from mcap.reader import make_reader
 
     t0 = 1_733_400_000_123_456_789

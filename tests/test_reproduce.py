@@ -1036,7 +1036,6 @@ def test_reproduce_refuses_a_bad_scheduler_address_or_rod_recording_in_one_line(
     or a claim said to hold on 3 samples)."""
     from continuum_mhe.simulation.cosserat import default_data_path
 
-    pytest.importorskip("dask.distributed")
     out = tmp_path / "r"
     est = tmp_path / "e.csv"
     est.write_text('# continuum-mhe = "0.1.0 estimate m.csv"\nt,x,y,z,status\n0,0,0,0.2,ok\n')

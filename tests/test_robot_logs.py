@@ -1407,7 +1407,6 @@ def test_a_logs_tensions_stamped_since_1970_are_taken_on_its_clock(
     assert main(["plot", str(est), "-o", str(fig)]) == 0
     assert fig.read_bytes()[:4] == b"\x89PNG"
     assert "are taken on the log's clock" in capsys.readouterr().err
-    pytest.importorskip("rerun")
     assert main(["view", str(est), "--save", str(tmp_path / "est.rrd")]) == 0
     assert "are taken on the log's clock" in capsys.readouterr().err
     # tensions that end halfway: view's refusal is its one line, without its notes

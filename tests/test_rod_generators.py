@@ -212,7 +212,6 @@ def test_rod_generator_writes_its_settings_beside_the_recording(tmp_path: Path) 
 def test_the_rod_generator_refuses_a_missing_folder_before_it_simulates(tmp_path, capsys) -> None:
     """``continuum-mhe rod single -o DIR/x.csv`` with no DIR: one line,
     exit 2, before the minute of simulation (not a traceback after it)."""
-    pytest.importorskip("elastica")
 
     assert main(["rod", "single", "-o", str(tmp_path / "none" / "x.csv"), "--duration", "0.1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -224,7 +223,6 @@ def test_the_rod_generator_asks_for_its_output_and_replaces_none_unasked(tmp_pat
     default inside the installed package, whose shipped recording it would replace),
     and an existing file (or its settings beside it) without ``--overwrite`` is one line,
     exit 2, before the simulation, the file left as it was."""
-    pytest.importorskip("elastica")
 
     with pytest.raises(SystemExit) as info:
         main(["rod", "single", "--duration", "0.1"])
@@ -281,7 +279,6 @@ def test_the_section_rod_generator_picks_a_stable_step_and_says_a_divergence(
     torsional waves speed up: under the 1e-5 and 5e-6 s that ran at G = 2E and 5E);
     with a step that diverges it says so in one line naming ``--sim-dt``, exit 2 (not a
     traceback); a shear ratio that is not a ratio is refused in one line."""
-    pytest.importorskip("elastica")
     from continuum_mhe.simulation.cosserat_sections import BASE_SIM_DT, default_sim_dt
 
     assert default_sim_dt(1.0 / 3.0) == BASE_SIM_DT == default_sim_dt(0.1)
@@ -353,7 +350,6 @@ def test_a_step_that_blows_the_rod_up_is_one_line_and_writes_nothing(
     """``--sim-dt 5e-5`` (2.5 times the default) blows the rod up within its first
     recorded millisecond: one line naming ``--sim-dt``, exit 2, no folder (it wrote all
     six files of a 7.5 m tip, exit 0)."""
-    pytest.importorskip("elastica")
 
     out = tmp_path / "d"
     assert _rod_sections(["--sim-dt", "5e-5", "--duration", "0.05", "-o", str(out)]) == 2
@@ -391,7 +387,6 @@ def test_the_section_rod_generator_refuses_bad_numbers_before_it_simulates(
     """A number out of range is one line naming its option, exit 2, before any
     simulation (not a traceback, nor a numpy memory error at 1e9 s after it), no
     folder made; a ``--name`` with a path separator would write outside ``-o``."""
-    pytest.importorskip("elastica")
     from continuum_mhe.simulation import cosserat_sections
 
     def no_simulation(*args: object, **kwargs: object) -> None:

@@ -162,7 +162,6 @@ def test_plot_and_view_draw_an_estimate_with_its_recordings_tension_columns(
     assert "section ends" not in err
     assert main(["plot", str(est), "--inputs", str(rec), "-o", str(given)]) == 0
     assert found.read_bytes() == given.read_bytes()
-    pytest.importorskip("rerun")
     saved = tmp_path / "found.rrd"
     assert main(["view", str(est), "--save", str(saved)]) == 0
     assert f"{rec.resolve()} (its first line)" in capsys.readouterr().err

@@ -878,8 +878,6 @@ def test_an_option_that_does_nothing_here_is_refused(tmp_path, capsys, command, 
     """An option that the rest of the command line leaves without effect is one line,
     exit 2, before any work (not accepted without a word, as if it acted), nothing
     written."""
-    if command[0] in ("view", "live"):
-        pytest.importorskip("rerun")
     rest, est = tmp_path / "rest.csv", tmp_path / "e.csv"
     assert main(["simulate", "rest", "--imu", "raw", "-o", str(rest), "--duration", "2"]) == 0
     est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")

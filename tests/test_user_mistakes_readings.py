@@ -475,7 +475,6 @@ def _still_imu(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def test_a_robot_log_without_a_clock_is_refused(tmp_path, capsys) -> None:
-    pytest.importorskip("rosbags")
     stamps, acc, gyr = _still_imu(60)
     # every header stamp zero and every message logged at time 0: no order to estimate
     # in (not one estimate of the first message, the others dropped)
@@ -497,7 +496,6 @@ def test_a_robot_log_without_a_clock_is_refused(tmp_path, capsys) -> None:
 
 
 def test_a_robot_log_reading_beyond_any_imus_range_is_named(tmp_path, capsys) -> None:
-    pytest.importorskip("rosbags")
     stamps, acc, gyr = _still_imu(60)
     acc[30, 2] = 1e300  # a corrupt value, as a CSV row's is refused
     bag = _bag_of(tmp_path / "huge.bag", stamps, acc, gyr)
@@ -528,7 +526,6 @@ def test_a_robot_log_in_another_accelerometer_unit_is_said_so_not_as_corrupt(
     # readings in mm/s^2 (some above 1e4) or in raw counts (all above it) are another
     # unit, as a CSV's are, not a message with a corrupt value (nor, with --skip-bad, a
     # recording of dropouts alone)
-    pytest.importorskip("rosbags")
     stamps, acc, gyr = _still_imu(60)
     out = tmp_path / "est.csv"
     for name, scale, needle in (

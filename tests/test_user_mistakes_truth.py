@@ -6,7 +6,6 @@ as the truth: refused in one line, or warned of with the likely cause."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import re
@@ -745,7 +744,6 @@ def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(paper3d_pair, tmp_path
     assert main(["plot", e, "--truth", late, "-o", str(tmp_path / "f.png")]) == 0
     err = capsys.readouterr().err
     assert said in err and "; --truth-shift 0.5 compares them so" in err
-    pytest.importorskip("rerun")
     assert main(["view", e, "--truth", late, "--save", str(tmp_path / "v.rrd")]) == 0
     err = capsys.readouterr().err
     assert said in err and "; --truth-shift 0.5 compares them so" in err
@@ -808,8 +806,6 @@ def test_plot_view_and_evaluate_read_a_truth_with_gaps(paper3d_pair, tmp_path, c
     for argv in (["evaluate", str(e), str(in_mm)],
                  ["view", str(e), "--truth", str(in_mm), "--save", rrd],
                  ["plot", str(e), "--truth", str(in_mm), "-o", png]):  # fmt: skip
-        if argv[0] == "view" and importlib.util.find_spec("rerun") is None:
-            continue
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert err.startswith(f"continuum-mhe: error: {in_mm}: its tip is ") and "in mm?" in err, (
@@ -821,7 +817,6 @@ def test_plot_view_and_evaluate_read_a_truth_with_gaps(paper3d_pair, tmp_path, c
         ",".join("" if c == ("theta", "phi")[i % 2] else v for c, v in zip(names, r.split(",")))
         for i, r in enumerate(rows))]) + "\n")  # fmt: skip
     assert main(["plot", str(e), "--truth", str(alternate), "-o", str(tmp_path / "a.png")]) == 0
-    pytest.importorskip("rerun")
     for truth in (gaps, theta, alternate):
         out_rrd = tmp_path / f"{truth.stem}.rrd"
         assert main(["view", str(e), "--truth", str(truth), "--save", str(out_rrd)]) == 0
@@ -832,7 +827,6 @@ def test_plot_view_and_evaluate_read_a_truth_with_gaps(paper3d_pair, tmp_path, c
 def test_view_refuses_a_truth_with_t_in_milliseconds(paper3d_pair, tmp_path, capsys) -> None:
     """view wrote a recording "with truth" of a truth whose t is in ms (evaluate and plot
     refused it): refused in one line, nothing written."""
-    pytest.importorskip("rerun")
     out = tmp_path / "v.rrd"
     argv = ["view", str(paper3d_pair["e"]), "--truth", str(paper3d_pair["t_ms"])]
     assert main([*argv, "--save", str(out)]) == 2
@@ -927,7 +921,6 @@ def test_evaluate_plot_and_view_refuse_a_truth_of_two_rows_alike(paper3d_pair, t
     assert said in capsys.readouterr().err
     assert main(["plot", e, "--truth", str(two), "-o", str(tmp_path / "f.png")]) == 2
     assert said in capsys.readouterr().err
-    pytest.importorskip("rerun")
     assert main(["view", e, "--truth", str(two), "--save", str(tmp_path / "v.rrd")]) == 2
     assert said in capsys.readouterr().err
 
@@ -1038,7 +1031,6 @@ def test_evaluate_says_when_the_truths_sections_are_the_robot_files_in_another_o
 def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(tmp_path, capsys) -> None:
     """As ``evaluate`` says it: a truth made for sections twice as long, drawn beside the
     estimate's backbone; the right truth gives no such line."""
-    pytest.importorskip("rerun")
     long_robot = tmp_path / "long.toml"
     text = (DATA_ROBOTS / "two_section.toml").read_text()
     long_robot.write_text(text.replace("length = 0.16", "length = 0.3").replace(

@@ -1223,7 +1223,6 @@ def test_view_refuses_a_tendon_estimate_on_a_robot_without_tendons(
     """A tendon robot's estimate (its tip force columns) with --robot of a robot without
     tendons, or --length: one line, exit 2, no view, as plot refuses it (the arcs drawn
     would miss the estimate's tip by up to 100 mm, with a warning about another thing)."""
-    pytest.importorskip("rerun")
     est = tmp_path / "e.csv"
     est.write_text(
         "t,x,y,z,theta_1,phi_1,x_1,y_1,z_1,theta_2,phi_2,fx,fy,fz,status\n"
@@ -1241,7 +1240,6 @@ def test_view_refuses_a_tendon_estimate_on_a_robot_without_tendons(
 def test_view_times_are_the_estimates_to_the_nanosecond(tmp_path: Path) -> None:
     """Times whose seconds are not exact in binary (2.05 s is 2.0499999999999998): the
     view's times are the CSV's rounded to the nanosecond (not truncated, 1 ns early)."""
-    pytest.importorskip("rerun")
     t = [2.05, 4.1, 8.2, 8.45, 16.15]
     est = tmp_path / "e.csv"
     est.write_text("t,x,y,z,theta,phi,status\n" + "".join(f"{v},0,0,0.2,0,0,ok\n" for v in t))
@@ -1270,7 +1268,6 @@ def test_view_reads_a_robot_from_a_pipe_once(tmp_path: Path) -> None:
     import os
     import threading
 
-    pytest.importorskip("rerun")
     est = tmp_path / "e.csv"
     est.write_text(
         "t,x,y,z,theta,phi,status\n" + "".join(f"{0.05 * i},0,0,0.2,0,0,ok\n" for i in range(3))
@@ -1293,7 +1290,6 @@ def test_view_warns_of_a_mounting_other_than_the_estimates(
 ) -> None:
     """--mounting z-down for an estimate made z-up (its options line): a warning that the
     given one turns the base over; the recorded one given: none."""
-    pytest.importorskip("rerun")
     meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "1"]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
@@ -1351,7 +1347,6 @@ def test_a_tendon_replay_draws_under_the_estimated_tension_gains(
     outputs (``outputs/1``), as live --view shows them."""
     from importlib.resources import files
 
-    pytest.importorskip("rerun")
     data = files("continuum_mhe") / "data" / "tendon"
     meas, tensions = tmp_path / "m.csv", tmp_path / "tensions.csv"
     meas.write_text("\n".join((data / "force-29_raw.csv").read_text().splitlines()[:81]) + "\n")
@@ -1385,7 +1380,6 @@ def test_a_replay_shows_the_imu_twists_and_the_truths_backbone(tmp_path: Path) -
     backbone."""
     from importlib.resources import files
 
-    pytest.importorskip("rerun")
     data = files("continuum_mhe") / "data" / "rod2"
     meas, truth = tmp_path / "m.csv", tmp_path / "t.csv"
     for name, path in (("spatial_raw.csv", meas), ("spatial_truth.csv", truth)):
@@ -1493,7 +1487,6 @@ def test_a_paper_formulation_estimate_is_drawn_at_its_own_tip(
     """The paper formulation's ``x, y, z`` are states of their own, off the arc of its
     ``theta, phi``: the drawn tip and trail are the rows' own (as the time plot's), and
     no warning calls the robot the wrong one."""
-    pytest.importorskip("rerun")
     meas, est, rrd = tmp_path / "m.csv", tmp_path / "e.csv", tmp_path / "v.rrd"
     assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "2"]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--formulation", "paper",
@@ -1515,7 +1508,6 @@ def test_view_with_mounting_alone_keeps_the_recorded_sections(
 ) -> None:
     """``--mounting`` alone draws the robot the estimate records (here one 0.3 m
     section), turned as given, as ``--length`` alone keeps the recorded mounting."""
-    pytest.importorskip("rerun")
     meas, est, rrd = tmp_path / "m.csv", tmp_path / "e.csv", tmp_path / "v.rrd"
     assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "1", "--length", "0.3"]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--length", "0.3"]) == 0
@@ -1528,7 +1520,6 @@ def test_view_with_mounting_alone_keeps_the_recorded_sections(
 def test_the_truths_trail_breaks_where_its_rows_have_no_tip(tmp_path: Path) -> None:
     """Truth rows without ``x, y, z`` (a motion-capture dropout) break the truth's trail,
     as the estimate's breaks at rows without an estimate: no chord across the gap."""
-    pytest.importorskip("rerun")
     est, truth, rrd = tmp_path / "e.csv", tmp_path / "t.csv", tmp_path / "v.rrd"
     est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
     truth.write_text("t,x,y,z\n0,0.01,0,0.2\n0.05,0.02,0,0.2\n0.1,,,\n0.15,0.04,0,0.2\n"
@@ -1541,7 +1532,6 @@ def test_the_truths_trail_breaks_where_its_rows_have_no_tip(tmp_path: Path) -> N
 def test_a_file_without_statuses_is_drawn_without_a_status(tmp_path: Path) -> None:
     """A file with no ``status`` column (a truth, another tool's estimates) is drawn,
     and its rows are not logged as ``ok``: no status at all."""
-    pytest.importorskip("rerun")
     est, rrd = tmp_path / "other.csv", tmp_path / "v.rrd"
     est.write_text("t,x,y,z,theta,phi\n0,0,0,0.2,0,0\n0.05,0.01,0,0.2,0.1,0\n")
     assert main(["view", str(est), "--save", str(rrd)]) == 0
@@ -1555,7 +1545,6 @@ def test_truth_shift_draws_the_truth_on_the_estimates_clock(
     """A truth whose clock runs 0.5 s ahead: without ``--truth-shift`` the view warns,
     naming the shift; with ``--truth-shift 0.5`` each truth row is drawn 0.5 s earlier
     (beside the estimate it belongs to) and nothing is said. The shift needs a truth."""
-    pytest.importorskip("rerun")
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--seed", "2"]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0

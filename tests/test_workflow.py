@@ -5,7 +5,6 @@ recording evaluated as shipped."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import re
 import sys
@@ -724,7 +723,6 @@ def test_view_warns_of_a_drawing_that_misses_the_estimate(tmp_path: Path, capsys
     tendon robot's other tensions file than the one its options line names: a warning
     each, the view written; none with the estimate's own. (The tendon recording's first
     40 samples: the warnings are about the files the estimate names, not its rows.)"""
-    pytest.importorskip("rerun")
     from continuum_mhe.io.robot_file import shipped_robots
 
     data = shipped_robots()["tendon-two-section"].parents[1] / "tendon"
@@ -1047,10 +1045,7 @@ def test_plot_and_view_name_the_shift_that_lines_up_a_truth_on_another_clock(
     figure = ["plot", str(est), "--truth", str(later), "-o", str(tmp_path / "f.png")]
     view = ["view", str(est), "--truth", str(later), "--save", str(tmp_path / "v.rrd")]
     option = "--truth-shift 100 compares them"  # (view's names evaluate's option)
-    runs = [figure, ["evaluate", str(est), str(later)]]
-    if importlib.util.find_spec("rerun") is not None:
-        runs.append(view)
-    for argv in runs:
+    for argv in (figure, ["evaluate", str(est), str(later)], view):
         assert main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].endswith(option), err
