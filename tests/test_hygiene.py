@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -399,14 +398,39 @@ def test_no_development_history_in_docs_or_source():
 
 
 def test_the_suites_interpreters_share_one_bytecode_folder() -> None:
-    """Under PYTHONDONTWRITEBYTECODE the suite's interpreters (this worker and a command
-    it starts) write their bytecode into the session's folder (tests/conftest.py), not
-    nowhere and not beside the sources."""
-    folder = os.environ.get("CONTINUUM_MHE_TEST_PYCACHE")
-    if folder is None or not Path(folder).is_dir():
-        pytest.skip("PYTHONDONTWRITEBYTECODE is not set: bytecode goes beside the sources")
-    assert "PYTHONDONTWRITEBYTECODE" not in os.environ
-    assert (sys.pycache_prefix, sys.dont_write_bytecode) == (folder, False)
-    code = "import sys; print(sys.pycache_prefix, sys.dont_write_bytecode)"
-    r = _run(sys.executable, "-c", code)
-    assert r.stdout.split() == [folder, "False"], r.stderr
+    """Under PYTHONDONTWRITEBYTECODE the suite's interpreters (a process that loads
+    tests/conftest.py and a command it starts) write their bytecode into the session's
+    folder, not nowhere and not beside the sources, and the folder is removed at the
+    run's end: checked in a fresh interpreter that sets the variable (CI does not), and
+    in this run where it was set."""
+    shown = "import sys; print(sys.pycache_prefix, sys.dont_write_bytecode)"
+    code = (
+        "import os, subprocess, sys\n"
+        "sys.path.insert(0, 'tests')\n"
+        "import conftest\n"
+        "folder = os.environ['CONTINUUM_MHE_TEST_PYCACHE']\n"
+        f"child = subprocess.run([sys.executable, '-c', {shown!r}], capture_output=True,\n"
+        "                       text=True, check=True).stdout.split()\n"
+        "print(folder, os.path.isdir(folder), 'PYTHONDONTWRITEBYTECODE' in os.environ,\n"
+        "      sys.pycache_prefix == folder, sys.dont_write_bytecode, *child)\n"
+        "conftest.pytest_unconfigure()\n"
+        "print(os.path.isdir(folder))\n"
+    )
+    session = ("CONTINUUM_MHE_TEST_PYCACHE", "PYTHONPYCACHEPREFIX")
+    env = {k: v for k, v in os.environ.items() if k not in session}
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT, env={**env, "PYTHONDONTWRITEBYTECODE": "1"},
+        capture_output=True, text=True, check=False, timeout=600,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    made, removed = r.stdout.splitlines()
+    folder, *rest = made.split()
+    assert Path(folder).name.startswith("continuum-mhe-tests-pyc-")
+    assert rest == ["True", "False", "True", "False", folder, "False"], made
+    assert removed == "False"
+    folder = os.environ.get("CONTINUUM_MHE_TEST_PYCACHE", "")
+    if folder:  # this run's own
+        assert "PYTHONDONTWRITEBYTECODE" not in os.environ and Path(folder).is_dir()
+        assert (sys.pycache_prefix, sys.dont_write_bytecode) == (folder, False)
+        assert _run(sys.executable, "-c", shown).stdout.split() == [folder, "False"]
