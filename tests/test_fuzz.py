@@ -330,11 +330,13 @@ def test_robot_reader_is_total(tmp_path_factory, text: str, bom: bool) -> None:
 
 # --- the live protocol --------------------------------------------------------------------------
 @st.composite
-def _protocol_line(draw) -> tuple[str, str, int, int]:
-    """``(line, fmt, n_imus, n_tensions)``: mostly the field count ``parse_line``
-    expects (sometimes one field more or fewer), each field a plausible time, IMU value
-    or tension, sometimes any :data:`_NUMBER` instead (a bad time or tension), or all of
-    one IMU's fields (a dropout, where another IMU is good)."""
+def _protocol_line(draw) -> tuple[str, str, int, int, bool]:
+    """``(line, fmt, n_imus, n_tensions, plausible)``: mostly the field count
+    ``parse_line`` expects (sometimes one field more or fewer), each field a plausible
+    time, IMU value or tension, sometimes any :data:`_NUMBER` instead (a bad time or
+    tension), or all of one IMU's fields (a dropout, where another IMU is good);
+    ``plausible`` where the count is right and every field is plausible (no raw
+    accelerometer reading exactly zero): a sample that ``parse_line`` must read."""
     from continuum_mhe.stream.protocol import VALUES_PER_IMU
 
     fmt = draw(st.sampled_from(["tilt", "raw"]))
@@ -348,34 +350,41 @@ def _protocol_line(draw) -> tuple[str, str, int, int]:
         "tension": st.floats(0, 50).map(lambda v: f"{v:.4f}"),
     }
     spoilt = draw(st.integers(0, 3 * n_imus))  # an IMU whose fields are any (none: past the last)
-    fields = []
+    fields, whole = [], True
     for i in range(n_fields):
         kind = "time" if i == 0 else "imu" if i <= n_values else "tension"
         imu = (i - 1) // k if kind == "imu" else -1
         any_number = imu == spoilt or draw(st.integers(0, 19)) == 0
         fields.append(draw(_NUMBER if any_number else plausible[kind]))
-    return ",".join(fields), fmt, n_imus, n_tensions
+        whole = whole and not any_number
+    zero_accelerometer = fmt == "raw" and any(
+        all(float(v) == 0.0 for v in fields[1 + k * i : 4 + k * i]) for i in range(n_imus)
+    )
+    whole = whole and n_fields == 1 + n_values + n_tensions and not zero_accelerometer
+    return ",".join(fields), fmt, n_imus, n_tensions, whole
 
 
 @settings(max_examples=200, deadline=None)
 @given(case=_protocol_line())
-@example(case=("1500,0.1,0.2,9.8,0.01,0.02,0.03", "raw", 1, 0))
-@example(case=("20,0.1,-0.2,0.3,0.4,1.5", "tilt", 2, 1))
-@example(case=("20,0.1,-0.2,nan,0.4,1.5", "tilt", 2, 1))  # IMU 2 dropped
-def test_protocol_parser_is_total(case: tuple[str, str, int, int]) -> None:
+@example(case=("1500,0.1,0.2,9.8,0.01,0.02,0.03", "raw", 1, 0, True))
+@example(case=("20,0.1,-0.2,0.3,0.4,1.5", "tilt", 2, 1, True))
+@example(case=("20,0.1,-0.2,nan,0.4,1.5", "tilt", 2, 1, False))  # IMU 2 dropped
+def test_protocol_parser_is_total(case: tuple[str, str, int, int, bool]) -> None:
     """Any line: a sample with a finite, non-negative time, its tensions finite and
     non-negative, and each IMU either wholly finite or wholly a dropout (NaN, with its
-    problem said), at least one IMU good; or GarbledLine. The sample's time, tensions
-    and good IMUs' values are the line's numbers."""
+    problem said), at least one IMU good; or GarbledLine. A line of plausible fields in
+    the expected count is a sample without a dropout. The sample's time, tensions and
+    good IMUs' values are the line's numbers."""
     from continuum_mhe.stream.protocol import VALUES_PER_IMU, GarbledLine, parse_line
 
-    line, fmt, n_imus, n_tensions = case
+    line, fmt, n_imus, n_tensions, plausible = case
     try:
         sample = parse_line(line, fmt, n_imus, n_tensions)  # type: ignore[arg-type]
-    except GarbledLine:
+    except GarbledLine as exc:
+        assert not plausible, (line, str(exc))
         return
-    if sample is None:
-        return
+    assert sample is not None  # a line of numbers is no comment
+    assert not (plausible and sample.problems), (line, sample.problems)
     assert math.isfinite(sample.t_ms) and sample.t_ms >= 0
     assert sample.tensions.shape == (n_tensions,)
     # a slack tendon's reading below zero is read (the stream takes it as 0)
