@@ -305,9 +305,11 @@ _ROBOT_TEXT = st.one_of(
     max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(text=_ROBOT_TEXT, bom=st.booleans())
+@example(text=_VALID, bom=True)
 def test_robot_reader_is_total(tmp_path_factory, text: str, bom: bool) -> None:
     """Any robot-file text: a robot within the documented limits, or one InputError line
-    naming the file (never a RecursionError, TypeError or a traceback)."""
+    naming the file (never a RecursionError, TypeError or a traceback); the valid robot
+    the strategy builds on, with a byte order mark or without: its section and IMU."""
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.model.robot import MAX_MOUNT_DEG, MAX_SECTION_LENGTH, MIN_SECTION_LENGTH
 
@@ -318,9 +320,13 @@ def test_robot_reader_is_total(tmp_path_factory, text: str, bom: bool) -> None:
             warnings.simplefilter("ignore")  # unit and order hints are warnings, not errors
             robot = read_robot(path)
     except InputError as exc:
+        assert text != _VALID, exc
         assert "\n" not in str(exc) and str(exc).startswith(str(path))
         assert len(str(exc)) < 600, str(exc)
         return
+    if text == _VALID:
+        assert [(s.length, s.theta_max) for s in robot.sections] == [(0.2, 3.0)]
+        assert [(i.section, i.at, i.mount_rpy) for i in robot.imus] == [(0, 1.0, (0.0,) * 3)]
     assert all(MIN_SECTION_LENGTH <= s.length <= MAX_SECTION_LENGTH for s in robot.sections)
     assert all(0 < s.theta_max < math.pi for s in robot.sections)
     for imu in robot.imus:
