@@ -448,6 +448,28 @@ def test_a_tendon_robot_needs_its_tensions(
     assert not out.exists()
 
 
+def test_a_missing_recording_is_said_before_the_tensions_it_lacks(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording name with no file behind it (a typo), or a folder that is not a ROS 2
+    bag, is the recording's fault: said as such, not as tensions that a pipe does not
+    carry."""
+    robot = str(small_robot(tmp_path))
+    out = tmp_path / "e.csv"
+    missing = tmp_path / "no_such_run.csv"
+    assert main(["estimate", str(missing), "--robot", robot, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{missing}: no such file" in err
+    assert "pipe" not in err and "tensions" not in err
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    assert main(["estimate", str(folder), "--robot", robot, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{folder}: is a directory without metadata.yaml" in err
+    assert "pipe" not in err
+    assert not out.exists()
+
+
 def test_own_tension_columns_from_standard_input_are_said_unread(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
