@@ -263,6 +263,11 @@ def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
         ("", "line 1: file is empty, expected a header such as t,tension_1 (or t_ms,...)"),
         ("0,1.0\n0.1,1.2\n", "line 1: no header line; the first line is data. Add a header "
          "such as t,tension_1 (or t_ms,...)"),
+        # a column without a name is said by its place, not as an empty name
+        ("t,,tension_1\n0,,1.0\n0.1,,1.2\n", "line 1: column 2 has no name (a separator too "
+         "many?): expected the columns t,tension_1"),
+        (",tension_1\n0,1.0\n0.1,1.2\n", "line 1: t missing; column 1 has no name: expected "
+         "the columns t,tension_1"),
     ],
 )  # fmt: skip
 def test_a_tensions_file_without_a_header_is_told_the_tensions_header(
