@@ -262,6 +262,11 @@ def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
         ("", "line 1: file is empty, expected a header such as t,tension_1 (or t_ms,...)"),
         ("0,1.0\n0.1,1.2\n", "line 1: no header line; the first line is data. Add a header "
          "such as t,tension_1 (or t_ms,...)"),
+        # a column without a name is said by its place, not as an empty name
+        ("t,,tension_1\n0,,1.0\n0.1,,1.2\n", "line 1: column 2 has no name (a separator too "
+         "many?): expected the columns t,tension_1"),
+        (",tension_1\n0,1.0\n0.1,1.2\n", "line 1: t missing; column 1 has no name: expected "
+         "the columns t,tension_1"),
     ],
 )  # fmt: skip
 def test_a_tensions_file_without_a_header_is_told_the_tensions_header(
@@ -444,6 +449,28 @@ def test_a_tendon_robot_needs_its_tensions(
     argv = ["estimate", str(meas), "--robot", str(small_robot(tmp_path)), "-o", str(out)]
     assert main(argv) == 2
     assert "give their tensions with --inputs" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_missing_recording_is_said_before_the_tensions_it_lacks(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording name with no file behind it (a typo), or a folder that is not a ROS 2
+    bag, is the recording's fault: said as such, not as tensions that a pipe does not
+    carry."""
+    robot = str(small_robot(tmp_path))
+    out = tmp_path / "e.csv"
+    missing = tmp_path / "no_such_run.csv"
+    assert main(["estimate", str(missing), "--robot", robot, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{missing}: no such file" in err
+    assert "pipe" not in err and "tensions" not in err
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    assert main(["estimate", str(folder), "--robot", robot, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{folder}: is a directory without metadata.yaml" in err
+    assert "pipe" not in err
     assert not out.exists()
 
 

@@ -538,6 +538,18 @@ def _open_measurements(
     if str(path) != "-" and is_robot_log(Path(path)):
         return _log_stream(Path(path), options, formulation, robot_name, python)
     refuse_bag_metadata(path)
+    _refuse_folder(path)
+    rows = open_rows(path)
+    try:
+        return _table_stream(rows, options, formulation, robot_name, python)
+    except BaseException:
+        rows.close()
+        raise
+
+
+def _refuse_folder(path: str | os.PathLike[str]) -> None:
+    """One line for a folder given as the recording that is not a ROS 2 bag (the
+    caller has asked :func:`is_robot_log`), naming the logs it holds."""
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
         # a ROS 2 recorder killed before it wrote metadata.yaml leaves its storage file:
         # an MCAP (or a ROS 1 bag) reads alone, a SQLite .db3 needs its metadata
@@ -557,12 +569,6 @@ def _open_measurements(
             f"{path}: is a directory without metadata.yaml, expected a CSV file or a ROS 2 "
             f"bag folder{hint}"
         )
-    rows = open_rows(path)
-    try:
-        return _table_stream(rows, options, formulation, robot_name, python)
-    except BaseException:
-        rows.close()
-        raise
 
 
 # --- step 4: tendon tensions -----------------------------------------------------------------
@@ -619,9 +625,15 @@ def _tensions(
             f"columns are {','.join(columns)}: no {','.join(missing)} (or give the tensions "
             "with --inputs TENSIONS.csv)"
         )
+    log = recording is not None and is_robot_log(Path(recording))
+    if recording is not None and str(recording) != "-" and not log:
+        # the recording's own fault first: a name with no file behind it is no pipe
+        if not os.path.exists(recording):
+            raise InputError(f"{recording}: no such file")
+        _refuse_folder(recording)
     where = (
         "a robot log's topics do not carry them"
-        if recording is not None and is_robot_log(Path(recording))
+        if log
         else f"or as the recording's columns tension_1..tension_{k}"
         if recording is None or os.path.isfile(recording)
         else f"or as the columns tension_1..tension_{k} of a recording read from a file: "

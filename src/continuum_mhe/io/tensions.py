@@ -718,12 +718,18 @@ def read_tensions(
         if "t" not in header or sorted(found) != sorted(names):  # in any order, by name
             missing = [c for c in ["t", *names] if c not in header]
             spelled = dict(zip(header, written))  # the file's own spelling of a name
-            extra = [spelled.get(c, c) for c in found if c not in names]
+            extra = [spelled.get(c, c) for c in found if c and c not in names]
+            unnamed = [str(i + 1) for i, c in enumerate(header) if not c]  # a,,b
             said = "; ".join(  # a column twice is refused by open_rows
                 part
                 for part in (
                     f"{', '.join(missing)} missing" if missing else "",
                     f"{', '.join(extra)} not the robot's" if extra else "",
+                    f"column{'s' if len(unnamed) > 1 else ''} {', '.join(unnamed)} "
+                    f"{'have' if len(unnamed) > 1 else 'has'} no name"
+                    f"{' (a separator too many?)' if len(header) > len(names) + 1 else ''}"
+                    if unnamed
+                    else "",
                 )
                 if part
             )
