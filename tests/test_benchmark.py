@@ -87,6 +87,10 @@ def test_benchmark_command_records_ratios_and_environment(
     assert rows["mhe-kernel"]["fallbacks"] == 0
     for peer in set(PEERS) & set(rows):  # converged on every window, IPOPT's answers
         assert rows[peer]["max_diff_from_n"] < 1e-6 and rows[peer]["fallbacks"] == 0
+        assert rows[peer]["build_s"] > 0.0  # built before the clock, and said
+    for name, r in rows.items():  # an MHE agrees with IPOPT; an EKF is not asked to
+        assert r["agrees_with_ipopt"] is (True if name in bm.MHE_METHODS else None)
+        assert r["warmup_s"] > 0.0
     for m in ("ekf-compiled", "ekf-kernel"):  # the same EKF, three ways
         assert rows[m]["max_diff_vs_ipopt"] == pytest.approx(
             rows["ekf"]["max_diff_vs_ipopt"], abs=1e-9
@@ -352,11 +356,14 @@ def test_peer_window_is_the_mhe_window() -> None:
 
 
 def test_interleaved_warms_each_up_then_runs_them_round_robin() -> None:
-    """Every run once, then the rounds in turn (a, b, c, a, b, c, ...), each sample's
-    time the median over the rounds (not the warm-up), the last round's outputs."""
+    """Every run once, then the rounds in turn, each round's order rotated by one (a, b,
+    c, then b, c, a, then c, a, b: no contender always first, or always after the same
+    one), each sample's time the median over the rounds (not the warm-up), the last
+    round's outputs (c's is the second round's: it ran first in the third)."""
     calls: list[str] = []
     times = {"a": iter([9.0, 1.0, 5.0, 3.0]), "b": iter([9.0, 2.0, 2.0, 8.0]),
              "c": iter([9.0, 4.0, 6.0, 5.0])}  # fmt: skip
+    # (each method's values are taken in the order it runs: its rounds, whatever their order)
 
     def run(name: str) -> bm.Run:
         def go() -> tuple[object, ...]:
@@ -367,10 +374,50 @@ def test_interleaved_warms_each_up_then_runs_them_round_robin() -> None:
         return go
 
     got = bm._interleaved({m: run(m) for m in "abc"}, repeats=3)
-    assert calls == list("abc") * 4
+    assert calls == list("abc") + list("abc") + list("bca") + list("cab")
     assert {m: float(got[m][1][0]) for m in "abc"} == {"a": 3.0, "b": 2.0, "c": 5.0}
     assert got["b"][0][0, 0] == 8.0 and got["b"][2] == 8  # the last round's
     assert got["c"][3] is not None and float(got["c"][3][0]) == pytest.approx(0.5)
+    assert all(got[m][4] >= 0.0 for m in "abc")  # the warm-up run's wall time
+
+
+def test_round_order_rotates_by_the_rounds_index() -> None:
+    assert bm.round_order(["a", "b", "c"], 0) == ["a", "b", "c"]
+    assert bm.round_order(["a", "b", "c"], 1) == ["b", "c", "a"]
+    assert bm.round_order(["a", "b", "c"], 5) == ["c", "a", "b"]
+    assert bm.round_order([], 2) == []
+
+
+def test_a_contender_off_ipopts_answers_is_said_so_beside_its_ratio(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A peer (or the fast MHE) whose answers are not IPOPT's is not read as fast: its
+    ratio line says so; one that agrees gets no such words; the set-up line gives each
+    contender's build and warm-up times."""
+
+    def row(method: str, median: float, from_n: float) -> dict[str, object]:
+        return {"method": method, "horizon": 10, "median_us": median, "p99_us": median,
+                "max_diff_vs_ipopt": from_n, "max_diff_from_n": from_n, "fallbacks": 0,
+                "solver_median_us": float("nan"),
+                "agrees_with_ipopt": from_n <= bm.AGREEMENT_TOL,
+                "build_s": 1.25, "warmup_s": 0.5}  # fmt: skip
+
+    rows = [row("fast", 10.0, 1e-9), row("ipopt", 1000.0, 0.0), row("fatrop", 20.0, 3e-2),
+            row("sqp-hpipm", 30.0, 1e-10)]  # fmt: skip
+    report = {"scenario": "paper3d", "samples": 41, "repeats": 1, "methods": {},
+              "results": bm.with_ratios(rows), "machine": {}, "versions": {}}  # fmt: skip
+    monkeypatch.setattr(
+        "continuum_mhe.cli.benchmark_report.environment_line", lambda report: "machine: -"
+    )
+    print_report(report)
+    out = " ".join(capsys.readouterr().out.split())
+    fatrop = out[out.index("fatrop at N = 10:") :].split("sqp-hpipm at")[0]
+    assert "2.00x" in fatrop and "NOT IPOPT's answers (3.0e-02" in fatrop
+    sqp = out[out.index("sqp-hpipm at N = 10:") :].split("before the clock")[0]
+    assert "3.00x" in sqp and "NOT" not in sqp
+    fast = out[out.index("fast MHE at N = 10:") :].split("fatrop at")[0]
+    assert "NOT" not in fast
+    assert "fatrop 1.25 / 0.50" in out[out.index("before the clock at N = 10") :]
 
 
 def test_a_missing_peer_is_skipped_with_the_line_that_installs_it(
@@ -425,7 +472,7 @@ def test_the_ratios_line_names_only_the_contenders_that_ran(
     report = bm.run_benchmark([3], 0.4, ("fast", "ipopt"), 0, (), repeats=1, compile_peers=False)
     print_report(report)
     out = " ".join(capsys.readouterr().out.split())
-    line = out[out.index("fast MHE at N = 3:") :].split("machine:")[0]
+    line = out[out.index("fast MHE at N = 3:") :].split("before the clock")[0]
     assert line.strip().endswith("of IPOPT") and "EKF" not in line and "-x" not in line
 
 

@@ -6,18 +6,22 @@ kernels of the fast MHE and the EKF (:mod:`continuum_mhe.benchmark.kernels`).
 Every method runs in this one process on the same simulated recording (bend
 formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
 the median and 99th-percentile wall time per sample once the window is full (every
-method runs once to warm up, then ``--repeats`` rounds of all of them in turn, and each
-sample's time is its median over the rounds, so that a change of the shared machine's
-load affects them alike), the ratio of each median to the fast MHE's, to IPOPT's, to
-the compiled EKF's and to the bare compiled EKF kernel's
-(:data:`METHOD_NOTES` says what each method times), and the largest difference of the
-outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
-``N`` on. Each MHE measurement loss (``l2``, ``huber``, ``cauchy``) is then timed
-on both backends, clean and with spikes, as a ratio to ``l2``
-(:mod:`continuum_mhe.benchmark.losses`). A long recording then shows that the fast
-MHE's memory does not grow per sample (tracemalloc and RSS slopes). The report records
-where the numbers come from: the machine (platform, CPU, cores, the load average at the
-start) and the package versions (the compiled core's nanobind among them).
+method runs once to warm up, then ``--repeats`` rounds of all of them in turn, each
+round's order rotated by one, and each sample's time is its median over the rounds, so
+that a change of the shared machine's load affects them alike), the ratio of each
+median to the fast MHE's, to IPOPT's, to the compiled EKF's and to the bare compiled
+EKF kernel's (:data:`METHOD_NOTES` says what each method times), and the largest
+difference of the outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording
+and from sample ``N`` on, and whether an MHE's answers agree with IPOPT's
+(:data:`AGREEMENT_TOL`), so that a fast wrong answer is not read as a fast one. What
+each contender costs before the clock starts is reported too: its build (acados'
+generated C compiled, the CasADi peers' functions) and its warm-up run. Each MHE
+measurement loss (``l2``, ``huber``, ``cauchy``) is then timed on both backends, clean
+and with spikes, as a ratio to ``l2`` (:mod:`continuum_mhe.benchmark.losses`). A long
+recording then shows that the fast MHE's memory does not grow per sample (tracemalloc
+and RSS slopes). The report records where the numbers come from: the machine
+(platform, CPU, cores, the load average at the start) and the package versions (the
+compiled core's nanobind among them).
 
 do-mpc's MHE: :mod:`continuum_mhe.benchmark.dompc`; the machine and memory records:
 :mod:`continuum_mhe.benchmark.environment`.
@@ -101,6 +105,15 @@ class Timing:
         solver_median_us: the median of the time the method reports for its own solver
             per sample (acados' ``time_tot``, without the Python interface), us; nan
             for the others.
+        agrees_with_ipopt: for an MHE (:data:`MHE_METHODS`), whether ``max_diff_from_n``
+            is within :data:`AGREEMENT_TOL` (its time compares like with like); None
+            for the EKFs, which estimate otherwise.
+        build_s: wall time to build the method before its runs, s (acados: generating
+            and compiling its C; a CasADi peer: ``nlpsol`` with its functions compiled;
+            an estimator: its construction); nan where the method builds inside each
+            run, untimed (do-mpc's MHE, the bare kernels' evaluators).
+        warmup_s: wall time of its warm-up run over the recording, s (not timed per
+            sample: what is built on first use, IPOPT's window NLPs among it, is here).
     """
 
     method: str
@@ -111,6 +124,17 @@ class Timing:
     max_diff_from_n: float
     fallbacks: int
     solver_median_us: float = math.nan
+    agrees_with_ipopt: bool | None = None
+    build_s: float = math.nan
+    warmup_s: float = math.nan
+
+
+#: The methods that solve the MHE's window problem, whose answers must be IPOPT's.
+MHE_METHODS = ("fast", "mhe-kernel", "ipopt", "do-mpc", *PEERS)
+
+#: The largest output difference from IPOPT's (from sample ``N`` on, m and rad) at which
+#: an MHE's answers count as IPOPT's: the tests' agreement with IPOPT.
+AGREEMENT_TOL = 1e-6
 
 
 def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, list[str]]:
@@ -264,12 +288,22 @@ REPEATS = 3
 Run = Callable[[], tuple[Any, ...]]
 
 
-def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]) -> dict[str, Run]:
+def _cheap_runs(
+    f: Formulation,
+    rec: Recording,
+    n: int,
+    methods: tuple[str, ...],
+    built: dict[str, float] | None = None,
+) -> dict[str, Run]:
     """The methods that take microseconds per sample, each as a run of the recording
-    returning ``(output, seconds per sample, fallbacks)``."""
+    returning ``(output, seconds per sample, fallbacks)``; each one's build time into
+    ``built`` where it is built here."""
     runs: dict[str, Run] = {}
+    built = {} if built is None else built
     if "fast" in methods:
+        t0 = time.perf_counter()
         est = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="fast"))
+        built["fast"] = time.perf_counter() - t0
 
         def fast() -> tuple[FloatArray, FloatArray, int]:
             out, sec, status = _run_timed(est, rec)
@@ -279,10 +313,11 @@ def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]
     if "mhe-kernel" in methods:
         runs["mhe-kernel"] = lambda: run_mhe_kernel(f, rec, n)
     filters: list[tuple[str, Estimator]] = []
-    if "ekf" in methods:
-        filters.append(("ekf", CasadiExtendedKalmanFilter(f)))
-    if "ekf-compiled" in methods:
-        filters.append(("ekf-compiled", ExtendedKalmanFilter(f)))
+    for name, kind in (("ekf", CasadiExtendedKalmanFilter), ("ekf-compiled", ExtendedKalmanFilter)):
+        if name in methods:
+            t0 = time.perf_counter()
+            filters.append((name, kind(f)))
+            built[name] = time.perf_counter() - t0
     for name, ekf in filters:
         runs[name] = lambda ekf=ekf: (*_run_timed(ekf, rec)[:2], 0)  # type: ignore[misc]
     if "ekf-kernel" in methods:
@@ -290,26 +325,44 @@ def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]
     return runs
 
 
+def round_order(names: list[str], round_index: int) -> list[str]:
+    """The order of the contenders in round ``round_index`` (from 0): ``names`` rotated
+    left by the round's index, so that no contender always runs first, or always
+    after the same one, over the rounds."""
+    k = round_index % len(names) if names else 0
+    return names[k:] + names[:k]
+
+
 def _interleaved(
     runs: dict[str, Run], repeats: int
-) -> dict[str, tuple[FloatArray, FloatArray, int, FloatArray | None]]:
+) -> dict[str, tuple[FloatArray, FloatArray, int, FloatArray | None, float]]:
     """Each run once (compiling, warming caches), then ``repeats`` rounds of all of them
-    in turn (round-robin, in the order of ``runs``), so that a change of the shared
-    machine's load affects them alike. Returns per method the last round's outputs and
-    fallbacks, each sample's median time over the rounds, and the median of the
-    solver's own times where the run reports them (else None)."""
-    for run in runs.values():
+    in turn, each round's order that of ``runs`` rotated by the round's index
+    (:func:`round_order`), so that a change of the shared machine's load affects them
+    alike. Returns per method the last round's outputs and fallbacks, each sample's
+    median time over the rounds, the median of the solver's own times where the run
+    reports them (else None), and the warm-up run's wall time, s."""
+    warmup: dict[str, float] = {}
+    for name, run in runs.items():
+        t0 = time.perf_counter()
         run()
+        warmup[name] = time.perf_counter() - t0
     got: dict[str, list[tuple[Any, ...]]] = {name: [] for name in runs}
-    for _ in range(repeats):
-        for name, run in runs.items():
-            got[name].append(run())
+    for r in range(repeats):
+        for name in round_order(list(runs), r):
+            got[name].append(runs[name]())
 
     def median(r: list[tuple[Any, ...]], i: int) -> FloatArray:
         return np.median(np.array([x[i] for x in r]), axis=0)
 
     return {
-        name: (r[-1][0], median(r, 1), r[-1][2], median(r, 3) if len(r[-1]) > 3 else None)
+        name: (
+            r[-1][0],
+            median(r, 1),
+            r[-1][2],
+            median(r, 3) if len(r[-1]) > 3 else None,
+            warmup[name],
+        )
         for name, r in got.items()
     }
 
@@ -326,15 +379,20 @@ def _runs(
     acados: Any = None,
     closing: list[Callable[[], None]] | None = None,
     compile_peers: bool | None = None,
+    built: dict[str, float] | None = None,
 ) -> dict[str, Run]:
     """Every method of ``methods`` at horizon ``n`` as a :data:`Run`, in the order of
     :data:`METHODS` (IPOPT, do-mpc and the peers beside the cheap ones). The peers'
     windows are recorded here, once, and their solvers built (acados' generated C
-    compiled); what must be removed after the runs goes into ``closing``."""
+    compiled), each method's build time into ``built``; what must be removed after the
+    runs goes into ``closing``."""
     from continuum_mhe.benchmark.peers import make_peer, record_windows, run_peer
 
-    runs = _cheap_runs(f, rec, n, methods)
+    built = {} if built is None else built
+    runs = _cheap_runs(f, rec, n, methods, built)
+    t0 = time.perf_counter()
     ipopt = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt"))
+    built["ipopt"] = time.perf_counter() - t0
     runs["ipopt"] = lambda: (*_run_timed(ipopt, rec)[:2], 0)
     if "do-mpc" in methods:
         runs["do-mpc"] = lambda: (*run_dompc(f, n, rec), 0)
@@ -342,7 +400,9 @@ def _runs(
     if peers:
         windows = record_windows(f, rec, n)
         for name in peers:
+            t0 = time.perf_counter()
             solver = make_peer(name, f, n, acados, compile_peers)
+            built[name] = time.perf_counter() - t0
             close = getattr(solver, "close", None)
             if close is not None and closing is not None:
                 closing.append(close)
@@ -391,13 +451,15 @@ def run_benchmark(
     results: list[Timing] = []
     for k, n in enumerate(horizons, start=1):
         closing: list[Callable[[], None]] = []
+        built: dict[str, float] = {}
         started = time.perf_counter()
         progress(
             f"N = {n} ({k} of {len(horizons)} horizons): {len(methods)} methods, a warm-up "
             f"and {repeats} interleaved rounds of {len(rec.t)} samples each"
         )
         try:
-            rows = _interleaved(_runs(f, rec, n, methods, acados, closing, compile_peers), repeats)
+            runs = _runs(f, rec, n, methods, acados, closing, compile_peers, built)
+            rows = _interleaved(runs, repeats)
         finally:
             for close in closing:
                 close()
@@ -405,7 +467,8 @@ def run_benchmark(
         ipopt_out = rows["ipopt"][0]
         full = slice(n, None)
         for name in (m for m in METHODS if m in rows):
-            out, sec, fb, own = rows[name]
+            out, sec, fb, own, warmup = rows[name]
+            from_n = _max_diff(out[full], ipopt_out[full])
             results.append(
                 Timing(
                     method=name,
@@ -413,11 +476,16 @@ def run_benchmark(
                     median_us=float(np.median(sec[full]) * 1e6),
                     p99_us=float(np.percentile(sec[full], 99) * 1e6),
                     max_diff_vs_ipopt=_max_diff(out, ipopt_out),
-                    max_diff_from_n=_max_diff(out[full], ipopt_out[full]),
+                    max_diff_from_n=from_n,
                     fallbacks=fb,
                     solver_median_us=math.nan
                     if own is None or np.isnan(own[full]).all()
                     else float(np.nanmedian(own[full]) * 1e6),
+                    agrees_with_ipopt=bool(from_n <= AGREEMENT_TOL)
+                    if name in MHE_METHODS
+                    else None,
+                    build_s=built.get(name, math.nan),
+                    warmup_s=warmup,
                 )
             )
     if loss_horizons is None:

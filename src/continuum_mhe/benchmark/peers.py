@@ -74,10 +74,12 @@ PEER_NOTES: dict[str, str] = {
     "answer and multipliers: the solve and read-back through acados_template; solver us: "
     "acados' own time",
     "fatrop": "CasADi's fatrop (structure-exploiting interior point) on the same windows "
-    "(noise as control), warm-started from its shifted answer (it takes no multipliers): "
+    "(noise as control), warm-started from its shifted answer (it takes no multipliers), "
+    "its barrier started at mu_init 1e-6: "
     "the nlpsol call (its functions compiled where a C compiler is found)",
-    "sqp-hpipm": "CasADi's sqpmethod with HPIPM as QP solver (exact Hessian) on the same "
-    "windows (noise as control), warm-started from its shifted answer and multipliers: "
+    "sqp-hpipm": "CasADi's sqpmethod with HPIPM as QP solver (exact Hessian, full steps "
+    "as acados': no line search) on the same windows (noise as control), warm-started "
+    "from its shifted answer and multipliers: "
     "the nlpsol call (its functions compiled where a C compiler is found)",
     "ipopt-warm": "IPOPT through CasADi on the same windows (noise as control), "
     "warm-started as an interior point can be: its shifted answer and multipliers, "
@@ -95,6 +97,21 @@ IPOPT_WARM_OPTIONS: dict[str, Any] = {
     "warm_start_mult_bound_push": 1e-9,
     "mu_strategy": "adaptive",
 }
+
+#: fatrop's options beyond its tolerance and iteration limit: its barrier started small,
+#: as a warm-started interior point's is (the answer is near; fatrop takes no
+#: multipliers and no ``warm_start_init_point``). From its default start fatrop takes
+#: about 5.1 iterations a full window of the benchmark's N = 30, from 1e-6 about 3.5
+#: (1e-4: 4.0, 1e-8: 3.9), to the same answers (docs/benchmarks.md).
+FATROP_WARM_OPTIONS: dict[str, Any] = {"mu_init": 1e-6}
+
+#: sqpmethod's options beyond its tolerances and iteration limit: full Newton steps, no
+#: line search (``max_iter_ls`` 0), as acados' SQP takes them (its ``FIXED_STEP``
+#: globalization) and as the fast MHE's Newton steps are taken from a warm start. With
+#: CasADi's default line search sqpmethod stopped on some windows with
+#: ``Search_Direction_Becomes_Too_Small`` (7 of 401 at N = 30) and took 2.56 iterations
+#: a full window; with full steps it converges on every one, in 2.40.
+SQP_OPTIONS: dict[str, Any] = {"max_iter_ls": 0}
 
 #: Convergence tolerance of every peer (the fast MHE's step and error tolerances and
 #: IPOPT's ``tol`` are 1e-8).
@@ -272,8 +289,9 @@ def ocp_states(w: FloatArray, nx: int, horizon: int) -> FloatArray:
 
 
 class CasadiPeer:
-    """A CasADi ``nlpsol`` on :class:`OcpNlp`: ``"fatrop"`` (its structure detected),
-    ``"sqp-hpipm"`` (sqpmethod, exact Hessian, HPIPM with the stage sizes given) or
+    """A CasADi ``nlpsol`` on :class:`OcpNlp`: ``"fatrop"`` (its structure detected,
+    :data:`FATROP_WARM_OPTIONS`), ``"sqp-hpipm"`` (sqpmethod, exact Hessian, HPIPM with
+    the stage sizes given, :data:`SQP_OPTIONS`) or
     ``"ipopt-warm"`` (IPOPT warm-started: :data:`IPOPT_WARM_OPTIONS`)."""
 
     def __init__(
@@ -300,7 +318,12 @@ class CasadiPeer:
                 **common,
                 "structure_detection": "auto",
                 "equality": [bool(e) for e in o.lbg == o.ubg],
-                "fatrop": {"tol": PEER_TOL, "max_iter": PEER_MAX_ITER, "print_level": 0},
+                "fatrop": {
+                    "tol": PEER_TOL,
+                    "max_iter": PEER_MAX_ITER,
+                    "print_level": 0,
+                    **FATROP_WARM_OPTIONS,
+                },
             }
             with _quiet():
                 self.solver = ca.nlpsol("peer", "fatrop", o.nlp, opts)
@@ -319,6 +342,7 @@ class CasadiPeer:
                 "tol_pr": PEER_TOL,
                 "tol_du": PEER_TOL,
                 "max_iter": PEER_MAX_ITER,
+                **SQP_OPTIONS,
                 "print_header": False,
                 "print_iteration": False,
                 "print_status": False,

@@ -9,6 +9,7 @@ import math
 from typing import Any
 
 from continuum_mhe.benchmark.environment import environment_line
+from continuum_mhe.benchmark.harness import AGREEMENT_TOL
 from continuum_mhe.benchmark.peers import PEERS
 
 
@@ -57,6 +58,21 @@ def _times(x: float) -> str:
     if not math.isfinite(x):
         return "-"
     return f"1/{1 / x:.0f}" if x < 0.1 else f"{x:.2f}"
+
+
+def _disagrees(row: dict[str, Any]) -> str:
+    """What a ratio line adds for an MHE whose answers are not IPOPT's (its time then
+    compares unlike things); empty where they agree or the row has no such flag."""
+    if row.get("agrees_with_ipopt") is False:
+        return (
+            f"; NOT IPOPT's answers ({row['max_diff_from_n']:.1e} from sample N on, above "
+            f"{AGREEMENT_TOL:g}): its time is no like-for-like comparison"
+        )
+    return ""
+
+
+def _seconds(x: float | None) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{x:.2f}"
 
 
 def print_report(report: dict[str, Any]) -> None:
@@ -116,7 +132,7 @@ def print_report(report: dict[str, Any]) -> None:
             if math.isfinite(r[key])  # a contender skipped: no ratio to say
         ]
         if against:
-            console.print(f"fast MHE at N = {n}: {', '.join(against)}")
+            console.print(f"fast MHE at N = {n}: {', '.join(against)}{_disagrees(r)}")
     for r in report["results"]:
         if r["method"] == "mhe-kernel" and math.isfinite(r["over_ekf_kernel"]):
             console.print(
@@ -134,6 +150,18 @@ def print_report(report: dict[str, Any]) -> None:
             console.print(
                 f"{r['method']} at N = {r['horizon']}: {_times(r['over_fast'])}x the fast "
                 f"MHE's time per sample{alone}, {r['max_diff_from_n']:.1e} from IPOPT"
+                f"{_disagrees(r)}"
+            )
+    for n in sorted({r["horizon"] for r in report["results"]}):
+        setup = [
+            f"{r['method']} {_seconds(r.get('build_s'))} / {_seconds(r.get('warmup_s'))}"
+            for r in report["results"]
+            if r["horizon"] == n and "warmup_s" in r
+        ]
+        if setup:
+            console.print(
+                f"before the clock at N = {n}, s (build / warm-up run, not in the times): "
+                + ", ".join(setup)
             )
     ns = sorted(fast)
     if len(ns) > 1:
