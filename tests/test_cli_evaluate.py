@@ -211,6 +211,42 @@ def test_evaluate_reports_unmatched_rows(tmp_path, capsys):
     assert "unmatched rows       31 of 41" in capsys.readouterr().out
 
 
+def test_a_truth_of_part_of_the_estimates_times_is_said_by_evaluate_plot_and_view(tmp_path, capsys):
+    """A truth of the first 1.5 s of a 3 s estimate (31 of its 61 rows, more than the
+    half below which the rows compared were said): evaluate, plot and view say in one
+    line how much of the estimate's time it covers and how many rows are compared. A
+    truth with rows dropped inside the run, or one row short at its end, is no truth of
+    part of the run: not said so."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    args = ["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--duration", "3"]
+    assert main(args) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    header, *rows = truth.read_text().splitlines()
+    assert len(rows) == 61
+    part = write_file(tmp_path / "part.csv", "\n".join([header, *rows[:31]]) + "\n")
+    said = (
+        f"warning: {part}: its rows cover t = 0 to 1.5 s of {est}'s 0 to 3 s (50 %): 31 of "
+        "the estimate's 61 rows compared (a truth of part of the run?)"
+    )
+    capsys.readouterr()
+    out = {"plot": ["-o", str(tmp_path / "f.png")], "view": ["--save", str(tmp_path / "f.rrd")]}
+    for argv in (
+        ["evaluate", str(est), str(part)],
+        ["plot", str(est), "--truth", str(part), *out["plot"]],
+        ["view", str(est), "--truth", str(part), *out["view"]],
+    ):
+        assert main(argv) == 0
+        err = capsys.readouterr().err
+        assert [ln for ln in err.splitlines() if "warning" in ln] == [f"continuum-mhe: {said}"]
+    dropped = write_file(
+        tmp_path / "dropped.csv", "\n".join([header, *rows[:20], *rows[30:]]) + "\n"
+    )
+    short = write_file(tmp_path / "short.csv", "\n".join([header, *rows[:-1]]) + "\n")
+    for other in (dropped, short):
+        assert main(["evaluate", str(est), str(other)]) == 0
+        assert "part of the run" not in capsys.readouterr().err
+
+
 def test_evaluate_warns_when_the_length_does_not_fit_the_files(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -937,7 +973,7 @@ def test_a_capture_of_part_of_the_run_is_scored_with_a_warning(mocap_run, capsys
     keep = [ln for ln in lines[1:] if 3.0 <= float(ln.split(",")[0]) <= 4.5]
     part.write_text("\n".join([lines[0], *keep]) + "\n")
     got, err = _evaluate_json(capsys, str(est), str(part))
-    assert got["n"] == 151 and "which covers that part of the run alone" in err
+    assert got["n"] == 151 and "(a truth of part of the run?)" in err
     other = _capture(truth, folder / "other.csv", 120.0, t0=30.0)
     assert main(["evaluate", str(est), str(other)]) == 2
     assert "the files' times do not match" in capsys.readouterr().err

@@ -279,6 +279,61 @@ def test_a_tensions_file_without_a_header_is_told_the_tensions_header(
     _assert_refused_in_one_line(tmp_path, capsys, meas, tensions, message)
 
 
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        # a misspelt column named, not only the one it should have been
+        ("t,tenson_1\n0,1.0\n0.1,1.5\n", "line 1: tension_1 missing; tenson_1 not the "
+         "robot's: expected the columns t,tension_1"),
+        # a separator too many in the header, not a row too short
+        ("t,,tension_1\n0,1.0\n0.1,1.5\n", "line 1: column 2 has no name (a separator too "
+         "many?): expected the columns t,tension_1"),
+    ],
+)  # fmt: skip
+def test_plot_and_view_read_a_tensions_file_as_estimate_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, message: str
+) -> None:
+    """``plot`` and ``view`` with ``--inputs`` refuse a bad tensions header in the line
+    ``estimate --inputs`` gives it (one reader: a recording's other columns are left out
+    only for a recording with all the robot's tension columns), exit 2, nothing
+    written; tensions that end before the estimate are said with the estimate's name,
+    as estimate names its recording."""
+    meas, tensions = small_robot_recording(tmp_path)
+    robot = small_robot(tmp_path)
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
+            "-o", str(est), "--method", "ekf"]  # fmt: skip
+    assert main(argv) == 0
+    bad = tmp_path / "bad.csv"
+    bad.write_text(text)
+    fig, saved = tmp_path / "f.png", tmp_path / "f.rrd"
+    lines = []
+    for argv in (
+        ["estimate", str(meas), "--robot", str(robot), "-o", str(tmp_path / "e2.csv")],
+        ["plot", str(est), "--robot", str(robot), "-o", str(fig)],
+        ["view", str(est), "--robot", str(robot), "--save", str(saved)],
+    ):
+        capsys.readouterr()
+        assert main([*argv, "--inputs", str(bad)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"error: {bad}: {message}" in err[0], err
+        lines.append(err[0])
+    assert len(set(lines)) == 1
+    assert sorted(p.name for p in tmp_path.iterdir() if p.suffix in (".png", ".rrd")) == []
+    assert not (tmp_path / "e2.csv").exists()
+    # tensions that end before the estimate: the estimate named, as estimate names its
+    # recording
+    bad.write_text("t,tension_1\n0,1.0\n0.05,1.2\n")
+    for argv in (
+        ["plot", str(est), "--robot", str(robot), "-o", str(fig)],
+        ["view", str(est), "--robot", str(robot), "--save", str(saved)],
+    ):
+        assert main([*argv, "--inputs", str(bad)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"but a sample of {est} is at t = " in err[0], err
+        assert "the tensions must cover the recording" in err[0]
+
+
 def _assert_refused_in_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], meas: Path, tensions: Path, message: str
 ) -> None:

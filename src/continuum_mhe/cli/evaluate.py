@@ -48,6 +48,7 @@ from continuum_mhe.evaluation.truth_checks import (
     rows_matched,
     seconds_text,
     spans_the_truth,
+    truth_covers_part,
     truth_frame_warning,
     truth_time_unit_problem,
 )
@@ -117,7 +118,8 @@ def _align(
     # the truth from where the scores start (--skip-start): a truth of part of the run
     # is judged by what is left of it there
     scored_truth = t_truth if scored_from is None else t_truth[t_truth >= scored_from]
-    spanned = spans_the_truth(t_est, i_est, scored_truth)
+    part = truth_covers_part(path_est, t_est, k, path_truth, t_truth)
+    spanned = bool(part) and spans_the_truth(t_est, i_est, scored_truth)
     comparable = comparable_rows(t_est, t_truth)
     problem, warning = rows_matched(path_est, path_truth, k, n, interpolated, spanned, comparable)
     if scored_from is not None and len(t_truth) and float(t_truth[-1]) < float(t_est[-1]):
@@ -137,7 +139,7 @@ def _align(
         first = float(t_est[0]) if first_t is None or not math.isfinite(first_t) else first_t
         hint = _log_clock_hint(path_est, t_est, t_truth, given_shift)
         raise InputError(problem + (hint or offset_hint(first, t_est, t_truth, given_shift)))
-    warnings = [warning] if warning else []
+    warnings = [line for line in (warning, part) if line]
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
     if scored_from is not None:

@@ -265,8 +265,9 @@ def _tendon_backbone(
         )
         return None, robot
     # (a recording that carries its tensions beside its IMUs' columns, as live records
-    # them, gives them too: the drawing takes their values alone)
-    tensions = read_tensions(inputs, robot.n_tendons, other_columns=True, time_warning=False)
+    # them, gives them too, read as estimate reads them from it; a tensions file is
+    # read as estimate --inputs reads it)
+    tensions = read_tensions(inputs, robot.n_tendons, other_columns=None, time_warning=False)
     # a robot log's estimate with its tensions on the log's clock, as estimate took them
     tensions, note = on_log_clock(tensions, recorded_t0_ns(args.source) or 0)
     if note:
@@ -274,6 +275,7 @@ def _tendon_backbone(
     tensions.check_scale(robot)  # mN for N, as estimate refuses them
     if len(t):
         tensions.check_span(float(t[0]), float(t[-1]))  # milliseconds?
+        tensions.check_covers(t, args.source)
     return tendon_backbone(robot, tensions), robot
 
 

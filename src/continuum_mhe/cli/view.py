@@ -82,8 +82,7 @@ def _checked_tensions(estimates: str, path: str, robot: Robot, t: FloatArray) ->
     table = read_view_tensions(path, robot, recorded_t0_ns(estimates) or 0)
     if len(t):
         table.check_span(float(t[0]), float(t[-1]))  # milliseconds?
-        for row_t in (float(t[0]), float(t[-1])):  # the rows' tensions are there
-            table.at(row_t)
+        table.check_covers(t, estimates)  # the rows' tensions are there
     return table
 
 

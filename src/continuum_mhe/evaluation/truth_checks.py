@@ -1,5 +1,6 @@
 """The checks of a truth against an estimate that ``evaluate``, ``plot`` and ``view``
-share: too few of the estimate's rows with a truth (:func:`rows_matched`), a truth on an
+share: too few of the estimate's rows with a truth (:func:`rows_matched`), a truth of
+part of the estimate's times (:func:`truth_covers_part`), a truth on an
 offset clock (:func:`clock_offset_warning`), a truth whose tip points away from its own
 bend angles (:func:`truth_frame_warning`), a truth in another frame than the estimate's
 (:func:`frame_fit_warning`); ``plot`` and ``view`` take them together
@@ -263,10 +264,11 @@ def rows_matched(
     """``(problem, warning)`` where ``compared`` of the estimate's ``rows`` have a truth
     (at the same t, or within the truth's times where it is ``interpolated``): the
     refusal below :data:`MIN_MATCHED` of them (or 2), the warning below
-    :data:`WARN_MATCHED`; ``""`` for none. ``truth_spanned``: the rows compared span
-    the truth's times (a motion capture of part of the run): a warning, not a
-    refusal, from :data:`PART_ROWS` rows. ``comparable``: the rows a truth sparser than
-    the estimate could be compared at (:func:`comparable_rows`), the shares' base
+    :data:`WARN_MATCHED`; ``""`` for none. ``truth_spanned``: a truth of part of the
+    run (:func:`truth_covers_part`, which says it) whose times the rows compared span
+    (:func:`spans_the_truth`): no warning here, and no refusal from :data:`PART_ROWS`
+    rows. ``comparable``: the rows a truth sparser
+    than the estimate could be compared at (:func:`comparable_rows`), the shares' base
     (``rows`` where None)."""
     at = "lie within the times of" if interpolated else "have a row at the same t (within 1 us) in"
     what = (
@@ -275,13 +277,10 @@ def rows_matched(
         "or the wrong truth file?)"
     )
     of = rows if comparable is None else comparable
-    if truth_spanned and compared >= PART_ROWS and compared < WARN_MATCHED * of:
-        return "", (
-            f"{path_est}: only {compared} of {rows} rows {at} {path_truth}, which covers "
-            "that part of the run alone: the scores are of those rows"
-        )
-    if compared < max(2, MIN_MATCHED * of):
+    if compared < max(2, MIN_MATCHED * of) and not (truth_spanned and compared >= PART_ROWS):
         return what, ""
+    if truth_spanned:  # said by truth_covers_part
+        return "", ""
     return "", what if compared < WARN_MATCHED * of else ""
 
 
@@ -349,6 +348,37 @@ def comparable_rows(t_est: np.ndarray, t_truth: np.ndarray) -> int:
     return int(round(float(t_est[-1] - t_est[0]) / step)) + 1
 
 
+#: A truth whose times, reaching a step of its own past its first and last rows, cover
+#: less than this share of the estimate's time span is said to be of part of the run
+#: (:func:`truth_covers_part`): a truth that ends a sample or two early is not.
+PART_COVERED = 0.9
+
+
+def truth_covers_part(
+    path_est: str, t_est: np.ndarray, compared: int, path_truth: str, t_truth: np.ndarray
+) -> str:
+    """The warning of a truth ``path_truth`` (times ``t_truth``) that covers part of the
+    estimate ``path_est``'s times ``t_est`` alone (less than :data:`PART_COVERED` of
+    them, its median step added at each end), ``compared`` of its rows compared: the two
+    spans and that count, as :func:`rows_matched` counts them; ``""`` where it covers
+    them, or none of them (refused as times that do not match)."""
+    if len(t_est) < 2 or len(t_truth) < 2:
+        return ""
+    first, last = float(t_est[0]), float(t_est[-1])
+    start, end = max(float(t_truth[0]), first), min(float(t_truth[-1]), last)
+    step = float(np.median(np.diff(t_truth)))
+    reach = min(float(t_truth[-1]) + step, last) - max(float(t_truth[0]) - step, first)
+    if not last > first or end < start or reach >= PART_COVERED * (last - first):
+        return ""
+    share = 100.0 * (end - start) / (last - first)
+    return (
+        f"{path_truth}: its rows cover t = {time_text(start)} to {time_text(end)} s of "
+        f"{path_est}'s {time_text(first)} to {time_text(last)} s ({share:.0f} %): "
+        f"{compared} of the estimate's {len(t_est)} rows compared (a truth of part of the "
+        "run?)"
+    )
+
+
 def spans_the_truth(t_est: np.ndarray, compared: np.ndarray, t_truth: np.ndarray) -> bool:
     """Whether the estimate rows at ``t_est[compared]`` span :data:`TRUTH_SPANNED` of the
     truth's times ``t_truth``, and those are shorter than the estimate's: a truth (a
@@ -382,7 +412,8 @@ def truth_beside(
     :class:`~continuum_mhe.errors.InputError` for a truth of another robot or too few
     rows the estimate's times share (:func:`rows_matched`; not asked of an estimate of one
     row); else the truth interpolated at the estimate's times where ``evaluate`` would
-    interpolate it (None: as it is) and the warnings, in order: few rows, a truth whose
+    interpolate it (None: as it is) and the warnings, in order: few rows, a truth of
+    part of the estimate's times (:func:`truth_covers_part`), a truth whose
     tip points away from its own angles (:func:`truth_frame_warning`, on a robot of these
     section ``lengths``), a clock offset (:func:`clock_offset_warning`, which advises
     ``shift_option`` and counts in the ``given_shift`` s the truth was shifted by)."""
@@ -398,7 +429,8 @@ def truth_beside(
         raise InputError(f"{path_truth}: {problem}{hint}")
     warned = []
     if len(est.t) >= 2:
-        spanned = spans_the_truth(est.t, i_est, truth.t)
+        part = truth_covers_part(path_est, est.t, len(i_est), path_truth, truth.t)
+        spanned = bool(part) and spans_the_truth(est.t, i_est, truth.t)
         refused, few = rows_matched(
             path_est,
             path_truth,
@@ -414,7 +446,7 @@ def truth_beside(
             raise InputError(
                 refused + offset_hint(float(est.t[0]), est.t, truth.t, given_shift, shift_option)
             )
-        warned.append(few)
+        warned += [few, part]
     tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]
     truth_tip = rows[:, [truth.names.index(c) for c in TIP_COLUMNS]]
     fit = frame_fit(tip, truth_tip, sum(lengths))

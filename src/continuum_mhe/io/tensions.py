@@ -559,6 +559,17 @@ class Tensions:
         to the microsecond; :meth:`at` takes the end row's tensions there)."""
         return bool(self.t[0] - COVER_TOLERANCE_S <= t <= self.t[-1] + COVER_TOLERANCE_S)
 
+    def check_covers(self, t: FloatArray, source: str) -> None:
+        """:meth:`at`'s :class:`InputError` for the first of the times ``t`` (s,
+        increasing) the file does not cover (:meth:`covers`), naming ``source``, the
+        recording or estimate they are of."""
+        times = np.asarray(t, dtype=float)
+        outside = np.flatnonzero(
+            (times < self.t[0] - COVER_TOLERANCE_S) | (times > self.t[-1] + COVER_TOLERANCE_S)
+        )
+        if len(outside):
+            self.at(float(times[outside[0]]), source)
+
     def at(self, t: float, source: str = "") -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(tensions, rates, accelerations)`` at ``t`` s, linear between rows; an
         :class:`InputError` outside the file's times (``source``: the recording, named
@@ -690,7 +701,7 @@ def _checked_rows(
 def read_tensions(
     path: str | os.PathLike[str],
     n_tendons: int,
-    other_columns: bool = False,
+    other_columns: bool | None = False,
     skip_bad: bool = False,
     time_warning: bool = True,
 ) -> Tensions:
@@ -698,7 +709,10 @@ def read_tensions(
     (``other_columns``: a recording that carries its tensions beside its IMUs' columns,
     which are left out here, and whose rows are differenced one by one, as ``live``
     differenced them when it recorded them: a replay gives ``live``'s estimates; a
-    tensions file of its own is differenced by :func:`tension_derivatives`).
+    tensions file of its own is differenced by :func:`tension_derivatives`; None: as
+    the header says, a recording's where it has all the robot's tension columns and
+    named columns of other kinds, else a tensions file's, its header checked as
+    ``estimate --inputs`` checks it).
     ``skip_bad``: a row with a missing or non-finite tension,
     or a bad time, is left out (the tensions are interpolated across it; a
     :class:`~continuum_mhe.io.csv_files.DropoutWarning` counts them) instead of an
@@ -713,8 +727,13 @@ def read_tensions(
             header.pop()
         written = rows.written[: len(header)]
         found = [c for c in header if c != "t"]
-        if other_columns:
-            found = [c for c in found if c.startswith("tension_")]
+        recording = other_columns or (
+            other_columns is None
+            and set(names) <= set(found)
+            and any(c and not c.startswith("tension_") for c in found)
+        )
+        if recording:  # its other columns left out; one without a name is refused
+            found = [c for c in found if c.startswith("tension_") or not c]
         if "t" not in header or sorted(found) != sorted(names):  # in any order, by name
             missing = [c for c in ["t", *names] if c not in header]
             spelled = dict(zip(header, written))  # the file's own spelling of a name
@@ -771,9 +790,9 @@ def read_tensions(
         name,
         t,
         values,
-        binned=not other_columns,
+        binned=not recording,
         lines=lines,
-        glitches="stream" if other_columns else "rows",
+        glitches="stream" if recording else "rows",
     )
     return replace(read, time_column="t_ms" if rows.time_scale == 1e-3 else "t")
 

@@ -49,15 +49,17 @@ def _not_a_tendon_robot(name: str) -> str:
 
 
 def read_view_tensions(path: str, robot: Robot, t0_ns: int = 0) -> Tensions:
-    """The tensions file ``path`` (or a recording with its tension columns, as ``live
-    --record`` writes one) for the view of a tendon robot ``robot``'s estimate: its
+    """The tensions file ``path`` (read as ``estimate --inputs`` reads it; or a recording
+    with its tension columns, as ``live --record`` writes one, read as ``estimate`` reads
+    them from it: :func:`~continuum_mhe.io.tensions.read_tensions`) for the view of a
+    tendon robot ``robot``'s estimate: its
     times on a robot log's clock where they are since 1970 and the estimate's ``t = 0``
     is ``t0_ns`` (ns since 1970; 0: none), as ``estimate`` took them (said in a
     :class:`~continuum_mhe.viewer.view.ViewNote`); refused in one line for a robot without
     a backbone, and in mN for N."""
     if robot.backbone is None:
         raise InputError(_not_a_tendon_robot(path))
-    table = read_tensions(path, robot.n_tendons, other_columns=True, time_warning=False)
+    table = read_tensions(path, robot.n_tendons, other_columns=None, time_warning=False)
     table, note = on_log_clock(table, t0_ns)
     if note:
         warnings.warn(note, ViewNote, stacklevel=2)
