@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -185,16 +186,17 @@ def _readme_examples() -> list[str]:
     ]
 
 
-def _readme_inputs(folder: Path) -> None:
-    """The files the README's "five steps" start from, as a user would have them: the
-    README's robot file as ``my_robot.toml``, and the shipped two-section rod recording
-    copied to the names the README gives (``rest.csv``, ``run.csv``, ``run_truth.csv``)."""
-    readme = (ROOT / "README.md").read_text()
+def _readme_inputs(folder: Path, page: Path = ROOT / "README.md") -> None:
+    """The files the "five steps" of ``page`` (the README's, or the guide's) start from,
+    as a user would have them: the page's robot file as ``my_robot.toml``, and the
+    shipped two-section rod recording copied to the names the page gives (``rest.csv``,
+    ``run.csv``, ``run_truth.csv``)."""
+    readme = page.read_text()
     (robot,) = re.findall(r"```toml\n(.*?)```", readme, re.S)
     (folder / "my_robot.toml").write_text(robot)
     rod = ROOT / "src/continuum_mhe/data/rod2"
-    copies = re.search(r"copy `src/continuum_mhe/data/rod2/(.*?) to (.*?)\.\s", readme, re.S)
-    assert copies, "the README says which shipped recordings the five steps copy"
+    copies = re.search(r"copy\s+`src/continuum_mhe/data/rod2/(.*?) to (.*?)[.;]\s", readme, re.S)
+    assert copies, f"{page.name} says which shipped recordings the five steps copy"
     sources = re.findall(r"(spatial-tendon_\w+\.csv)", copies.group(1))
     targets = re.findall(r"`(\w+\.csv)`", copies.group(2))
     assert len(sources) == len(targets) == 3, (sources, targets)
@@ -203,7 +205,8 @@ def _readme_inputs(folder: Path) -> None:
 
 
 def test_readme_cli_examples_run(tmp_path, monkeypatch, capsys):
-    """Every plain CLI example line of the README runs, in order, in one folder.
+    """Every plain CLI example line of the README runs, in order, in one folder, and the
+    five steps' estimate is what the README and the guide's page of those steps say of it.
 
     They run in this process, through the executable's own entry point
     (``continuum_mhe.cli.entry.main``, what the ``continuum-mhe`` script calls): a fresh
@@ -222,6 +225,114 @@ def test_readme_cli_examples_run(tmp_path, monkeypatch, capsys):
         except SystemExit as exc:  # argparse's own exits (an option the CLI lacks: 2)
             code = exc.code
         assert code == 0, f"{line}: {capsys.readouterr().err}"
+    # the five steps' numbers, as the README and the guide's page of the same steps give
+    # them: the mean tip error (to their last digit) and the statuses the estimate wrote
+    import json
+
+    from continuum_mhe.io.state_tables import read_state_table
+
+    readme = (ROOT / "README.md").read_text()
+    guide = (ROOT / "docs/guide/your-robot.md").read_text()
+    said = re.search(
+        r"mean tip error is ([\d.]+) mm \(([\d.]+) % of the 0.3 m robot\);\s+(\d+) of its"
+        r"\s+(\d+) rows are\s+`inconsistent`",
+        readme,
+    )
+    in_guide = re.search(r"mean tip error is ([\d.]+) mm \(([\d.]+) % of the 0.3 m robot\)", guide)
+    counts = re.search(r"`estimate` says `((?:[a-z-]+: \d+(?:, )?)+)`", guide)
+    assert said and in_guide and counts, "README.md and your-robot.md state the five steps' result"
+    capsys.readouterr()
+    assert main(["evaluate", "run_est.csv", "run_truth.csv", "--robot", "my_robot_cal.toml",
+                 "--json"]) == 0  # fmt: skip
+    report = json.loads(capsys.readouterr().out)
+    for doc, key in [*zip(said.groups()[:2], ("tip_mean_mm", "tip_mean_pct")),
+                     *zip(in_guide.groups(), ("tip_mean_mm", "tip_mean_pct"))]:  # fmt: skip
+        step = 10.0 ** -len(doc.split(".")[1])  # one unit of the page's last digit
+        assert abs(report[key] - float(doc)) <= step * (1 + 1e-9), (key, doc, report[key])
+    status = [str(s) for s in read_state_table("run_est.csv").status]
+    written = {name: status.count(name) for name in sorted(set(status))}
+    guide_counts = {k: int(v) for k, v in re.findall(r"([a-z-]+): (\d+)", counts.group(1))}
+    assert guide_counts == written
+    assert (int(said.group(3)), int(said.group(4))) == (written["inconsistent"], len(status))
+
+
+#: The pages a new user reads first, beside the README: their command lines run as
+#: written, from the repository root (the ``src/continuum_mhe/data/...`` paths).
+GUIDE_PAGES = (
+    "docs/guide/quickstart.md",
+    "docs/guide/your-robot.md",
+    "docs/guide/commands.md",
+    "docs/workflow.md",
+    "docs/tendon.md",
+)
+
+#: A file named for the reader's own (``LOG.csv``), unless an example writes it (``-o``)
+_PLACEHOLDER = re.compile(r"\b[A-Z][A-Z0-9_-]*\.(?:csv|toml|png|rrd|mcap|bag)\b")
+
+#: ``T=$(python -c "...")``: a shell variable a page's later lines use as ``$T``
+_SHELL_VARIABLE = re.compile(r'(\w+)=\$\(python -c "(.*)"\)')
+
+
+def _page_commands(page: Path) -> list[str]:
+    """The lines of ``page``'s shell blocks that are CLI examples or set a variable they
+    use, their trailing comments cut: a serial port, a robot log the package does not
+    ship (``--topic``), the Cosserat-rod generators (minutes), the long runs, optional
+    parts (``[--truth TRUTH.csv]``) and the reader's own files (:data:`_PLACEHOLDER`)
+    left out."""
+    skip = ("--port", "--topic", "continuum-mhe rod ", "reproduce", "benchmark", " demo", "[")
+    lines, fence = [], None  # the open block's language ("" for none), None outside one
+    written: set[str] = set()  # the files the lines kept write with -o
+    for line in page.read_text().splitlines():
+        if line.startswith("```"):
+            fence = line[3:].strip() if fence is None else None
+            continue
+        line = re.sub(r"\s+#.*$", "", line).strip()
+        if fence not in ("", "bash"):
+            continue
+        if line.startswith("continuum-mhe ") and not any(k in line for k in skip):
+            writes = set(re.findall(r"(?:-o|--output) (\S+)", line))
+            if set(_PLACEHOLDER.findall(line)) <= written | writes:
+                lines.append(line)
+                written |= writes
+        elif _SHELL_VARIABLE.fullmatch(line):
+            lines.append(line)
+    return lines
+
+
+@pytest.mark.parametrize("page", GUIDE_PAGES)
+def test_guide_pages_cli_examples_run(page, tmp_path, monkeypatch, capsys):
+    """Every plain CLI example line of a guide page runs, in order, in one folder that
+    holds the repository's ``src`` (a link) and, for a page of the five steps, the
+    files it says to copy; in this process, as the README's run
+    (:func:`test_readme_cli_examples_run`)."""
+    import contextlib
+    import shlex
+
+    from continuum_mhe.cli.entry import main
+
+    path = ROOT / page
+    lines = _page_commands(path)
+    assert any(ln.startswith("continuum-mhe ") for ln in lines), page
+    (tmp_path / "src").symlink_to(ROOT / "src", target_is_directory=True)
+    if re.search(r"copy\s+`src/continuum_mhe/data/rod2/", path.read_text()):
+        _readme_inputs(tmp_path, path)
+    monkeypatch.chdir(tmp_path)
+    variables: dict[str, str] = {}
+    for line in lines:
+        if (assignment := _SHELL_VARIABLE.fullmatch(line)) is not None:
+            printed = io.StringIO()
+            with contextlib.redirect_stdout(printed):
+                exec(assignment.group(2), {})
+            variables[assignment.group(1)] = printed.getvalue().strip()
+            continue
+        for name, value in variables.items():
+            line = line.replace(f"${name}", shlex.quote(value))
+        capsys.readouterr()  # a failure shows this line's output only
+        try:
+            code = main(shlex.split(line)[1:])
+        except SystemExit as exc:  # argparse's own exits (an option the CLI lacks: 2)
+            code = exc.code
+        assert code == 0, f"{page}: {line}: {capsys.readouterr().err}"
 
 
 LIBRARY_GUIDE = ROOT / "docs" / "guide" / "library.md"
