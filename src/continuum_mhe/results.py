@@ -100,7 +100,7 @@ class Status(str, Enum):
         "states beyond their prior or changing faster than their model allows "
         "(chi-square 99.9 %: the model follows the readings only with IMU errors the "
         "IMUs are not taken to have; wrong tensions, a wrong robot file), or its tip force "
-        "pushing along the backbone harder than twice its buckling load (an equilibrium "
+        "pushing along the backbone harder than its buckling load (an equilibrium "
         "the backbone cannot hold): do not trust it",
     )
     AT_BOUND = (
