@@ -3,6 +3,7 @@ comments, ``t_ms``, ``;`` and tab, a plain serial capture), with one-line errors
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -559,14 +560,29 @@ def test_microseconds_in_a_t_ms_column_are_refused_naming_that_column(
     )
 
 
+def _piped_into(text: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Standard input a pipe that gives ``text`` (written from a thread: the pipe may hold
+    less than a whole estimate; one a command refuses unread ends it), which cannot be
+    read again from its start."""
+    r, w = os.pipe()
+
+    def feed() -> None:
+        with contextlib.suppress(BrokenPipeError), os.fdopen(w, "w") as fh:
+            fh.write(text)  # closing the only write end gives the reader EOF
+
+    threading.Thread(target=feed, daemon=True).start()
+    monkeypatch.setattr(sys, "stdin", os.fdopen(r))
+
+
 @pytest.mark.parametrize("command", ["evaluate", "plot"])
 def test_an_estimate_piped_in_is_read_as_from_its_file(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
-) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    command: str,
+) -> None:  # fmt: skip
     """``evaluate`` and ``plot`` read an estimate more than once (its header, its options
     line, its rows): from a pipe on standard input, which cannot be read from its start
-    again, they give what they give from the file (the file read in this process: a
-    second interpreter would spend 2 s importing for the same code)."""
+    again, they give what they give from the file (both in this process, standard input
+    a pipe: ``-`` is read from its descriptor)."""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
                  "--duration", "3"]) == 0  # fmt: skip
@@ -581,22 +597,21 @@ def test_an_estimate_piped_in_is_read_as_from_its_file(
     from_file = capsys.readouterr().out
     figure = tmp_path / "p.png"
     figure.unlink(missing_ok=True)
-    # ``input=``: a pipe, which cannot be read again from its start
-    piped = subprocess.run(
-        [*CLI, command, "-", *args], input=est.read_text(), capture_output=True, text=True,
-        timeout=120,
-    )  # fmt: skip
-    assert piped.returncode == 0, piped.stderr
-    assert piped.stdout == from_file
+    with monkeypatch.context() as m:
+        _piped_into(est.read_text(), m)
+        assert main([command, "-", *args]) == 0
+        sys.stdin.close()
+    piped = capsys.readouterr()
+    assert piped.out == from_file, piped.err
     if command == "evaluate":
         assert json.loads(from_file)["n"] == 61  # every row of the 3 s at 20 Hz
     else:  # plot prints nothing: the figure is what it makes
         assert figure.stat().st_size > 0
-        alone = subprocess.run(  # no file to put the figure beside
-            [*CLI, "plot", "-"], input=est.read_text(), capture_output=True, text=True,
-            timeout=120,
-        )  # fmt: skip
-        assert alone.returncode == 2 and "give -o" in alone.stderr
+        with monkeypatch.context() as m:  # no file to put the figure beside
+            _piped_into(est.read_text(), m)
+            assert main(["plot", "-"]) == 2
+            sys.stdin.close()
+        assert "give -o" in capsys.readouterr().err
 
 
 def test_a_robot_file_from_a_fifo_is_read(tmp_path: Path) -> None:

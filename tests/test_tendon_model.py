@@ -401,32 +401,34 @@ def test_tendons_drawn_from_disk_to_disk_bend_a_section_further(tmp_path: Path) 
 
 
 @pytest.mark.parametrize(
-    ("disks", "tendons", "within_mm", "continuous_off_mm"),
-    [(4, ((0.0, 8.0), (120.0, 6.0), (240.0, 6.0)), 0.2, 30.0),
-     (5, ((0.0, 12.0), (115.0, 3.6)), 2.5, 40.0)],
+    ("disks", "tendons", "per_disk", "within_mm", "continuous_off_mm"),
+    [(4, ((0.0, 8.0), (120.0, 6.0), (240.0, 6.0)), 8, 0.2, 30.0),
+     (5, ((0.0, 12.0), (115.0, 3.6)), 4, 2.5, 40.0)],
 )  # fmt: skip
 def test_the_disk_routed_model_agrees_with_the_discrete_rod_drawn_so(
-    disks: int, tendons: tuple[tuple[float, float], ...], within_mm: float,
+    disks: int, tendons: tuple[tuple[float, float], ...], per_disk: int, within_mm: float,
     continuous_off_mm: float,
 ) -> None:  # fmt: skip
     """A 0.2 m section with tendons drawn straight from disk to disk, against the
-    generator's discrete rod drawn so (extrapolated to zero segment length from 8 and 16
-    segments per disk): 4 disks (5 cm apart) and three pretensioned tendons, 20 N in all
-    (0.41 of the section's bending stiffness in the chords' term), bent by 41 degrees,
-    within 0.2 mm where the continuous tendons' model is over 30 mm off; 5 disks and two
-    tendons bent by 154 degrees, within 2.5 mm where it is over 40 mm off."""
+    generator's discrete rod drawn so (extrapolated to zero segment length from
+    ``per_disk`` and twice as many segments per disk: 8 and 16 on 4 disks, 4 and 8 on 5,
+    each within 0.03 mm of the extrapolation from 16 and 32): 4 disks (5 cm apart) and
+    three pretensioned tendons, 20 N in all (0.41 of the section's bending stiffness in
+    the chords' term), bent by 41 degrees, within 0.2 mm where the continuous tendons'
+    model is over 30 mm off; 5 disks and two tendons bent by 154 degrees, within 2.5 mm
+    where it is over 40 mm off."""
     from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
 
     robot = Robot((Section(0.2, 3.0, disks),), (ImuPlacement(0, 1.0),), "z-up", BACKBONE,
                   tuple(Tendon(0, math.radians(a), 0.01) for a, _ in tendons))  # fmt: skip
     tau = np.array([t for _, t in tendons])
     ends = {}
-    for per in (8, 16):
+    for per in (per_disk, 2 * per_disk):
         _, frames = energy_equilibrium(
             robot, tau, np.zeros(3), route="disks", segments_per_disk=per
         )
         ends[per] = frames[9:, -1]
-    rod = ends[16] + (ends[16] - ends[8]) / 3
+    rod = ends[2 * per_disk] + (ends[2 * per_disk] - ends[per_disk]) / 3
     tips = {}
     for route in ("continuous", "disks"):
         _, poses = TendonStatics(replace(robot, tendon_route=route)).solve(np.zeros(3), tau)

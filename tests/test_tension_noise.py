@@ -402,20 +402,25 @@ def test_a_recordings_held_tension_columns_and_a_held_stream_are_said(tmp_path: 
 
 
 def test_a_held_tensions_file_estimates_as_its_linear_resampling(tmp_path: Path) -> None:
-    """``estimate`` with the 10 Hz tensions held over the 50 Hz rows of ``force-29``
-    gives the estimates of the same log resampled linearly (to 1e-6: the files keep nine
-    digits; a bend angle of a nearly straight section moves most), and says the
-    hold."""
-    t, held, lin, _ = _slower_log()
+    """``estimate`` with the 10 Hz tensions held over the 50 Hz rows of the first 2 s of
+    ``force-29`` (a tip force growing from the start, 0.22 N at 2 s; the files end on a
+    sample of the 10 Hz log) gives the estimates of the same log resampled linearly (to
+    1e-6: the files keep nine digits; a bend angle of a nearly straight section moves
+    most), and says the hold."""
+    rows = 101
+    t, held, lin, keep = _slower_log()
+    assert rows - 1 in keep
+    raw = tmp_path / "raw.csv"
+    raw.write_text("".join((DATA / "force-29_raw.csv").read_text().splitlines(True)[: rows + 1]))
     header = "t," + ",".join(f"tension_{j}" for j in range(1, 7))
     outs = []
     for name, values in (("held", held), ("lin", lin)):
         f = tmp_path / f"{name}.csv"
-        np.savetxt(f, np.column_stack([t, values]), delimiter=",", fmt="%.9g", header=header,
-                   comments="")  # fmt: skip
+        np.savetxt(f, np.column_stack([t, values])[:rows], delimiter=",", fmt="%.9g",
+                   header=header, comments="")  # fmt: skip
         out = tmp_path / f"est_{name}.csv"
-        argv = ["estimate", str(DATA / "force-29_raw.csv"), "--robot", "tendon-two-section",
-                "--inputs", str(f), "-o", str(out)]  # fmt: skip
+        argv = ["estimate", str(raw), "--robot", "tendon-two-section", "--inputs", str(f),
+                "-o", str(out)]  # fmt: skip
         if name == "held":
             with pytest.warns(TensionsWarning, match="hold each value for about 0.1 s"):
                 assert main(argv) == 0
