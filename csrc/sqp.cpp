@@ -26,8 +26,8 @@ constexpr double kQuadraticSafety = 10.0;
 // |d_1|) and on step_tol (which it divides): its rate is linear and drifts from one
 // iteration to the next; on a three-section model with the IMUs' own acceleration the
 // bound and a step under step_tol alone let answers 8.7 times err_tol from the
-// converged one through (17 of 161 windows); with the factor, one at 1.04 times err_tol
-// (a rate that jumps from 1e-3 to 7e-2 between iterations: no factor bounds that)
+// converged one through (17 of 161 windows); with the factor, the worst at 1.33 times
+// err_tol (a rate that jumps between iterations: no factor bounds that)
 constexpr double kContractionSafety = 10.0;
 
 // dst[start:stop] = src[start + 1:stop + 1] along the first axis (rows of ``row``
