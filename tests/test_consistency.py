@@ -627,6 +627,53 @@ def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> No
     assert check.check(t + dt, z, f.measurement_mask(z), x, P)
 
 
+@pytest.mark.parametrize("imu", ["tilt", "raw"])
+def test_a_tendon_robots_check_counts_only_the_rows_that_carry_a_residual(imu) -> None:
+    """A tendon robot's tension rates are the model's inputs, whose rows of the residual
+    are zero at every state: the check's degrees of freedom are the readings whose
+    residual moves with the state (found here from the residual's Jacobian: the IMUs'
+    readings and the six tensions, 10 with two tilt IMUs and 18 with two raw ones), not
+    those rows as well (22 and 30), and a sample whose statistic lies between the
+    chi-square 99.99 % quantiles of the two counts is ``inconsistent``."""
+    from tendon_helpers import shipped_recording
+
+    from continuum_mhe.estimators.consistency import ConsistencyCheck
+    from continuum_mhe.quantiles import chi2_quantile
+
+    f, t, z = shipped_recording("unloaded", imu)
+    est = make_estimator("ekf", f)
+    (x0, P0), (x1, P1) = (
+        (e.state, e.covariance) for e in (est.step(Measurement(t[i], z[i])) for i in (0, 1))
+    )
+    _, J = f.functions.innovate(z[1], x1)
+    moves = np.any(np.asarray(J, dtype=float) != 0.0, axis=1)
+    readings = np.concatenate(
+        [np.full(b.size, b.kind != "equilibrium") for b in f.measurement_blocks]
+    )
+    real = int(np.sum(moves & readings & (f.measurement_mask(z[1]) > 0)))
+    assert real == {"tilt": 10, "raw": 18}[imu]
+    lo, hi = chi2_quantile(0.9999, real), chi2_quantile(0.9999, int(np.sum(readings)))
+
+    def judged(scale: float) -> tuple[bool, float, int]:
+        """The check of sample 1 with its first reading moved by ``scale`` of its noise
+        std (after sample 0 as estimated): ``(flagged, max(NIS, fit), dof)``."""
+        check = ConsistencyCheck(f)
+        assert not check.check(t[0], z[0], f.measurement_mask(z[0]), x0, P0)
+        zk = z[1].copy()
+        zk[0] += scale * math.sqrt(f.meas_cov()[0, 0])
+        flagged = check.check(t[1], zk, f.measurement_mask(zk), x1, P1)
+        return flagged, max(check._core.nis, check._core.fit), check._core.dof
+
+    a, b = 0.0, 100.0  # a statistic half way between the two quantiles
+    for _ in range(60):
+        mid = (a + b) / 2
+        a, b = (mid, b) if judged(mid)[1] < (lo + hi) / 2 else (a, mid)
+    flagged, worst, dof = judged((a + b) / 2)
+    assert lo < worst < hi
+    assert flagged
+    assert dof == real
+
+
 def test_the_check_takes_the_ekf_updates_evaluation() -> None:
     """The check's prediction from the last estimate is the state the compiled EKF's
     update evaluated the measurement terms at: with every reading valid, each sample

@@ -215,13 +215,17 @@ def test_the_return_of_the_tensions_after_a_fraction_of_a_second_restarts_as_a_g
 
 
 def test_rows_drifted_again_soon_after_a_restart_keep_its_hold() -> None:
-    """``twist-29`` (raw, EKF) without gyro biases: the drift resets at 0.7, 2.4 and
-    3.44 s restart a model that does not follow, whose rows drift again from 3.9 to
-    4.12 s. The rows after those drifted ones are held as the restart's are (uncertain
-    within the probation time of the last drifted row): the 13 of them from 4.46 to
-    4.7 s are up to 6.6 standard deviations off the truth on a tip axis. No ok row is
-    more than 4 off."""
-    options = InputOptions(tensions=str(DATA / "twist-29_tensions.csv"), estimate_gyro_bias=False)
+    """``twist-29`` (raw, EKF) without gyro biases, their rates' noise taken as 0.015
+    rad/s (at the default 0.01 the readings disagree with this model from the first
+    sample, and no row is ``ok`` to restart from): the drift resets at 0.78 and 2.82 s
+    restart a model that does not follow, whose rows drift again from 4.08 to 4.34 s.
+    The rows after those drifted ones are held as the restart's are (uncertain within
+    the probation time of the last drifted row): the 23 of them from 4.36 to 4.8 s are
+    up to 4.1 standard deviations off the truth on a tip axis. No ok row is more than 4
+    off."""
+    options = InputOptions(
+        tensions=str(DATA / "twist-29_tensions.csv"), estimate_gyro_bias=False, gyro_std=0.015
+    )
     base = make_formulation("bend", read_robot(ROBOT))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -233,8 +237,8 @@ def test_rows_drifted_again_soon_after_a_restart_keep_its_hold() -> None:
     est = make_estimator("ekf", f)  # type: ignore[arg-type]
     series = est.run(t, z)
     status = np.asarray(series.status)
-    assert est.diagnostics.drift_resets >= 3
-    assert np.count_nonzero(status[(t > 3.45) & (t < 4.2)] == "drifted") >= 5
+    assert est.diagnostics.drift_resets >= 2
+    assert np.count_nonzero(status[(t > 2.83) & (t < 4.35)] == "drifted") >= 5
     names = [o.name for o in f.outputs]
     cols = [names.index(c) for c in "xyz"]
     truth = read_state_table(DATA / "twist-29_truth.csv")
@@ -244,5 +248,6 @@ def test_rows_drifted_again_soon_after_a_restart_keep_its_hold() -> None:
     sigmas = np.max(np.abs(off) / np.asarray(series.output_std, float)[:, cols], axis=1)
     assert np.count_nonzero(status == "ok") >= 8
     assert not np.any((status == "ok") & (sigmas > 4.0)), t[(status == "ok") & (sigmas > 4.0)]
-    held = (t >= 4.46) & (t <= 4.7)
-    assert np.count_nonzero(held) == 13 and np.all(status[held] == "uncertain"), status[held]
+    held = (t >= 4.36 - 1e-9) & (t <= 4.8 + 1e-9)
+    assert np.count_nonzero(held) == 23 and np.all(status[held] == "uncertain"), status[held]
+    assert sigmas[held].max() > 4.0

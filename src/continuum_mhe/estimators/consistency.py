@@ -7,7 +7,11 @@ noise. Two tests, on the formulation's own residual ``r(z, x)`` (the one every
 estimator weights with ``R^-1``), valid components only, and readings only: a model's
 pseudo-measurement (a tendon robot's tip condition, block kind ``"equilibrium"``) is
 met by an EKF step only to the step's linearisation, many of its tiny standard
-deviations off, and says nothing about the readings:
+deviations off, and says nothing about the readings; nor are the rows a model reads as
+inputs (:meth:`Formulation.input_rows
+<continuum_mhe.model.formulations.Formulation.input_rows>`: a tendon robot's tension
+rates), whose residual is zero at every state: counted, they would add degrees of
+freedom to every quantile below without adding to the statistic:
 
 * **this reading against the previous estimate** (innovation): the previous
   ``(x, P)`` predicted to this sample (``x+ = f(x, u, dt)``, ``P+ = F P F^T + Q``),
@@ -191,9 +195,12 @@ class ConsistencyCheck:
         # the effective samples of the exponential averages
         n_avg, n_quiet = 2 * MEMORY - 1, 2 * QUIET_MEMORY - 1
         # the rows judged: the readings, not a model's pseudo-measurements (a tendon
-        # robot's tip condition, met only to the linearisation of a step)
-        judged = np.concatenate(
-            [np.full(b.size, b.kind != "equilibrium") for b in f.measurement_blocks]
+        # robot's tip condition, met only to the linearisation of a step) nor the rows it
+        # reads as inputs (a tendon robot's tension rates), whose residual is zero: counted
+        # among the degrees of freedom they would loosen every chi-square limit
+        judged = (
+            np.concatenate([np.full(b.size, b.kind != "equilibrium") for b in f.measurement_blocks])
+            & ~f.input_rows()
         )
         self._judged_rows = np.flatnonzero(judged)
         gravity_r = np.where(f.gravity_direction_rows(), np.diag(R), 0.0)

@@ -583,6 +583,12 @@ class Formulation:
         pitch)."""
         return np.ones(self.nz, dtype=bool)
 
+    def input_rows(self) -> NDArray[np.bool_]:
+        """Which rows (nz,) of ``z`` the model reads as inputs and not as readings of the
+        state: their residual is zero whatever the state, so no check judges them nor
+        counts them among a test's degrees of freedom (here none)."""
+        return np.zeros(self.nz, dtype=bool)
+
     def reading_bias_cov(self) -> FloatArray:
         """The covariance (nz, nz) of the readings' constant errors, in the residual's
         units: ``noise.reading_bias_std^2`` on each gravity-direction reading

@@ -923,6 +923,14 @@ class TendonFormulation(Formulation):
         out[: len(per_reading)] = per_reading
         return out
 
+    def input_rows(self) -> NDArray[np.bool_]:
+        """The given tensions' rates and their rates: the model's inputs (the IMUs'
+        model reads them), whose rows of the residual are zero."""
+        n, k = self.n_imu_measurements, self.robot.n_tendons
+        out = np.zeros(self.nz, dtype=bool)
+        out[n + k : n + 3 * k] = True
+        return out
+
     def output_sym(self, x: Sym) -> Sym:
         q, tau, _ = self._split(x)
         poses, _ = self.statics.shoot(q[:3], q[3:6], tau)
