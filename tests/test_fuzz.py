@@ -363,10 +363,11 @@ def _protocol_line(draw) -> tuple[str, str, int, int, bool]:
         any_number = imu == spoilt or draw(st.integers(0, 19)) == 0
         fields.append(draw(_NUMBER if any_number else plausible[kind]))
         whole = whole and not any_number
-    zero_accelerometer = fmt == "raw" and any(
-        all(float(v) == 0.0 for v in fields[1 + k * i : 4 + k * i]) for i in range(n_imus)
-    )
-    whole = whole and n_fields == 1 + n_values + n_tensions and not zero_accelerometer
+    whole = whole and n_fields == 1 + n_values + n_tensions
+    if whole and fmt == "raw":  # every field a plausible number: an accelerometer of zeros?
+        whole = not any(
+            all(float(v) == 0.0 for v in fields[1 + k * i : 4 + k * i]) for i in range(n_imus)
+        )
     return ",".join(fields), fmt, n_imus, n_tensions, whole
 
 
@@ -375,6 +376,7 @@ def _protocol_line(draw) -> tuple[str, str, int, int, bool]:
 @example(case=("1500,0.1,0.2,9.8,0.01,0.02,0.03", "raw", 1, 0, True))
 @example(case=("20,0.1,-0.2,0.3,0.4,1.5", "tilt", 2, 1, True))
 @example(case=("20,0.1,-0.2,nan,0.4,1.5", "tilt", 2, 1, False))  # IMU 2 dropped
+@example(case=("20,,0.2,9.8,0.01,0.02,0.03", "raw", 1, 0, False))  # an empty field
 def test_protocol_parser_is_total(case: tuple[str, str, int, int, bool]) -> None:
     """Any line: a sample with a finite, non-negative time, its tensions finite and
     non-negative, and each IMU either wholly finite or wholly a dropout (NaN, with its

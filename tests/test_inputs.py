@@ -70,13 +70,16 @@ def test_tensions_are_appended_at_each_sample_time() -> None:
         assert_allclose(z[4 : 4 + k], tau)  # after the two IMUs' roll and pitch
 
 
-def test_tensions_are_checked_before_the_recording(tmp_path: Path) -> None:
+def test_tensions_are_checked_before_the_recording() -> None:
+    """A tendon robot's missing tensions are said before the recording's rows are read
+    (its header alone shows it carries none); tensions for a robot without tendons
+    before the recording is opened."""
     robot = read_robot(DATA / "robots/tendon_two_section.toml")
-    missing = tmp_path / "none.csv"  # not even opened: the tensions error comes first
+    unread = DATA / "tendon/force-08_tilt.csv"  # IMU columns alone: the tensions' error
     with pytest.raises(InputError, match="robot.toml: the robot has 6 tendons"):
-        open_input(missing, InputOptions(), make_formulation("bend", robot), "robot.toml")
+        open_input(unread, InputOptions(), make_formulation("bend", robot), "robot.toml")
     with pytest.raises(InputError, match="the robot has no \\[\\[tendon\\]\\]"):
-        open_input(missing, InputOptions(tensions="t.csv"), make_formulation("bend"))
+        open_input(DATA / "none.csv", InputOptions(tensions="t.csv"), make_formulation("bend"))
 
 
 def test_live_lines_are_resolved_as_a_table_of_their_kind() -> None:
@@ -101,8 +104,9 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     from continuum_mhe.io.estimate_csv import write_measurements
 
     robot = read_robot(DATA / "robots/tendon_two_section.toml")
+    unread = DATA / "tendon/force-08_tilt.csv"  # IMU columns alone
     with pytest.raises(InputError, match="^the robot file: the robot has 6 tendons: .*Python"):
-        open_input(tmp_path / "none.csv", InputOptions(), make_formulation("bend", robot))
+        open_input(unread, InputOptions(), make_formulation("bend", robot))
     raw = DATA / "tendon/unloaded_raw.csv"
     tensions = InputOptions(tensions=str(DATA / "tendon/unloaded_tensions.csv"))
     with pytest.raises(InputError, match="not 'tendon': the model it calls for"):
