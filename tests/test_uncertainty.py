@@ -828,6 +828,30 @@ def test_evaluate_counts_the_ok_rows_far_outside_their_std(tmp_path, capsys) -> 
     assert report["calibration_ok"]["tip_far_worst_row"] == 4
 
 
+@pytest.mark.parametrize(
+    ("ratio", "text"),
+    [(0.358094, "0.4"), (3.984188, "3.98"), (3.99996, "3.99996"), (4.0, "4.0"), (4.03, "4.03")],
+)
+def test_evaluate_gives_the_largest_ratio_to_the_digits_that_place_it(
+    tmp_path, capsys, ratio, text
+) -> None:
+    # the ok rows' largest |error| / std, within 4 std or beyond it, is printed to one
+    # decimal, or to as many more as keep it on its side of 4 (never six decimals for
+    # a ratio well within, nor a 3.98 rounded up to the 4.0 of the bound)
+    n = 3
+    t = np.arange(n) * 0.02
+    dx = np.array([0.1, ratio, 0.2]) * 0.001
+    est = EstimateSeries(
+        method="ekf", t=t, output=np.column_stack([dx, 0 * t, 0 * t + 0.2, 0 * t, 0 * t]),
+        status=np.full(n, "ok"), solve_ms=np.zeros(n), output_std=np.full((n, 5), 0.001),
+    )  # fmt: skip
+    write_estimates(tmp_path / "e.csv", est)
+    truth = tmp_path / "t.csv"
+    truth.write_text("t,x,y,z,theta,phi\n" + "".join(f"{tk},0,0,0.2,0,0\n" for tk in t))
+    assert main(["evaluate", str(tmp_path / "e.csv"), str(truth)]) == 0
+    assert f"(the largest {text} std at t = 0.02 s;" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
 def test_rows_are_not_ok_while_an_imu_is_silent_and_the_others_cannot_see_its_part(
     method: str,

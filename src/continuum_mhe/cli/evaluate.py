@@ -408,12 +408,14 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _beyond(ratio: float) -> str:
-    """``ratio`` (beyond :data:`FAR_STD`) to one decimal, or to as many more as show it
-    beyond (4.03 is "4.03", not the "4.0" that reads as within)."""
+def _ratio_text(ratio: float) -> str:
+    """``ratio`` to one decimal, or to as many more as keep it on its side of
+    :data:`FAR_STD` (4.03 is "4.03", not the "4.0" that reads as within; 3.98 is "3.98",
+    not the "4.0" of the bound)."""
     for decimals in range(1, 7):
         text = f"{ratio:.{decimals}f}"
-        if float(text) > FAR_STD:
+        shown = float(text)
+        if (shown > FAR_STD) if ratio > FAR_STD else (shown < FAR_STD or shown == ratio):
             return text
     return text
 
@@ -424,7 +426,9 @@ def format_far(c: Calibration, t_worst: float | None = None) -> str:
     far = f"{c.tip_far} of {c.tip_far_of} more than {FAR_STD:g} std off on a tip axis ("
     if c.tip_far_of:
         at = f" at t = {time_text(t_worst)} s" if t_worst is not None else ""
-        largest = "a zero std" if math.isinf(c.tip_far_worst) else f"{_beyond(c.tip_far_worst)} std"
+        largest = (
+            "a zero std" if math.isinf(c.tip_far_worst) else f"{_ratio_text(c.tip_far_worst)} std"
+        )
         far += f"the largest {largest}{at}; "
     return f"ok rows far off      {far}about 2 in 10,000 rows where the std is right)"
 
