@@ -2653,7 +2653,7 @@ def test_uncertain_rows_of_a_wide_standard_deviation_are_said(
 
 
 def test_evaluate_refuses_a_truths_tip_force_in_mn_and_twist_in_degrees(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    force29_estimate: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A truth whose tip force is in mN (about 1000 times the estimate's) or whose twist
     ``psi_k`` is in degrees (beyond 2 pi) is refused in one line naming the truth file
@@ -2662,10 +2662,7 @@ def test_evaluate_refuses_a_truths_tip_force_in_mn_and_twist_in_degrees(
     from continuum_mhe.io.position_units import force_unit_against
 
     data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
-    est = tmp_path / "e.csv"
-    argv = ["estimate", str(data / "force-29_raw.csv"), "--robot", "tendon-two-section",
-            "--inputs", str(data / "force-29_tensions.csv"), "-o", str(est)]  # fmt: skip
-    assert main(argv) == 0
+    est = force29_estimate[0]  # estimate with --robot and the recording's own --inputs
     truth = read_state_table(data / "force-29_truth.csv")
     for name, column, factor in (("mN", "f", 1000.0), ("deg", "psi", 180 / math.pi)):
         scaled = np.array(truth.values, dtype=float)
