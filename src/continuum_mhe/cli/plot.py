@@ -229,7 +229,7 @@ def _tendon_backbone(
     from continuum_mhe.cli.config import recorded_option, recorded_t0_ns, recorded_tensions
     from continuum_mhe.cli.robot_options import recorded_robot
     from continuum_mhe.evaluation.estimate_tables import has_tip_force, tendon_backbone
-    from continuum_mhe.io.tensions import on_log_clock, read_tensions
+    from continuum_mhe.io.tensions import read_drawn_tensions
 
     if not has_tip_force(names):
         if args.inputs:
@@ -267,12 +267,10 @@ def _tendon_backbone(
     # (a recording that carries its tensions beside its IMUs' columns, as live records
     # them, gives them too, read as estimate reads them from it; a tensions file is
     # read as estimate --inputs reads it)
-    tensions = read_tensions(inputs, robot.n_tendons, other_columns=None, time_warning=False)
     # a robot log's estimate with its tensions on the log's clock, as estimate took them
-    tensions, note = on_log_clock(tensions, recorded_t0_ns(args.source) or 0)
+    tensions, note = read_drawn_tensions(inputs, robot, recorded_t0_ns(args.source) or 0)
     if note:
         print(f"{PROG}: note: {note}", file=sys.stderr)
-    tensions.check_scale(robot)  # mN for N, as estimate refuses them
     if len(t):
         tensions.check_span(float(t[0]), float(t[-1]))  # milliseconds?
         tensions.check_covers(t, args.source)

@@ -608,6 +608,23 @@ def on_log_clock(tensions: Tensions, t0_ns: int) -> tuple[Tensions, str]:
     )
 
 
+def read_drawn_tensions(
+    path: str | os.PathLike[str], robot: Robot, t0_ns: int = 0
+) -> tuple[Tensions, str]:
+    """The tensions ``path`` of a tendon robot ``robot``'s estimate for drawing its
+    backbone (``plot``, ``view``): read as ``estimate --inputs`` reads a tensions file,
+    or a recording's tension columns as ``estimate`` reads them from it
+    (:func:`read_tensions` with ``other_columns=None``); its times on a robot log's
+    clock where they are since 1970 and the estimate's ``t = 0`` is ``t0_ns`` (ns since
+    1970; 0: none, :func:`on_log_clock`); refused in one line in mN for N
+    (:meth:`Tensions.check_scale`). Returns ``(tensions, note)``: the note says a
+    move onto the log's clock (``""``: none)."""
+    table = read_tensions(path, robot.n_tendons, other_columns=None, time_warning=False)
+    table, note = on_log_clock(table, t0_ns)
+    table.check_scale(robot)  # mN for N, as estimate refuses them
+    return table, note
+
+
 def _without_glitches(values: FloatArray, glitches: TensionGlitches) -> FloatArray:
     """``values`` (n, k) N with each glitch replaced by the cubic through its
     neighbours, not below zero."""

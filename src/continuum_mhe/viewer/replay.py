@@ -19,7 +19,7 @@ from continuum_mhe.io.state_tables import (
     read_state_table,
     robot_misfit,
 )
-from continuum_mhe.io.tensions import Tensions, on_log_clock, read_tensions
+from continuum_mhe.io.tensions import Tensions, read_drawn_tensions
 from continuum_mhe.model.descriptions import OutputSpec, robot_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.viewer.geometry import TendonShapes
@@ -59,11 +59,9 @@ def read_view_tensions(path: str, robot: Robot, t0_ns: int = 0) -> Tensions:
     a backbone, and in mN for N."""
     if robot.backbone is None:
         raise InputError(_not_a_tendon_robot(path))
-    table = read_tensions(path, robot.n_tendons, other_columns=None, time_warning=False)
-    table, note = on_log_clock(table, t0_ns)
+    table, note = read_drawn_tensions(path, robot, t0_ns)
     if note:
         warnings.warn(note, ViewNote, stacklevel=2)
-    table.check_scale(robot)  # mN for N, as estimate refuses them
     return table
 
 
