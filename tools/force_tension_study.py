@@ -34,30 +34,17 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import csv
 import io
 import tempfile
 from pathlib import Path
 
 import numpy as np
+from tip_push_study import NAMES, csv_columns
 
 from continuum_mhe.cli.app import main as cli_main
 
-NAMES = ("unloaded", "planar-s", "force-08", "force-29", "twist-08", "twist-29")
 VARIANTS = ("own", "deg", "kgf", "x9.8", "swap", "rot")
 FAR_MM = 20.0
-
-
-def _rows(path: Path) -> dict[str, np.ndarray]:
-    """The columns of an estimate, truth or tensions CSV by name (``status`` as text)."""
-    with path.open() as fh:
-        rows = list(csv.DictReader(ln for ln in fh if not ln.startswith("#")))
-    return {
-        k: np.array([r[k] for r in rows])
-        if k == "status"
-        else np.array([float(r[k] or "nan") for r in rows])
-        for k in rows[0]
-    }
 
 
 def _tensions(src: Path, dst: Path, variant: str) -> None:
@@ -147,7 +134,7 @@ def main() -> None:
         tmp = args.keep or Path(name)
         tmp.mkdir(exist_ok=True)
         for rec in args.names:
-            truth = _rows(args.folder / f"{rec}_truth.csv")
+            truth = csv_columns(args.folder / f"{rec}_truth.csv")
             for variant in args.variants:
                 tens = tmp / f"{rec}_{variant}_tensions.csv"
                 _tensions(args.folder / f"{rec}_tensions.csv", tens, variant)
@@ -161,7 +148,7 @@ def main() -> None:
                         argv += ["--method", method, "-o", str(out)]
                         argv += ["--degrees"] if variant == "deg" else []
                         _estimate(argv)
-                        m = measure(_rows(out), truth, _rows(tens))
+                        m = measure(csv_columns(out), truth, csv_columns(tens))
                         line = summary(m, args.floor, args.ratio)
                         print(f"{rec} {imu} {method} {variant}: {line}", flush=True)
 

@@ -40,8 +40,8 @@ DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
 NAMES = ("unloaded", "planar-s", "force-08", "force-29", "twist-08", "twist-29")
 
 
-def _rows(path: Path) -> dict[str, np.ndarray]:
-    """The columns of an estimate or truth CSV by name (``status`` as text)."""
+def csv_columns(path: Path) -> dict[str, np.ndarray]:
+    """The columns of an estimate, truth or tensions CSV by name (``status`` as text)."""
     with path.open() as fh:
         rows = list(csv.DictReader(ln for ln in fh if not ln.startswith("#")))
     return {
@@ -96,7 +96,7 @@ def main() -> None:
             out = tmp / "est.csv"
             _run(["estimate", str(rec), "--robot", "tendon-two-section"]
                  + ["--inputs", str(tmp / "rest_tensions.csv"), "-o", str(out)])  # fmt: skip
-            est = _rows(out)
+            est = csv_columns(out)
             drifted = est["status"] == "drifted"
             force = np.linalg.norm(np.column_stack([est[c] for c in ("fx", "fy", "fz")]), axis=1)
             print(
@@ -107,7 +107,7 @@ def main() -> None:
             )
             return
         for rec_name in NAMES:
-            truth = _rows(DATA / f"{rec_name}_truth.csv")
+            truth = csv_columns(DATA / f"{rec_name}_truth.csv")
             line = f"{rec_name}: truth {np.nanmax(pushes(truth)) / buckling:.3f}"
             for case in ("raw", "tilt"):
                 out = tmp / f"{rec_name}_{case}.csv"
@@ -115,7 +115,7 @@ def main() -> None:
                 _run(["estimate", str(DATA / f"{rec_name}_{case}.csv")]
                      + ["--robot", "tendon-two-section"]
                      + ["--inputs", str(tensions), "-o", str(out)])  # fmt: skip
-                line += f", {case} {np.nanmax(pushes(_rows(out))) / buckling:.3f}"
+                line += f", {case} {np.nanmax(pushes(csv_columns(out))) / buckling:.3f}"
             print(line + " buckling loads at most", flush=True)
 
 
