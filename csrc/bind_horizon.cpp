@@ -25,6 +25,11 @@ Array view(MovingHorizon& h, std::vector<double>& v, std::initializer_list<size_
   return Array(v.data(), shape, nb::find(&h));
 }
 
+// ... of a sliding one: a view of its rows now, which the next sample's slide moves
+Array view(MovingHorizon& h, SlidingRows& v, std::initializer_list<size_t> shape) {
+  return Array(v.data(), shape, nb::find(&h));
+}
+
 // (state, covariance or None, outputs, their standard deviations or None): copies
 nb::tuple answer(const MovingHorizon& h) {
   const size_t nx = h.nx, ny = h.ny;

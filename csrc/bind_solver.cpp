@@ -65,6 +65,11 @@ View<T> view(WindowSolver& s, std::vector<T>& v, std::initializer_list<size_t> s
   return View<T>(v.data(), shape, nb::find(&s));
 }
 
+// ... of a sliding one: a view of its rows now, which the next shift_stages moves
+View<double> view(WindowSolver& s, SlidingRows& v, std::initializer_list<size_t> shape) {
+  return View<double>(v.data(), shape, nb::find(&s));
+}
+
 Feasible feasible_of(const In& lo, const In& hi, const IndexIn& ball, const In& r2, Index nx) {
   check_shape(lo, {nx}, "lo");
   check_shape(hi, {nx}, "hi");
@@ -161,8 +166,8 @@ void cmhe::bind_solver(nb::module_& m) {
             return s.evaluate(buf, data, zmask.data());
           },
           nb::arg("buf"), nb::arg("qinv"), nb::arg("xbar"), nb::arg("arrival"),
-          "Evaluate the model at Xb[buf] and assemble its blocks: the window cost (inf if "
-          "the model failed).")
+          "Evaluate the model at Xb[buf] and assemble its blocks (Gauss-Newton Dgn, E, g, "
+          "...): the window cost (inf if the model failed).")
       .def(
           "assemble",
           [](WindowSolver& s, int buf, In qinv, In xbar, In arrival, int shifted_from) {

@@ -37,8 +37,8 @@ MovingHorizon::MovingHorizon(WindowSolver& solver_, NodeModel& node_, std::vecto
   zmask.assign(n * nz, 0.0);
   dt.assign(n - 1, 1.0);
   uw.assign((n - 1) * nu, 0.0);
-  qw.assign((n - 1) * bs, 0.0);
-  qinvw.assign((n - 1) * bs, 0.0);
+  qw.assign(n - 1, bs, 0.0);
+  qinvw.assign(n - 1, bs, 0.0);
   arrival.assign(n * bs, 0.0);
   xbar.assign(nx, 0.0);
   P.assign(bs, 0.0);
@@ -77,8 +77,8 @@ void MovingHorizon::restart() {
   std::fill(zmask.begin(), zmask.end(), 0.0);
   std::fill(dt.begin(), dt.end(), 1.0);
   std::fill(uw.begin(), uw.end(), 0.0);
-  std::fill(qw.begin(), qw.end(), 0.0);
-  std::fill(qinvw.begin(), qinvw.end(), 0.0);
+  qw.fill(0.0);
+  qinvw.fill(0.0);
   std::fill(arrival.begin(), arrival.end(), 0.0);
   has_prior = has_X = has_X_last = has_lam = solved = false;
   cost = 0.0;
@@ -106,8 +106,8 @@ void MovingHorizon::push(double t, const double* z, const double* mask, const do
   shift_up(zmask, n, nz);
   shift_up(dt, n - 1, 1);
   shift_up(uw, n - 1, nu);
-  shift_up(qw, n - 1, bs);
-  shift_up(qinvw, n - 1, bs);
+  qw.slide();
+  qinvw.slide();
   tw[n - 1] = t;
   for (Index j = 0; j < nz; ++j) {
     zmask[(n - 1) * nz + j] = mask[j];
@@ -370,7 +370,7 @@ void MovingHorizon::keep_outputs(const double* Xk, const double* D, const double
       load(Xk, false);
       const WindowData data{qinvw.data(), xbar.data(), arrival.data()};
       if (std::isfinite(solver.evaluate(0, data, zmask_nodes_.data()))) {
-        D = solver.D.data();
+        D = solver.Dgn.data();
         E = solver.E.data();
       }
     }

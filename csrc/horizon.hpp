@@ -14,6 +14,7 @@
 
 #include "covariance.hpp"
 #include "filter.hpp"
+#include "sliding_rows.hpp"
 #include "sqp.hpp"
 
 namespace cmhe {
@@ -62,7 +63,8 @@ class MovingHorizon {
 
   // the window (aligned at the end), with its arrival weights and the prior
   Index k = 0;
-  std::vector<double> tw, zw, zmask, dt, uw, qw, qinvw, arrival, xbar, P, Pinv;
+  std::vector<double> tw, zw, zmask, dt, uw, arrival, xbar, P, Pinv;
+  SlidingRows qw, qinvw;  // (n-1, nx, nx) each
   bool has_prior = false;
   // the previous answer, the SQP's last iterate when that answer was its certified one
   // (the next warm start), the ball multipliers, and this sample's warm start

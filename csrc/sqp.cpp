@@ -79,8 +79,9 @@ Outputs split_outputs(const WindowSolver& w, const double* out) {
   return {out, out + o1, out + o2, out + o3, out + o4};
 }
 
-// Gauss-Newton Hessian blocks D[buf] (diagonal), E[buf], exact gradient g[buf] and the
-// cost at X (n, nx) from the model outputs ``out`` (the balls' curvature: add_balls).
+// Gauss-Newton Hessian blocks Dgn[buf] (diagonal), E[buf], exact gradient g[buf] and the
+// cost at X (n, nx) from the model outputs ``out`` (the QP's diagonal blocks D[buf] add
+// the balls' curvature and the exact Newton term to Dgn[buf]: form_hessian).
 //
 // The process stages' constant products are taken from the solver's stage buffers when
 // present (an affine transition; those not done yet are formed first), else formed
@@ -102,7 +103,7 @@ Outputs split_outputs(const WindowSolver& w, const double* out) {
 // r_b: gradient rho' J_b^T R_b^-1 r_b and Hessian J_b^T (rho' R_b^-1 + a R_b^-1 r_b r_b^T
 // R_b^-1) J_b with a the exact 2 rho'' clipped at -rho'/s so that the block stays
 // positive semidefinite (a Triggs-type correction; Cauchy beyond its scale). Kept for
-// the exact Newton term (add_curvature): wgt = m rho', extra = m (2 rho'' - a) and gb =
+// the exact Newton term (form_hessian): wgt = m rho', extra = m (2 rho'' - a) and gb =
 // J_b^T R_b^-1 r_b.
 template <int NX>
 double assemble(WindowSolver& w, int buf, const double* X, const double* out,
@@ -122,7 +123,7 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
         w.stage_done[i] = 1;
       }
   }
-  double* D = w.D.data() + buf * n * bs;
+  double* D = w.Dgn.data() + buf * n * bs;  // the Gauss-Newton diagonal blocks
   double* E = w.E.data() + buf * (n - 1) * bs;
   double* g = w.g.data() + buf * n * nx;
   double* wgt = w.wgt.data() + buf * n * nblk;
@@ -298,48 +299,43 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
   return total;
 }
 
-// Dgn[buf] = D[buf] (the Gauss-Newton blocks, kept for the covariance), then D_i += 2
-// lam_ib I_{S_b}: each ball's curvature with its multiplier (n, nb) where positive
-void add_balls(WindowSolver& w, int buf, const double* lam) {
-  const Index n = w.n, nx = w.nx, bs = nx * nx;
-  double* D = w.D.data() + buf * n * bs;
-  std::memcpy(w.Dgn.data() + buf * n * bs, D, n * bs * sizeof(double));
-  for (Index i = 0; i < n; ++i)
-    for (Index bb = 0; bb < w.nb; ++bb)
-      if (lam[i * w.nb + bb] > 0.0)
-        for (Index a = 0; a < w.bk; ++a) {
-          const Index s = w.ball[bb * w.bk + a];
-          D[i * bs + s * nx + s] += 2.0 * lam[i * w.nb + bb];
-        }
-}
-
-// D_i += sign * sum_b (wgt_ib S_ib + extra_ib gb_ib gb_ib^T): the exact Hessian's terms
-// that Gauss-Newton leaves out (see assemble)
+// D[buf], the QP's diagonal blocks, from buffer buf's Gauss-Newton ones Dgn[buf]: each
+// ball's curvature 2 lam_ib I_{S_b} with its multiplier (n, nb) where positive, then,
+// where ``exact``, the exact Hessian's terms that Gauss-Newton leaves out, sum_b (wgt_ib
+// S_ib + extra_ib gb_ib gb_ib^T) (see assemble), node by node
 template <int NX>
-void add_curvature(WindowSolver& w, int buf, double sign) {
+void form_hessian(WindowSolver& w, int buf, const double* lam, bool exact) {
   const Index n = w.n, nx = block_size<NX>(w.nx), nblk = w.nblk, bs = nx * nx;
   const double* S = w.out.data() + (buf + 1) * w.window_size - n * w.sr_size;
+  const double* Dgn = w.Dgn.data() + buf * n * bs;
   double* D = w.D.data() + buf * n * bs;
   const double* wgt = w.wgt.data() + buf * n * nblk;
   const double* extra = w.extra.data() + buf * n * nblk;
   const double* gb = w.gb.data() + buf * n * nblk * nx;
-  for (Index i = 0; i < n; ++i)
+  for (Index i = 0; i < n; ++i) {
+    double* Di = D + i * bs;
+    std::memcpy(Di, Dgn + i * bs, bs * sizeof(double));
+    for (Index bb = 0; bb < w.nb; ++bb)
+      if (lam[i * w.nb + bb] > 0.0)
+        for (Index a = 0; a < w.bk; ++a) {
+          const Index s = w.ball[bb * w.bk + a];
+          Di[s * nx + s] += 2.0 * lam[i * w.nb + bb];
+        }
+    if (!exact) continue;
     for (Index b = 0; b < nblk; ++b) {
       const double wb = wgt[i * nblk + b], x2 = extra[i * nblk + b];
       const Index cb = w.block_cols[b];  // S_b (cb x cb) and gb_b are zero beyond cb
       const double* Sb = S + i * w.sr_size + w.sr_start[b];
-      double* Di = D + i * bs;
       if (x2 != 0.0) {
         const double* g = gb + (i * nblk + b) * nx;
         for (Index j = 0; j < cb; ++j)
-          for (Index k = 0; k < cb; ++k)
-            Di[j * nx + k] += sign * (wb * Sb[j * cb + k] + x2 * g[j] * g[k]);
-      } else if (wb != 0.0) {  // the same sums without the zero term (sign is +-1)
-        const double sw = sign * wb;
+          for (Index k = 0; k < cb; ++k) Di[j * nx + k] += wb * Sb[j * cb + k] + x2 * g[j] * g[k];
+      } else if (wb != 0.0) {  // the same sums without the zero term
         for (Index j = 0; j < cb; ++j)
-          for (Index k = 0; k < cb; ++k) Di[j * nx + k] += sw * Sb[j * cb + k];
+          for (Index k = 0; k < cb; ++k) Di[j * nx + k] += wb * Sb[j * cb + k];
       }
     }
+  }
 }
 
 template <int NX>
@@ -367,9 +363,8 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
     cost = assemble<NX>(w, 0, X(0), w.out.data(), zmask, data, shifted >= 0 ? shifted : -1);
   else
     cost = evaluate_sized<NX>(w, 0, data, zmask);
-  add_balls(w, 0, lam);
   bool exact = opt.newton;  // exact Hessian at the current iterate (else Gauss-Newton)
-  if (exact) add_curvature<NX>(w, 0, 1.0);
+  form_hessian<NX>(w, 0, lam, exact);
   double step = kInf;
   double prev = kInf;       // previous full step (inf after a shortened one)
   bool prev_exact = false;  // ... and whether it was an exact Newton step
@@ -380,8 +375,8 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
     QPResult qp = solve_qp<NX>(n, nx, X(cur), Dp(cur), Ep(cur), gp(cur), fs, opt.max_qp_iter,
                                d, lam_qp, w.qp);
     if (qp.status == NOT_PD && exact) {  // indefinite: fall back to Gauss-Newton here
-      add_curvature<NX>(w, cur, -1.0);
       exact = false;
+      form_hessian<NX>(w, cur, lam, exact);
       qp = solve_qp<NX>(n, nx, X(cur), Dp(cur), Ep(cur), gp(cur), fs, opt.max_qp_iter, d,
                         lam_qp, w.qp);
     }
@@ -428,7 +423,6 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
       for (Index i = 0; i < size; ++i) xt[i] = xc[i] + alpha * d[i];
       project(n, nx, xt, fs);
       ct = evaluate_sized<NX>(w, tr, data, zmask);
-      add_balls(w, tr, lam_qp);
       if (decreases(ct)) {
         accepted = true;
         break;
@@ -436,13 +430,13 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
       if (ls == 0 && w.watchdog && std::isfinite(ct)) {  // the full step, corrected
         std::copy(d, d + size, w.d_kept.data());
         std::copy(lam_qp, lam_qp + n * nb, w.lam_kept.data());
+        form_hessian<NX>(w, tr, lam_qp, false);  // a Gauss-Newton step
         const QPResult q2 = solve_qp<NX>(n, nx, xt, Dp(tr), Ep(tr), gp(tr), fs,
                                          opt.max_qp_iter, d, lam_qp, w.qp);
         if (q2.status == CONVERGED) {
           for (Index i = 0; i < size; ++i) xt[i] += d[i];
           project(n, nx, xt, fs);
           ct = evaluate_sized<NX>(w, tr, data, zmask);
-          add_balls(w, tr, lam_qp);
           if (decreases(ct)) {
             accepted = corrected = true;
             break;
@@ -455,7 +449,7 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
     }
     if (!accepted) return {LINE_SEARCH_FAILED, it, step, cost, cur};
     exact = opt.newton;
-    if (exact) add_curvature<NX>(w, tr, 1.0);
+    form_hessian<NX>(w, tr, lam_qp, exact);
     prev = alpha == 1.0 && !corrected ? step : kInf;
     prev_exact = step_exact;
     prev_active = qp.active;
@@ -564,8 +558,8 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   ncost.assign(2 * n, 0.0);
   const Index ns = linear ? n - 1 : 0;
   stage_done.assign(ns, 0);
-  stage_eq.assign(ns * bs, 0.0);
-  stage_fqf.assign(ns * bs, 0.0);
+  stage_eq.assign(ns, bs, 0.0);
+  stage_fqf.assign(ns, bs, 0.0);
   tail_out.assign(nz + nz * nx + nx + bs + sr_size, 0.0);
   ptrs.resize(10);
   for (int b = 0; b < 2; ++b) {
@@ -631,12 +625,12 @@ bool WindowSolver::shift_outputs(int src, int dst) {
 }
 
 void WindowSolver::shift_stages() {
-  const Index ns = Index(stage_done.size()), bs = nx * nx;
+  const Index ns = Index(stage_done.size());
   if (ns == 0) return;
   std::memmove(stage_done.data(), stage_done.data() + 1, (ns - 1) * sizeof(int64_t));
   stage_done[ns - 1] = 0;
-  shift_rows(stage_eq.data(), stage_eq.data(), 0, ns - 1, bs);
-  shift_rows(stage_fqf.data(), stage_fqf.data(), 0, ns - 1, bs);
+  stage_eq.slide();
+  stage_fqf.slide();
 }
 
 void WindowSolver::node_mask(double* zmask) const {

@@ -14,6 +14,7 @@
 
 #include "model_function.hpp"
 #include "qp.hpp"
+#include "sliding_rows.hpp"
 
 namespace cmhe {
 
@@ -46,8 +47,9 @@ struct WindowData {
 
 // Buffers and fixed data of the window solve of one window model. Two iterate buffers
 // (current and trial): Xb (2, n, nx), the model outputs ``out`` (2, window_size; the
-// window function's layout), the
-// Hessian blocks D, E with the Gauss-Newton diagonal blocks Dgn and gradient g, the
+// window function's layout), the Gauss-Newton diagonal blocks Dgn and the QP's D (Dgn
+// with the balls' curvature and the exact Newton term), the off-diagonal blocks E and
+// gradient g, the
 // robust-loss weights (wgt, extra, gb; see assemble) and node costs of each.
 class WindowSolver {
  public:
@@ -79,7 +81,8 @@ class WindowSolver {
   // shifts with it. ``zmask`` (n,): 0 where a node has no measurement.
   SqpResult solve(const WindowData& data, const double* zmask, double* lam,
                   const SqpOptions& opt, bool evaluated, int shifted);
-  // Evaluate the model at Xb[buf] and assemble; the cost (inf if the model failed)
+  // Evaluate the model at Xb[buf] and assemble (its Gauss-Newton blocks Dgn[buf], E[buf],
+  // gradient g[buf], ...); the cost (inf if the model failed)
   double evaluate(int buf, const WindowData& data, const double* zmask);
   // Assemble buffer buf's blocks from out[buf] at Xb[buf] (shifted from buffer ``prev``'s
   // assembly where prev >= 0, see sqp.cpp's assemble); the cost
@@ -132,7 +135,8 @@ class WindowSolver {
   // window data and the solve's buffers (shapes in bind_solver.cpp)
   std::vector<double> z, m, u, dt, Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost;
   std::vector<int64_t> stage_done;  // (n-1,) for an affine transition, else empty
-  std::vector<double> stage_eq, stage_fqf, tail_out;
+  SlidingRows stage_eq, stage_fqf;  // (n-1, nx, nx) each, as stage_done
+  std::vector<double> tail_out;
   std::vector<const double*> ptrs, tail_ptrs;  // the model's argument pointers
 
   Feasible feasible() const {

@@ -231,18 +231,17 @@ def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arr
         xbar = X[lo] + 0.1 * (lo + 1)
         cost = ws.core.assemble(b, np.ascontiguousarray(qinv[lo : lo + n - 1]), xbar, arrival,
                                 shift_from)  # fmt: skip
-        return (cost, ws.D[b].copy(), ws.E[b].copy(), ws.g[b].copy(), ws.wgt[b].copy(),
+        return (cost, ws.Dgn[b].copy(), ws.E[b].copy(), ws.g[b].copy(), ws.wgt[b].copy(),
                 ws.extra[b].copy(), ws.gb[b].copy(), ws.ncost[b].copy())  # fmt: skip
 
     full = assembled(1, 0)
     src = 0 if in_place else 1
-    ws.stage[0][:] = 0  # the previous window's stage products are its own
+    ws.stage_done[:] = 0  # the previous window's stage products are its own
     assembled(0, src)
-    ws.Dgn[src] = ws.D[src]  # the SQP keeps the Gauss-Newton blocks there
     if linear:  # the stage products move with the window, the new one is formed
-        for a in ws.stage:
+        for a in (ws.stage_done, ws.core.stage_eq, ws.core.stage_fqf):
             a[:-1] = a[1:].copy()
-        ws.stage[0][-1] = 0
+        ws.stage_done[-1] = 0
     kept = [a.copy() for a in (ws.Dgn[src], ws.E[src], ws.g[src], ws.wgt[src], ws.extra[src],
                                ws.gb[src], ws.ncost[src])]  # fmt: skip
     carried = arrival_at == 0 and n > 3

@@ -112,7 +112,7 @@ def test_a_block_kept_quadratic_costs_its_quadratic_cost_in_the_core() -> None:
         out[:nz] = 10.0  # node 0's residuals, 10 standard deviations each
         out[n * nz : n * nz + nz * nx] = 1.0  # node 0's Jacobian rows
         cost = w.assemble(0, np.zeros((n - 1, nx, nx)), np.zeros(nx), np.zeros((n, nx, nx)))
-        answers[marks is None] = (cost, float(w.g[0][0, 0]), float(w.D[0][0, 0, 0]))
+        answers[marks is None] = (cost, float(w.g[0][0, 0]), float(w.Dgn[0][0, 0, 0]))
     huber = 2 * c * 10 - c**2
     assert answers[True] == pytest.approx((huber, 2 * c, 0.0), abs=1e-12)
     assert answers[False] == pytest.approx((0.5 * (huber + 100.0), c + 10.0, 1.0), abs=1e-12)

@@ -145,7 +145,7 @@ class WindowSolver:
 
     def evaluate(self, buf: int, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> float:
         """
-        Evaluate the model at Xb[buf] and assemble its blocks: the window cost (inf if the model failed).
+        Evaluate the model at Xb[buf] and assemble its blocks (Gauss-Newton Dgn, E, g, ...): the window cost (inf if the model failed).
         """
 
     def assemble(self, buf: int, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shifted_from: int = -1) -> float:

@@ -88,7 +88,9 @@ def window_covariance(
     )  # fmt: skip
     if not np.isfinite(cost):
         return None
-    ok = last_block_covariance(X, ws.D[0], ws.E[0], fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, tol, out)
+    ok = last_block_covariance(
+        X, ws.Dgn[0], ws.E[0], fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, tol, out
+    )
     return out if ok else None
 
 
@@ -150,7 +152,7 @@ def casadi_window_covariance(
         0, np.ascontiguousarray(problem.qinv, float), np.asarray(problem.xbar, float),
         np.ascontiguousarray(problem.arrival, float),
     )  # fmt: skip
-    D, E = solver.D[0], solver.E[0]
+    D, E = solver.Dgn[0], solver.E[0]
     out = np.empty((nx, nx))
     ok = last_block_covariance(Xc, D, E, lo, hi, ball_idx, ball_r2, tol, out, condition_balls)
     return out if ok else None

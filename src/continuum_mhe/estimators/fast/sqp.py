@@ -145,7 +145,9 @@ class Workspace:
         self.gb = core.gb
         self.Dgn = core.Dgn  # Gauss-Newton diagonal blocks per iterate
         self.ncost = core.ncost  # each node's cost per iterate
-        self.stage = (core.stage_done, core.stage_eq, core.stage_fqf)
+        # which stage products are formed (``core.stage_eq`` and ``core.stage_fqf`` are
+        # views of the rows now: ``shift_stages`` moves them)
+        self.stage_done = core.stage_done
         # the tail function's outputs (``WindowSolver.shift_outputs``): buffer 0's last stage
         self.tail_out = core.tail_out
 
@@ -157,7 +159,7 @@ class Workspace:
         self.u[:] = problem.u
         self.dt[:] = problem.dt
         self.Xb[0] = X
-        self.stage[0][:] = 0
+        self.stage_done[:] = 0
 
 
 def _weights(problem: WindowProblemLike) -> tuple[FloatArray, FloatArray, FloatArray]:
