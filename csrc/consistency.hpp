@@ -43,7 +43,8 @@ void pinv_symmetric(const RowMatrix& a, double rcond, PinvScratch& scratch, RowM
 struct ConsistencySettings {
   int nx, nu, nz;
   std::vector<double> R;          // nz x nz: the readings' noise covariance
-  std::vector<double> judged;     // nz: 1 for a reading, 0 for a model's pseudo-measurement
+  // nz: 1 for a reading, 0 for a model's pseudo-measurement or a row it reads as an input
+  std::vector<double> judged;
   std::vector<double> limit;      // a reading beyond it is inconsistent on its own
   std::vector<double> run_limit;  // two readings in a row beyond it are inconsistent
   // the average of NIS / dof beyond it times the quiet level (the slower average while

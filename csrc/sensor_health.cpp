@@ -446,16 +446,34 @@ bool SensorHealth::start_watching(double t) const {
 bool SensorHealth::start_inconsistent(double t, const double* z) {
   const bool in_window = !std::isnan(s_.bad_start) && t - since_ <= s_.bad_start;
   if (!has_prev_ || !(in_window || !returned_.empty())) return false;
-  rows_.clear();
+  // the consistency check's judged rows (the readings: a tendon robot's IMUs and
+  // tensions), their innovation given the sample's other valid rows: a tip condition (a
+  // pseudo-measurement, met by a step only to its linearisation) says nothing of the
+  // readings but pins states the motion model leaves free; the rows a model reads as
+  // inputs (a tendon robot's tension rates) have a zero residual at every state, and
+  // counted among the degrees of freedom they would loosen the limit (that of 25 rows
+  // for 10 readings with tilt IMUs) without adding to the statistic
+  const auto& judged = consistency_.settings().judged;
+  start_sets_.resize(1);
+  std::vector<int>& rows = start_sets_[0];
+  rows.clear();
+  start_given_.clear();
   for (int i = 0; i < s_.nz; ++i)
-    if (mask_[i] != 0.0) rows_.push_back(i);
-  if (rows_.empty()) return false;
+    if (mask_[i] != 0.0) (judged[i] != 0.0 ? rows : start_given_).push_back(i);
+  if (rows.empty()) return false;
   const double dt = t - prev_t_;
   const double* u = process_.inputs(prev_z_.data(), z, dt);
   const double* Q = process_.noise(dt).first;
-  const double value =
-      consistency_.predicted_nis(prev_x_.data(), prev_P_.data(), dt, z, mask_.data(), u, Q, rows_);
-  const bool consistent = value <= s_.start_limit[rows_.size()];
+  double value;
+  if (start_given_.empty()) {
+    value =
+        consistency_.predicted_nis(prev_x_.data(), prev_P_.data(), dt, z, mask_.data(), u, Q, rows);
+  } else {
+    consistency_.predicted_nis_given(prev_x_.data(), prev_P_.data(), dt, z, mask_.data(), u, Q,
+                                     start_sets_, start_given_, start_nis_);
+    value = start_nis_[0];
+  }
+  const bool consistent = value <= s_.start_limit[rows.size()];
   run_ = consistent ? 0 : run_ + 1;
   if (!returned_.empty() &&
       std::all_of(returned_.begin(), returned_.end(), [&](int r) { return mask_[r] > 0.0; })) {

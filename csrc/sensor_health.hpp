@@ -461,7 +461,12 @@ class SensorHealth {
   // nothing leaves there: a drift reset takes it (a restart the readings forced at a
   // fault's samples forgets what the fault did not change)
   bool has_ok_ = false;
-  std::vector<int> back_rows_, rows_;
+  std::vector<int> back_rows_;
+  // scratch: the start check's judged rows (one set), the rows they are conditioned
+  // on, and their NIS (the vectors keep their storage from one sample to the next)
+  std::vector<std::vector<int>> start_sets_;
+  std::vector<int> start_given_;
+  std::vector<double> start_nis_;
   std::optional<double> rejecting_since_;
   // the bad-start check's state
   double since_ = NAN, agreed_since_ = NAN, hold_ = 0.0, prev_t_ = 0.0;

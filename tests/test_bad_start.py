@@ -22,17 +22,22 @@ from typing import Any
 
 import numpy as np
 import pytest
+import scipy.stats
 from estimator_helpers import bare, recovery_estimators
 from numpy.testing import assert_array_equal
+from scipy.optimize import brentq
+from tendon_helpers import shipped_recording
 
 from continuum_mhe.cli import main
-from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.base import Measurement
+from continuum_mhe.estimators import make_estimator, start_check
+from continuum_mhe.estimators.base import Inference, Measurement, Status
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.estimators.start_check import SAMPLES
 from continuum_mhe.io.estimate_csv import write_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.bend import BendFormulation
+from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond
 from continuum_mhe.results import Diagnostics
@@ -378,6 +383,77 @@ def test_not_checked_where_the_covariance_is_a_weight() -> None:
     checked = estimators(bare(bad_start=2))[0]
     checked.run(rec.t, z)
     assert checked.diagnostics.bad_starts == 1
+
+
+class _HeldInference(Inference):
+    """An inference that answers every sample with the same state and covariance: the
+    start check's prediction is then known."""
+
+    name = "held"
+
+    def __init__(self, formulation: Formulation, x: np.ndarray, P: np.ndarray) -> None:
+        super().__init__(formulation)
+        self.x, self.P = x, P
+
+    def forget(self) -> None:
+        pass
+
+    def infer(self, measurement: Measurement) -> tuple[np.ndarray, np.ndarray, Status]:
+        return self.x.copy(), self.P.copy(), "ok"
+
+
+def _conditioned_nis(
+    f: Formulation, x: np.ndarray, P: np.ndarray, z: np.ndarray, dt: float
+) -> tuple[float, int]:
+    """The NIS of ``z``'s readings (the consistency check's judged rows) against ``(x,
+    P)`` predicted over ``dt`` s, given the other rows (a tendon robot's tip condition
+    and tension rates), written out: the NIS of every row less that of the given rows
+    (the chain rule of the Gaussian density); and the number of judged rows."""
+    judged = (
+        np.concatenate([np.full(b.size, b.kind != "equilibrium") for b in f.measurement_blocks])
+        & ~f.input_rows()
+    )
+    x_next, F, Q = (np.asarray(v, float) for v in f.functions.predict(x, f.inputs(None, z, dt), dt))
+    r, J = (np.asarray(v, float) for v in f.functions.innovate(z, x_next.ravel()))
+    S = J @ (F @ P @ F.T + Q) @ J.T + np.asarray(f.meas_cov(), float)
+
+    def nis(rows: np.ndarray) -> float:
+        return float(r.ravel()[rows] @ np.linalg.solve(S[np.ix_(rows, rows)], r.ravel()[rows]))
+
+    return nis(np.arange(f.nz)) - nis(np.flatnonzero(~judged)), int(judged.sum())
+
+
+@pytest.mark.parametrize("factor", [0.98, 1.02])
+def test_a_tendon_robots_start_check_judges_its_readings_alone(factor: float) -> None:
+    """The shipped tendon robot (tilt IMUs): the start check judges the IMUs' readings
+    and the tensions, 10 rows, given the tip condition (a pseudo-measurement) and the
+    tension rates (inputs, whose residual is zero at every state), against the
+    chi-square 99.9 % quantile of 10 degrees of freedom (29.59). Two readings in a row
+    whose NIS is 2 % inside it (above the quantile of 9, 27.88) restart nothing; 2 %
+    beyond it (below the quantile of 11, 31.26, and far below that of the 25 valid rows,
+    52.62) they restart the estimator at the second."""
+    f, t, z = shipped_recording("unloaded", "tilt")
+    x, P = (np.asarray(v, float) for v in f.start_prior(z[0]))
+    P = 1e-4 * P  # a start that knows its shape well: the readings' offset shows
+    dt = float(t[1] - t[0])
+    offset = np.zeros(f.nz)
+    offset[: f.n_imu_measurements] = 1.0  # rad, on each IMU's roll and pitch
+    dof = _conditioned_nis(f, x, P, z[1], dt)[1]
+    assert dof == 10
+    limit = float(scipy.stats.chi2.ppf(start_check.QUANTILE, dof))
+    # the two NIS values lie between the quantiles of 9 and 11 degrees of freedom
+    quantile = scipy.stats.chi2.ppf
+    assert quantile(start_check.QUANTILE, 9) < 0.98 * limit
+    assert 1.02 * limit < quantile(start_check.QUANTILE, 11)
+    scale = brentq(
+        lambda a: _conditioned_nis(f, x, P, z[1] + a * offset, dt)[0] - factor * limit, 0.0, 0.5
+    )
+    off = z[1] + scale * offset
+    est = Estimator(_HeldInference(f, x, P), bare(bad_start=2.0))
+    series = est.run(t[:3], np.vstack([z[0], off, off]))
+    fires = factor > 1.0
+    assert est.diagnostics.bad_starts == int(fires)
+    assert list(series.status == "reset") == [False, False, fires]
 
 
 # --- an IMU back after a silence --------------------------------------------------------

@@ -6,12 +6,20 @@ to walk back (about 0.5 s on ``paper3d`` for MHE, EKF and UKF). The check: for
 ``RecoverySettings.bad_start`` seconds after each (re)start, the previous estimate
 ``(x, P)`` is predicted to the new sample (``x+ = f(x, u, dt)``,
 ``P+ = F P F^T + Q(dt)``) and the reading's normalised innovation squared
-``NIS = r^T (H P+ H^T + R)^-1 r`` (valid components only, ``r = r(z, x+)``) is compared
-with the ``QUANTILE`` quantile of a chi-square with as many degrees of freedom as valid
-components. ``SAMPLES`` consecutive readings above it restart the estimator from the
-current reading (status ``reset``). It uses only the estimates' states and covariances
-and the formulation's model, so MHE, EKF and UKF are checked alike; an estimate
-without a covariance is not checked, nor a formulation whose covariance is not one
+``NIS = r^T (H P+ H^T + R)^-1 r`` (``r = r(z, x+)``) is compared with the ``QUANTILE``
+quantile of a chi-square with as many degrees of freedom as the rows it judges:
+the valid rows that the consistency check judges (:mod:`.consistency`: the readings,
+every row of a PCC robot; a tendon robot's IMUs and tensions, 10 rows with two tilt
+IMUs and six tendons, 18 with raw IMUs), with the innovation taken given the sample's
+other valid rows (a tendon robot's tip condition, a pseudo-measurement that says
+nothing of the readings but pins states the motion model leaves free, and its tension
+rates, inputs whose residual is zero at every state). Counted among the degrees of
+freedom, those rows would loosen the limit (25 and 36 rows: 52.6 and 68.0 against 29.6
+and 42.3), the rates without adding to the statistic. ``SAMPLES`` consecutive readings
+above it restart the estimator from the current reading (status ``reset``). It uses
+only the estimates' states and covariances and the formulation's model, so MHE, EKF and
+UKF are checked alike; an estimate without a covariance is not checked, nor a
+formulation whose covariance is not one
 (``Formulation.calibrated_covariance`` False: the paper formulation's ``W`` is a
 weight). On data that agree with the model the chance of
 ``SAMPLES`` consecutive exceedances is about ``(1 - QUANTILE)^SAMPLES`` (1e-6): the
