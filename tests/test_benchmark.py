@@ -388,6 +388,42 @@ def test_round_order_rotates_by_the_rounds_index() -> None:
     assert bm.round_order([], 2) == []
 
 
+def test_an_mhe_without_answers_where_ipopt_has_them_does_not_agree(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An MHE whose outputs equal IPOPT's wherever it gives them, but that gives none
+    (nan) at samples where IPOPT has one, does not agree with IPOPT: the largest
+    difference leaves those samples out (0 here), so it alone read as agreement. The
+    count is kept and said beside the ratio; samples where neither answers do not
+    count."""
+    ipopt = np.arange(40.0).reshape(8, 5)
+    out = ipopt.copy()
+    out[[2, 5], 1] = np.nan  # no answer at two samples (one output is enough)
+    ipopt[6] = out[6] = np.nan  # neither answers
+    assert bm.agreement(out, ipopt) == (0.0, 2, False)
+    assert bm.agreement(ipopt, ipopt) == (0.0, 0, True)
+    off = ipopt + 2e-6
+    assert bm.agreement(off, ipopt)[1:] == (0, False)
+
+    row = {"method": "fatrop", "horizon": 10, "median_us": 20.0, "p99_us": 20.0,
+           "max_diff_vs_ipopt": 0.0, "max_diff_from_n": 0.0, "fallbacks": 2,
+           "solver_median_us": float("nan"), "agrees_with_ipopt": False,
+           "missing_from_n": 2, "build_s": 1.0, "warmup_s": 0.5}  # fmt: skip
+    fast = {**row, "method": "fast", "median_us": 10.0, "agrees_with_ipopt": True,
+            "missing_from_n": 0, "fallbacks": 0}  # fmt: skip
+    ipopt_row = {**fast, "method": "ipopt", "median_us": 1000.0}
+    report = {"scenario": "paper3d", "samples": 41, "repeats": 1, "methods": {},
+              "results": bm.with_ratios([fast, ipopt_row, row]), "machine": {},
+              "versions": {}}  # fmt: skip
+    monkeypatch.setattr(
+        "continuum_mhe.cli.benchmark_report.environment_line", lambda report: "machine: -"
+    )
+    print_report(report)
+    out_text = " ".join(capsys.readouterr().out.split())
+    line = out_text[out_text.index("fatrop at N = 10:") :].split("before the clock")[0]
+    assert "NOT IPOPT's answers (none at 2 samples from sample N on where IPOPT has one)" in line
+
+
 def test_a_contender_off_ipopts_answers_is_said_so_beside_its_ratio(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
