@@ -582,6 +582,28 @@ def test_dompc_is_timed_without_copying_the_window_into_its_templates(monkeypatc
     assert np.all(sec == 3.0)  # (1 + 2): the arrival step and make_step alone
 
 
+@pytest.mark.parametrize("name", ["fatrop", "sqp-hpipm", "ipopt-warm"])
+def test_a_casadi_peers_options_change_at_its_solvers_level(name: str) -> None:
+    """``CasadiPeer(options=...)`` changes the solver's own options over the
+    benchmark's, as ``tools/peer_options.py`` measures them: an iteration limit of 1
+    reaches the solver (it stops short, not converged, where the benchmark's takes 3 or
+    more), and an option changed to None is left out (the solver's default; CasADi
+    refuses a None value)."""
+    f = make_formulation("bend")
+    windows = peers.record_windows(f, simulate("paper3d", duration=0.4, seed=0), 3)
+    window = [w for w in windows if w is not None][-1]
+    guess = peers.shifted_guess(f, window, None) + 0.3  # a few iterations away
+    default = {"fatrop": "mu_init", "sqp-hpipm": "max_iter_ls", "ipopt-warm": "mu_init"}
+    peer = peers.CasadiPeer(f, 3, name, compiled=False, options={default[name]: None})
+    assert peers.solve_window(peer, window, guess)[1]  # converged, as the benchmark's
+    full = peers.CasadiPeer(f, 3, name, compiled=False)
+    assert peers.solve_window(full, window, guess)[1]
+    taken = full.solver.stats()["iter_count"]
+    limited = peers.CasadiPeer(f, 3, name, compiled=False, options={"max_iter": 1})
+    _, converged, _ = peers.solve_window(limited, window, guess)
+    assert taken >= 3 and not converged and limited.solver.stats()["iter_count"] < taken
+
+
 def test_a_casadi_peer_is_called_with_casadi_matrices(monkeypatch) -> None:
     """A CasADi peer's solve is the ``nlpsol`` call on the window, its guess and its
     multipliers already converted to CasADi matrices in ``prepare``: numpy arguments
