@@ -510,9 +510,9 @@ def test_a_tendon_robot_needs_its_tensions(
 def test_a_missing_recording_is_said_before_the_tensions_it_lacks(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A recording name with no file behind it (a typo), or a folder that is not a ROS 2
-    bag, is the recording's fault: said as such, not as tensions that a pipe does not
-    carry."""
+    """A recording name with no file behind it (a typo), a folder that is not a ROS 2
+    bag, or a bag's metadata file, is the recording's fault: said as such, not as
+    tensions that a pipe or the recording's columns do not carry."""
     robot = str(small_robot(tmp_path))
     out = tmp_path / "e.csv"
     missing = tmp_path / "no_such_run.csv"
@@ -526,6 +526,16 @@ def test_a_missing_recording_is_said_before_the_tensions_it_lacks(
     err = capsys.readouterr().err
     assert f"{folder}: is a directory without metadata.yaml" in err
     assert "pipe" not in err
+    # a ROS 2 bag's metadata file given for its folder: the bag's folder named, not
+    # tensions asked of it as of a CSV recording's columns
+    (folder / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  version: 5\n")
+    metadata = folder / "metadata.yaml"
+    assert main(["estimate", str(metadata), "--robot", robot, "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"continuum-mhe: error: {metadata}: the metadata file of a ROS 2 bag: give the "
+        f"bag's folder, {folder}"
+    ], err
     assert not out.exists()
 
 
