@@ -357,9 +357,9 @@ def test_peer_window_is_the_mhe_window() -> None:
 
 def test_interleaved_warms_each_up_then_runs_them_round_robin() -> None:
     """Every run once, then the rounds in turn, each round's order rotated by one (a, b,
-    c, then b, c, a, then c, a, b: no contender always first, or always after the same
-    one), each sample's time the median over the rounds (not the warm-up), the last
-    round's outputs (c's is the second round's: it ran first in the third)."""
+    c, then b, c, a, then c, a, b: no contender always first), each sample's time the
+    median over the rounds (not the warm-up), the last round's outputs (c's is the
+    second round's: it ran first in the third)."""
     calls: list[str] = []
     times = {"a": iter([9.0, 1.0, 5.0, 3.0]), "b": iter([9.0, 2.0, 2.0, 8.0]),
              "c": iter([9.0, 4.0, 6.0, 5.0])}  # fmt: skip

@@ -344,8 +344,8 @@ def _cheap_runs(
 
 def round_order(names: list[str], round_index: int) -> list[str]:
     """The order of the contenders in round ``round_index`` (from 0): ``names`` rotated
-    left by the round's index, so that no contender always runs first, or always
-    after the same one, over the rounds."""
+    left by the round's index, so that no contender always runs first over the rounds
+    (within a round each still runs after the one before it in ``names``)."""
     k = round_index % len(names) if names else 0
     return names[k:] + names[:k]
 
