@@ -357,9 +357,9 @@ def test_peer_window_is_the_mhe_window() -> None:
 
 def test_interleaved_warms_each_up_then_runs_them_round_robin() -> None:
     """Every run once, then the rounds in turn, each round's order rotated by one (a, b,
-    c, then b, c, a, then c, a, b: no contender always first, or always after the same
-    one), each sample's time the median over the rounds (not the warm-up), the last
-    round's outputs (c's is the second round's: it ran first in the third)."""
+    c, then b, c, a, then c, a, b: no contender always first), each sample's time the
+    median over the rounds (not the warm-up), the last round's outputs (c's is the
+    second round's: it ran first in the third)."""
     calls: list[str] = []
     times = {"a": iter([9.0, 1.0, 5.0, 3.0]), "b": iter([9.0, 2.0, 2.0, 8.0]),
              "c": iter([9.0, 4.0, 6.0, 5.0])}  # fmt: skip
@@ -386,6 +386,42 @@ def test_round_order_rotates_by_the_rounds_index() -> None:
     assert bm.round_order(["a", "b", "c"], 1) == ["b", "c", "a"]
     assert bm.round_order(["a", "b", "c"], 5) == ["c", "a", "b"]
     assert bm.round_order([], 2) == []
+
+
+def test_an_mhe_without_answers_where_ipopt_has_them_does_not_agree(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An MHE whose outputs equal IPOPT's wherever it gives them, but that gives none
+    (nan) at samples where IPOPT has one, does not agree with IPOPT: the largest
+    difference leaves those samples out (0 here), so it alone read as agreement. The
+    count is kept and said beside the ratio; samples where neither answers do not
+    count."""
+    ipopt = np.arange(40.0).reshape(8, 5)
+    out = ipopt.copy()
+    out[[2, 5], 1] = np.nan  # no answer at two samples (one output is enough)
+    ipopt[6] = out[6] = np.nan  # neither answers
+    assert bm.agreement(out, ipopt) == (0.0, 2, False)
+    assert bm.agreement(ipopt, ipopt) == (0.0, 0, True)
+    off = ipopt + 2e-6
+    assert bm.agreement(off, ipopt)[1:] == (0, False)
+
+    row = {"method": "fatrop", "horizon": 10, "median_us": 20.0, "p99_us": 20.0,
+           "max_diff_vs_ipopt": 0.0, "max_diff_from_n": 0.0, "fallbacks": 2,
+           "solver_median_us": float("nan"), "agrees_with_ipopt": False,
+           "missing_from_n": 2, "build_s": 1.0, "warmup_s": 0.5}  # fmt: skip
+    fast = {**row, "method": "fast", "median_us": 10.0, "agrees_with_ipopt": True,
+            "missing_from_n": 0, "fallbacks": 0}  # fmt: skip
+    ipopt_row = {**fast, "method": "ipopt", "median_us": 1000.0}
+    report = {"scenario": "paper3d", "samples": 41, "repeats": 1, "methods": {},
+              "results": bm.with_ratios([fast, ipopt_row, row]), "machine": {},
+              "versions": {}}  # fmt: skip
+    monkeypatch.setattr(
+        "continuum_mhe.cli.benchmark_report.environment_line", lambda report: "machine: -"
+    )
+    print_report(report)
+    out_text = " ".join(capsys.readouterr().out.split())
+    line = out_text[out_text.index("fatrop at N = 10:") :].split("before the clock")[0]
+    assert "NOT IPOPT's answers (none at 2 samples from sample N on where IPOPT has one)" in line
 
 
 def test_a_contender_off_ipopts_answers_is_said_so_beside_its_ratio(
@@ -544,6 +580,28 @@ def test_dompc_is_timed_without_copying_the_window_into_its_templates(monkeypatc
     sample = ["tvp"] * 2 * n + ["clock", "clock", "par", "par", "clock", "make_step", "clock"]
     assert calls == sample * len(rec.t)
     assert np.all(sec == 3.0)  # (1 + 2): the arrival step and make_step alone
+
+
+@pytest.mark.parametrize("name", ["fatrop", "sqp-hpipm", "ipopt-warm"])
+def test_a_casadi_peers_options_change_at_its_solvers_level(name: str) -> None:
+    """``CasadiPeer(options=...)`` changes the solver's own options over the
+    benchmark's, as ``tools/peer_options.py`` measures them: an iteration limit of 1
+    reaches the solver (it stops short, not converged, where the benchmark's takes 3 or
+    more), and an option changed to None is left out (the solver's default; CasADi
+    refuses a None value)."""
+    f = make_formulation("bend")
+    windows = peers.record_windows(f, simulate("paper3d", duration=0.4, seed=0), 3)
+    window = [w for w in windows if w is not None][-1]
+    guess = peers.shifted_guess(f, window, None) + 0.3  # a few iterations away
+    default = {"fatrop": "mu_init", "sqp-hpipm": "max_iter_ls", "ipopt-warm": "mu_init"}
+    peer = peers.CasadiPeer(f, 3, name, compiled=False, options={default[name]: None})
+    assert peers.solve_window(peer, window, guess)[1]  # converged, as the benchmark's
+    full = peers.CasadiPeer(f, 3, name, compiled=False)
+    assert peers.solve_window(full, window, guess)[1]
+    taken = full.solver.stats()["iter_count"]
+    limited = peers.CasadiPeer(f, 3, name, compiled=False, options={"max_iter": 1})
+    _, converged, _ = peers.solve_window(limited, window, guess)
+    assert taken >= 3 and not converged and limited.solver.stats()["iter_count"] < taken
 
 
 def test_a_casadi_peer_is_called_with_casadi_matrices(monkeypatch) -> None:

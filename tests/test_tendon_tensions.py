@@ -510,9 +510,9 @@ def test_a_tendon_robot_needs_its_tensions(
 def test_a_missing_recording_is_said_before_the_tensions_it_lacks(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A recording name with no file behind it (a typo), or a folder that is not a ROS 2
-    bag, is the recording's fault: said as such, not as tensions that a pipe does not
-    carry."""
+    """A recording name with no file behind it (a typo), a folder that is not a ROS 2
+    bag, or a bag's metadata file, is the recording's fault: said as such, not as
+    tensions that a pipe or the recording's columns do not carry."""
     robot = str(small_robot(tmp_path))
     out = tmp_path / "e.csv"
     missing = tmp_path / "no_such_run.csv"
@@ -526,7 +526,48 @@ def test_a_missing_recording_is_said_before_the_tensions_it_lacks(
     err = capsys.readouterr().err
     assert f"{folder}: is a directory without metadata.yaml" in err
     assert "pipe" not in err
+    # a ROS 2 bag's metadata file given for its folder: the bag's folder named, not
+    # tensions asked of it as of a CSV recording's columns
+    (folder / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  version: 5\n")
+    metadata = folder / "metadata.yaml"
+    assert main(["estimate", str(metadata), "--robot", robot, "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"continuum-mhe: error: {metadata}: the metadata file of a ROS 2 bag: give the "
+        f"bag's folder, {folder}"
+    ], err
     assert not out.exists()
+
+
+def test_a_recordings_column_without_a_name_is_left_to_its_imu_reader(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording that carries its tensions beside its IMU's columns and a column
+    without a name (a separator too many, values in it) gives the estimates the same
+    recording gives without that column: the IMU reader leaves such a column out, and
+    the tensions reader, which reads the tension columns alone there, does too (it
+    refused the recording with a tensions file's expected columns, t,tension_1); plot
+    draws its estimate with them."""
+    robot = str(small_robot(tmp_path))
+    rows = small_robot_recording_rows()
+    plain, blank = tmp_path / "plain.csv", tmp_path / "blank.csv"
+    plain.write_text(
+        "t,roll,pitch,tension_1\n" + "".join(f"{t},{r},{p},{1 + 5 * t}\n" for t, r, p in rows)
+    )
+    blank.write_text(
+        "t,roll,,pitch,tension_1\n" + "".join(f"{t},{r},7,{p},{1 + 5 * t}\n" for t, r, p in rows)
+    )
+    outs = []
+    for rec in (plain, blank):
+        out = tmp_path / f"e_{rec.stem}.csv"
+        argv = ["estimate", str(rec), "--robot", robot, "-o", str(out), "--method", "ekf"]
+        assert main(argv) == 0, capsys.readouterr().err
+        outs.append(read_state_table(str(out)))
+    assert outs[0].names == outs[1].names
+    np.testing.assert_array_equal(outs[0].values, outs[1].values)
+    # plot draws it with the tensions of the recording its first line names, as read
+    assert main(["plot", str(tmp_path / "e_blank.csv"), "-o", str(tmp_path / "f.png")]) == 0
+    assert "section ends" not in capsys.readouterr().err
 
 
 def test_own_tension_columns_from_standard_input_are_said_unread(

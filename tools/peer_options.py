@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-import casadi as ca
 import numpy as np
 
 from continuum_mhe.benchmark import peers
@@ -34,35 +33,6 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
 )
 
 
-def _solver(f: Any, n: int, name: str, change: dict[str, Any]) -> peers.CasadiPeer:
-    """The benchmark's peer ``name`` (interpreted), rebuilt with ``change``."""
-    p = peers.CasadiPeer(f, n, name, compiled=False)
-    if not change:
-        return p
-    o = p.ocp
-    base: dict[str, Any] = {"print_time": False, "error_on_fail": False}
-    if name == "fatrop":
-        inner = {"tol": peers.PEER_TOL, "max_iter": peers.PEER_MAX_ITER, "print_level": 0,
-                 **peers.FATROP_WARM_OPTIONS, **change}  # fmt: skip
-        opts = {**base, "structure_detection": "auto",
-                "equality": [bool(e) for e in o.lbg == o.ubg],
-                "fatrop": {k: v for k, v in inner.items() if v is not None}}  # fmt: skip
-    else:
-        nx = f.nx
-        outer = {"qpsol": "hpipm", "qpsol_options": {
-                     "N": n - 1, "nx": [nx] * n, "nu": [nx] * (n - 1) + [0], "ng": [o.ng] * n,
-                     "print_problem": False, "error_on_fail": False},
-                 "tol_pr": peers.PEER_TOL, "tol_du": peers.PEER_TOL,
-                 "max_iter": peers.PEER_MAX_ITER, "print_header": False,
-                 "print_iteration": False, "print_status": False,
-                 **peers.SQP_OPTIONS, **change}  # fmt: skip
-        opts = {**base, **{k: v for k, v in outer.items() if v is not None}}
-    plugin = "fatrop" if name == "fatrop" else "sqpmethod"
-    with peers._quiet():
-        p.solver = ca.nlpsol("peer", plugin, o.nlp, opts)
-    return p
-
-
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--horizon", type=int, default=30)
@@ -74,7 +44,7 @@ def main() -> None:
     windows = [w for w in peers.record_windows(f, rec, n) if w is not None]
     reference: dict[str, np.ndarray] = {}
     for name, label, change in VARIANTS:
-        solver = _solver(f, n, name, change)
+        solver = peers.CasadiPeer(f, n, name, compiled=False, options=change)  # interpreted
         X, iterations, failed, outputs = None, [], 0, []
         solver.reset()
         for w in windows:

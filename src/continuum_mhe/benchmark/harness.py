@@ -105,9 +105,12 @@ class Timing:
         solver_median_us: the median of the time the method reports for its own solver
             per sample (acados' ``time_tot``, without the Python interface), us; nan
             for the others.
+        missing_from_n: samples from ``N`` on where IPOPT has an output and the method
+            none (a nan output), which ``max_diff_from_n`` leaves out.
         agrees_with_ipopt: for an MHE (:data:`MHE_METHODS`), whether ``max_diff_from_n``
-            is within :data:`AGREEMENT_TOL` (its time compares like with like); None
-            for the EKFs, which estimate otherwise.
+            is within :data:`AGREEMENT_TOL` and ``missing_from_n`` is 0 (its time
+            compares like with like; :func:`agreement`); None for the EKFs, which
+            estimate otherwise.
         build_s: wall time to build the method before its runs, s (acados: generating
             and compiling its C; a CasADi peer: ``nlpsol`` with its functions compiled;
             an estimator: its construction); nan where the method builds inside each
@@ -124,6 +127,7 @@ class Timing:
     max_diff_from_n: float
     fallbacks: int
     solver_median_us: float = math.nan
+    missing_from_n: int = 0
     agrees_with_ipopt: bool | None = None
     build_s: float = math.nan
     warmup_s: float = math.nan
@@ -135,6 +139,19 @@ MHE_METHODS = ("fast", "mhe-kernel", "ipopt", "do-mpc", *PEERS)
 #: The largest output difference from IPOPT's (from sample ``N`` on, m and rad) at which
 #: an MHE's answers count as IPOPT's: the tests' agreement with IPOPT.
 AGREEMENT_TOL = 1e-6
+
+
+def agreement(out: FloatArray, ipopt_out: FloatArray) -> tuple[float, int, bool]:
+    """``(largest difference, samples without an answer, agrees)`` of a method's
+    outputs ``out`` (samples, ny) against IPOPT's ``ipopt_out`` on the same samples: the
+    largest difference where both have an answer (m and rad, :func:`_max_diff`), the
+    samples where IPOPT has an answer (every output finite) and the method none, and
+    whether both are as IPOPT's (the difference within :data:`AGREEMENT_TOL`, no
+    sample without an answer)."""
+    diff = _max_diff(out, ipopt_out)
+    answered = np.isfinite(ipopt_out).all(axis=1)
+    missing = int(np.count_nonzero(answered & ~np.isfinite(out).all(axis=1)))
+    return diff, missing, bool(diff <= AGREEMENT_TOL and missing == 0)
 
 
 def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, list[str]]:
@@ -327,8 +344,8 @@ def _cheap_runs(
 
 def round_order(names: list[str], round_index: int) -> list[str]:
     """The order of the contenders in round ``round_index`` (from 0): ``names`` rotated
-    left by the round's index, so that no contender always runs first, or always
-    after the same one, over the rounds."""
+    left by the round's index, so that no contender always runs first over the rounds
+    (within a round each still runs after the one before it in ``names``)."""
     k = round_index % len(names) if names else 0
     return names[k:] + names[:k]
 
@@ -468,7 +485,7 @@ def run_benchmark(
         full = slice(n, None)
         for name in (m for m in METHODS if m in rows):
             out, sec, fb, own, warmup = rows[name]
-            from_n = _max_diff(out[full], ipopt_out[full])
+            from_n, missing, agrees = agreement(out[full], ipopt_out[full])
             results.append(
                 Timing(
                     method=name,
@@ -481,9 +498,8 @@ def run_benchmark(
                     solver_median_us=math.nan
                     if own is None or np.isnan(own[full]).all()
                     else float(np.nanmedian(own[full]) * 1e6),
-                    agrees_with_ipopt=bool(from_n <= AGREEMENT_TOL)
-                    if name in MHE_METHODS
-                    else None,
+                    missing_from_n=missing,
+                    agrees_with_ipopt=agrees if name in MHE_METHODS else None,
                     build_s=built.get(name, math.nan),
                     warmup_s=warmup,
                 )

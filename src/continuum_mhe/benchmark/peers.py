@@ -42,7 +42,7 @@ import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -292,10 +292,18 @@ class CasadiPeer:
     """A CasADi ``nlpsol`` on :class:`OcpNlp`: ``"fatrop"`` (its structure detected,
     :data:`FATROP_WARM_OPTIONS`), ``"sqp-hpipm"`` (sqpmethod, exact Hessian, HPIPM with
     the stage sizes given, :data:`SQP_OPTIONS`) or
-    ``"ipopt-warm"`` (IPOPT warm-started: :data:`IPOPT_WARM_OPTIONS`)."""
+    ``"ipopt-warm"`` (IPOPT warm-started: :data:`IPOPT_WARM_OPTIONS`). ``options``:
+    the solver's own options changed from the benchmark's (fatrop's and IPOPT's, or
+    sqpmethod's), a None value leaving that option at the solver's default
+    (``tools/peer_options.py`` measures the peers by option)."""
 
     def __init__(
-        self, formulation: Formulation, horizon: int, name: str, compiled: bool | None = None
+        self,
+        formulation: Formulation,
+        horizon: int,
+        name: str,
+        compiled: bool | None = None,
+        options: Mapping[str, Any] | None = None,
     ) -> None:
         self.formulation, self.horizon = formulation, horizon
         self.ocp = o = ocp_nlp(formulation, horizon)
@@ -318,47 +326,56 @@ class CasadiPeer:
                 **common,
                 "structure_detection": "auto",
                 "equality": [bool(e) for e in o.lbg == o.ubg],
-                "fatrop": {
-                    "tol": PEER_TOL,
-                    "max_iter": PEER_MAX_ITER,
-                    "print_level": 0,
-                    **FATROP_WARM_OPTIONS,
-                },
+                "fatrop": _changed(
+                    {
+                        "tol": PEER_TOL,
+                        "max_iter": PEER_MAX_ITER,
+                        "print_level": 0,
+                        **FATROP_WARM_OPTIONS,
+                    },
+                    options,
+                ),
             }
             with _quiet():
                 self.solver = ca.nlpsol("peer", "fatrop", o.nlp, opts)
         elif name == "sqp-hpipm":
-            opts = {
-                **common,
-                "qpsol": "hpipm",
-                "qpsol_options": {
-                    "N": n - 1,
-                    "nx": [nx] * n,
-                    "nu": [nx] * (n - 1) + [0],
-                    "ng": [o.ng] * n,
-                    "print_problem": False,
-                    "error_on_fail": False,
+            opts = _changed(
+                {
+                    **common,
+                    "qpsol": "hpipm",
+                    "qpsol_options": {
+                        "N": n - 1,
+                        "nx": [nx] * n,
+                        "nu": [nx] * (n - 1) + [0],
+                        "ng": [o.ng] * n,
+                        "print_problem": False,
+                        "error_on_fail": False,
+                    },
+                    "tol_pr": PEER_TOL,
+                    "tol_du": PEER_TOL,
+                    "max_iter": PEER_MAX_ITER,
+                    **SQP_OPTIONS,
+                    "print_header": False,
+                    "print_iteration": False,
+                    "print_status": False,
                 },
-                "tol_pr": PEER_TOL,
-                "tol_du": PEER_TOL,
-                "max_iter": PEER_MAX_ITER,
-                **SQP_OPTIONS,
-                "print_header": False,
-                "print_iteration": False,
-                "print_status": False,
-            }
+                options,
+            )
             with _quiet():
                 self.solver = ca.nlpsol("peer", "sqpmethod", o.nlp, opts)
         elif name == "ipopt-warm":
             opts = {
                 **common,
-                "ipopt": {
-                    "tol": PEER_TOL,
-                    "max_iter": PEER_MAX_ITER,
-                    "print_level": 0,
-                    "sb": "yes",
-                    **IPOPT_WARM_OPTIONS,
-                },
+                "ipopt": _changed(
+                    {
+                        "tol": PEER_TOL,
+                        "max_iter": PEER_MAX_ITER,
+                        "print_level": 0,
+                        "sb": "yes",
+                        **IPOPT_WARM_OPTIONS,
+                    },
+                    options,
+                ),
             }
             with _quiet():
                 self.solver = ca.nlpsol("peer", "ipopt", o.nlp, opts)
@@ -389,6 +406,12 @@ class CasadiPeer:
         self._lam = (sol["lam_x"], sol["lam_g"])  # (shifted by the next prepare)
         X = ocp_states(np.asarray(sol["x"], dtype=float).ravel(), self.formulation.nx, self.horizon)
         return X, bool(self.solver.stats()["success"]), math.nan
+
+
+def _changed(options: dict[str, Any], change: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``options`` with ``change`` over them, an option changed to None left out."""
+    merged = {**options, **(change or {})}
+    return {k: v for k, v in merged.items() if v is not None}
 
 
 def shifted_multipliers(

@@ -64,6 +64,11 @@ def _disagrees(row: dict[str, Any]) -> str:
     """What a ratio line adds for an MHE whose answers are not IPOPT's (its time then
     compares unlike things); empty where they agree or the row has no such flag."""
     if row.get("agrees_with_ipopt") is False:
+        if row.get("missing_from_n"):
+            return (
+                f"; NOT IPOPT's answers (none at {row['missing_from_n']} samples from "
+                "sample N on where IPOPT has one): its time is no like-for-like comparison"
+            )
         return (
             f"; NOT IPOPT's answers ({row['max_diff_from_n']:.1e} from sample N on, above "
             f"{AGREEMENT_TOL:g}): its time is no like-for-like comparison"

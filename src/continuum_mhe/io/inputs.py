@@ -630,6 +630,7 @@ def _tensions(
         # the recording's own fault first: a name with no file behind it is no pipe
         if not os.path.exists(recording):
             raise InputError(f"{recording}: no such file")
+        refuse_bag_metadata(recording)  # a bag's metadata file has no tension columns
         _refuse_folder(recording)
     where = (
         "a robot log's topics do not carry them"

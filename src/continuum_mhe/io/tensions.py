@@ -749,13 +749,14 @@ def read_tensions(
             and set(names) <= set(found)
             and any(c and not c.startswith("tension_") for c in found)
         )
-        if recording:  # its other columns left out; one without a name is refused
-            found = [c for c in found if c.startswith("tension_") or not c]
+        if recording:  # its other columns left out, as its IMU reader leaves out one
+            found = [c for c in found if c.startswith("tension_")]  # without a name
         if "t" not in header or sorted(found) != sorted(names):  # in any order, by name
             missing = [c for c in ["t", *names] if c not in header]
             spelled = dict(zip(header, written))  # the file's own spelling of a name
             extra = [spelled.get(c, c) for c in found if c and c not in names]
-            unnamed = [str(i + 1) for i, c in enumerate(header) if not c]  # a,,b
+            # a,,b: a tensions file's column without a name (a recording's is left out)
+            unnamed = [] if recording else [str(i + 1) for i, c in enumerate(header) if not c]
             said = "; ".join(  # a column twice is refused by open_rows
                 part
                 for part in (
