@@ -508,6 +508,28 @@ def test_no_development_history_in_docs_or_source():
     assert not found, "\n".join(found)
 
 
+#: What the repository's root holds: a file or folder beside these (a command's output
+#: written into the checkout and committed with it) is a stray
+ROOT_ENTRIES = frozenset({
+    ".ci", ".gitignore", "CHANGELOG.md", "CMakeLists.txt", "CONTRIBUTING.md", "LICENSE",
+    "README.md", "csrc", "docs", "firmware", "mkdocs.yml", "pyproject.toml", "src",
+    "tests", "tools",
+})  # fmt: skip
+
+
+def test_the_repository_root_holds_no_stray_files() -> None:
+    """Every file git tracks lies in one of the root's own entries (:data:`ROOT_ENTRIES`):
+    a recording or an estimate written into the checkout (``rod tendon -o t1``) and
+    committed with it is caught. Skipped outside a git checkout (an unpacked source
+    archive)."""
+    if not (ROOT / ".git").exists() or shutil.which("git") is None:
+        pytest.skip("not a git checkout")
+    listed = _run("git", "ls-files", "-z")
+    assert listed.returncode == 0, listed.stderr
+    stray = sorted({f.split("/")[0] for f in listed.stdout.split("\0") if f} - ROOT_ENTRIES)
+    assert not stray, f"tracked at the repository's root beside its own entries: {stray}"
+
+
 def test_the_suites_interpreters_share_one_bytecode_folder() -> None:
     """Under PYTHONDONTWRITEBYTECODE the suite's interpreters (a process that loads
     tests/conftest.py and a command it starts) write their bytecode into the session's

@@ -2238,6 +2238,28 @@ def test_one_tendon_angle_in_radians_among_degrees_is_said(
             read_robot(path)
 
 
+def test_drifted_rows_of_an_imu_mounted_otherwise_than_declared_name_the_mounting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shipped robot file with its tip IMU declared turned by 90 degrees about the
+    backbone (``mount_rpy = [0, 0, 90]``), on ``force-29`` with its own tensions: most
+    rows drift, and the warning's list of what to check in the robot file names the
+    IMUs' mountings (``mount_rpy``), the entry that is wrong, not their places alone."""
+    shipped = (ROBOTS / "tendon_two_section.toml").read_text()
+    assert shipped.rstrip().endswith("[[imu]]\nsection = 2")
+    turned = tmp_path / "turned.toml"
+    turned.write_text(shipped.rstrip() + "\nmount_rpy = [0, 0, 90]\n")
+    argv = ["estimate", str(DATA / "force-29_raw.csv"), "--robot", str(turned), "--inputs",
+            str(DATA / "force-29_tensions.csv"), "-o", str(tmp_path / "e.csv")]  # fmt: skip
+    capsys.readouterr()
+    assert main(argv) == 0
+    status = [str(s) for s in read_state_table(tmp_path / "e.csv").status]
+    assert status.count("drifted") > len(status) // 2
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "estimates drifted" in ln]
+    assert len(said) == 1
+    assert "the robot file: the IMUs' places and mountings (mount_rpy), the backbone" in said[0]
+
+
 def test_drifted_rows_with_tilt_imus_say_that_tilt_does_not_follow_a_twisting_robot(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -2252,7 +2274,8 @@ def test_drifted_rows_with_tilt_imus_say_that_tilt_does_not_follow_a_twisting_ro
     said = [ln for ln in capsys.readouterr().err.splitlines() if "estimates drifted" in ln]
     assert len(said) == 1
     # the shipped robot has spacer disks and continuous tendons: their path is named too
-    assert ("the robot file: the IMUs' places, the backbone, the tendons' path (tendon_route "
+    assert ("the robot file: the IMUs' places and mountings (mount_rpy), the backbone, the "
+            "tendons' path (tendon_route "
             '= "disks" where they run straight between spacer disks)); or the tip force'
             in said[0])  # fmt: skip
     assert said[0].endswith(

@@ -667,7 +667,7 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
         f"{drifted} of {n} estimates drifted: the IMUs' error states left their prior or "
         "changed faster than their model allows, where the model follows the readings "
         f"only with IMU errors these IMUs are not taken to have (check {tensions}the robot "
-        f"file: the IMUs' places, the backbone{route}){push}{tilt}"
+        f"file: the IMUs' places and mountings (mount_rpy), the backbone{route}){push}{tilt}"
     )
 
 
