@@ -421,3 +421,35 @@ def test_a_disk_route_mistake_names_its_line(tmp_path: Path) -> None:
     # the second [[section]] header, one line further down for the tendon_route line
     with pytest.raises(InputError, match=rf"r\.toml: line {sections[1] + 2}: section 2: "):
         read_robot(robot)
+
+
+def test_a_backbone_without_density_is_said_once(tmp_path: Path) -> None:
+    """A [backbone] without its density is read as weightless with a one-line warning
+    naming the file and the key (the weight is then read as a tip force); the shipped
+    tendon robot, which gives it, reads without one; the command line says it once."""
+    shipped_path = (
+        Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    )
+    shipped = shipped_path.read_text()
+    lines = shipped.splitlines()
+    assert sum(line.startswith("density") for line in lines) == 1
+    weightless = tmp_path / "weightless.toml"
+    weightless.write_text("\n".join(x for x in lines if not x.startswith("density")) + "\n")
+    for path, said in ((weightless, True), (shipped_path, False)):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            robot = read_robot(path)
+        found = [str(w.message) for w in seen if w.category is RobotFileWarning]
+        assert robot.backbone is not None
+        assert (robot.backbone.density is None) is said
+        if said:
+            (line,) = found
+            assert line.startswith(f"{weightless}: backbone: no density: "), line
+            assert "weightless" in line and "kg/m^3" in line and "\n" not in line
+        else:
+            assert found == []
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("default")
+        assert main(["check-robot", str(weightless), "--samples", "20"]) == 0
+    said = [str(w.message) for w in seen if w.category is RobotFileWarning]
+    assert len(said) == 1 and "no density" in said[0], said
