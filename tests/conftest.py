@@ -70,27 +70,6 @@ def linear_recording() -> tuple[LinearBend, np.ndarray, np.ndarray]:
     return f, np.arange(LIN_N) * LIN_DT, np.array(z)
 
 
-#: Test files that run first, longest first (in a fresh environment
-#: ``test_rod_generators.py`` compiles PyElastica's numba kernels and ``test_hygiene.py``
-#: runs mypy without its cache): with ``--dist loadfile`` a long file taken last leaves
-#: the other worker idle.
-FIRST_FILES = (
-    "test_tendon.py",
-    "test_rod_generators.py",
-    "test_hygiene.py",
-    "test_reproduce.py",
-    "test_live.py",
-    "test_viewer.py",
-)
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """:data:`FIRST_FILES` first; every file's tests, and the other files, keep their
-    order (a stable sort)."""
-    rank = {name: i for i, name in enumerate(FIRST_FILES)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(FIRST_FILES)))
-
-
 #: the test file whose first test froze the collector's objects (pytest_runtest_setup)
 _frozen_for: list[object] = [None]
 
