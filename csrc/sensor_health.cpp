@@ -838,10 +838,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   }
   if ((data_restart || forced_restart) && has_state) status = ST_RESET;
   const bool forced = (forced_restart || !healthy) && has_state;
+  const bool branched = status == ST_BRANCH_RESTART;  // the window's answer, another branch
   // a sample without any IMU's reading is a dropout, whatever else it carried (a
-  // tendon robot's tensions update the estimate, but nothing read the robot)
+  // tendon robot's tensions update the estimate, but nothing read the robot) and
+  // whichever solve answered it (IPOPT's fallback, another branch)
   const bool imu_read = s_.imu_blocks.empty() || imu_reading();
-  if (status == ST_OK && has_state && !imu_read) status = ST_DROPOUT;
+  if (trusted(status) && has_state && !imu_read) status = ST_DROPOUT;
   // a sample whose IMU readings were all skipped as glitches: inconsistent (the estimate
   // is the prediction), as one with some of them skipped (below)
   if (status == ST_DROPOUT && has_state && gated > 0) status = ST_INCONSISTENT;
@@ -860,10 +862,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // no estimate of that start is ok (drifted where the model's error states have left
     // their prior: that says more), until the next restart
     ++diagnostics.untrusted_start_samples;
-    if (status == ST_OK) status = state_drifted(x) ? ST_DRIFTED : ST_UNCERTAIN;
+    if (trusted(status)) status = state_drifted(x) ? ST_DRIFTED : ST_UNCERTAIN;
   }
   if (check_start) start_remember(t, z, x, P, has_state, has_cov);
-  if (status == ST_OK && has_state && state_drifted(x)) status = ST_DRIFTED;
+  if (trusted(status) && has_state && state_drifted(x)) status = ST_DRIFTED;
   if (trusted(status) && !observed) {
     status = ST_UNCERTAIN;  // the data do not determine the shape
   } else if (trusted(status) && !returned_.empty()) {
@@ -895,7 +897,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       const double limit = consistency_.settings().limit[dof];
       if (consistency_.nis() > limit) jumped_t_ = t;
     }
-    if (status == ST_OK && t - jumped_t_ < unobserved_window()) status = ST_UNCERTAIN;
+    if (trusted(status) && t - jumped_t_ < unobserved_window()) status = ST_UNCERTAIN;
     // restarts the readings forced, within the bad-start check's probation time (the
     // unobserved window where longer, or without the check): a run of them says the
     // readings contradict every estimate the model makes of them, so none is trusted
@@ -994,7 +996,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       // with it confirm it
       wide_row = tip_std(ystd) > s_.uncertain_fraction * s_.length;
       if (wide_row) wide_t_ = t;
-      if (status == ST_OK && t - wide_t_ < unobserved_window()) status = ST_UNCERTAIN;
+      if (trusted(status) && t - wide_t_ < unobserved_window()) status = ST_UNCERTAIN;
     }
     // an estimate on a bending bound that the MHE held it to: the checks judged it with
     // its covariance conditioned on the bound (the estimate cannot leave it), and so do
@@ -1041,7 +1043,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       // the fraction makes the row uncertain as the estimate's own does
       if (!s_.tip_rows.empty() && tip_std(ystd) > s_.uncertain_fraction * s_.length) {
         wide_row = true;
-        if (status == ST_OK) status = ST_UNCERTAIN;
+        if (trusted(status)) status = ST_UNCERTAIN;
       }
       // the first row with a reading after a wide one, where it comes the unobserved
       // window or more later (a low rate): the estimate narrowed onto that one
@@ -1050,7 +1052,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       if (wide_row) {
         wide_row_t_ = t;
       } else if (imu_read && std::isfinite(wide_row_t_)) {
-        if (status == ST_OK && t - wide_row_t_ >= unobserved_window()) status = ST_UNCERTAIN;
+        if (trusted(status) && t - wide_row_t_ >= unobserved_window()) status = ST_UNCERTAIN;
         wide_row_t_ = -INFINITY;
       }
     }
@@ -1067,22 +1069,30 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   if (!s_.change_rows.empty() && s_.checks_start) {
     // the IMU errors moved faster than their model allows: the readings are followed
     // with errors that change, as a model that does not describe the robot needs. Only
-    // between rows that are ok, drifted or inconsistent: after a restart, a gap or an
-    // unconfirmed estimate the filter's first updates are not linear ones, and their
-    // change says nothing
-    const bool judged = status == ST_OK || status == ST_DRIFTED ||
+    // between rows that are trusted (ok, fallback-ipopt, branch-restart), drifted or
+    // inconsistent: after a restart, a gap or an unconfirmed estimate the filter's first
+    // updates are not linear ones, and their change says nothing. A branch restart's
+    // estimate jumps from the warm-started one: the change is measured from it on, and
+    // one beyond the limit before it still holds (another branch of the window does not
+    // make the model follow)
+    const bool judged = trusted(status) || status == ST_DRIFTED ||
                         status == ST_INCONSISTENT || start_unconfirmed;
     if (judged && has_state && has_cov) {
+      if (branched) change_past_.clear();
       // once beyond, for a lag after: a change that dips below the limit for a sample
       // does not make the model follow
       if (changed_too_fast(t, x, P)) changed_until_ = t + s_.change_lag;
-      if (status == ST_OK && t <= changed_until_) status = ST_DRIFTED;
+      if (trusted(status) && t <= changed_until_) status = ST_DRIFTED;
     } else {
       change_past_.clear();
       changed_until_ = -INFINITY;
     }
   }
-  // a restart does not make a model that did not follow the robot follow it: the rows
+  // What later rows build on, here and below, comes from ok rows only: the drifted run
+  // a drift reset times, the state a restart keeps, the gate's prediction. A
+  // fallback-ipopt or branch-restart row answers a window the fast MHE could not answer
+  // from its warm start; the rules above judge it as an ok row, but it is not built on.
+  // A restart does not make a model that did not follow the robot follow it: the rows
   // after a restart within the probation time of the last drifted row are not trusted
   // (the restart cleared the IMU error states and their change, which showed it)
   if (status == ST_DRIFTED && std::isnan(drift_since_)) drift_since_ = t;
@@ -1142,7 +1152,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // a standard deviation past the robot's reach, where no other test judges one (a
   // covariance that is no noise model): the written row only, after the policy's own
   // use of its status
-  if (s_.judges_reach && status == ST_OK && out.has_std && !s_.tip_rows.empty() &&
+  if (s_.judges_reach && trusted(status) && out.has_std && !s_.tip_rows.empty() &&
       tip_std(ystd) > s_.length)
     status = ST_UNCERTAIN;
   out.status = status;

@@ -21,7 +21,8 @@ from estimator_helpers import recovery_estimators
 
 from continuum_mhe.errors import SampleTimeError, UserError
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter, ExtendedKalmanInference
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.io.estimate_csv import (
     estimate_lines,
     estimate_row,
@@ -31,9 +32,11 @@ from continuum_mhe.io.estimate_csv import (
 )
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.bend import DIVERGED_RATE, BendFormulation
-from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN
+from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN, Formulation
+from continuum_mhe.model.kinematics import tip_position
+from continuum_mhe.model.paper import DRIFT_FRACTION
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.results import Diagnostics, Measurement
+from continuum_mhe.results import Diagnostics, Measurement, Status
 from continuum_mhe.settings import MHESettings, RecoverySettings
 from continuum_mhe.simulation.scenarios import simulate
 
@@ -570,3 +573,125 @@ def test_a_freeze_of_exactly_its_limit_is_judged_alike_on_any_clock() -> None:
             for base in (0.0, 1000.0, 1.7e9)
         ]
         assert frozen[0] == frozen[1] == frozen[2] > 0, (freeze, frozen)
+
+
+# --- the solved statuses: ok, fallback-ipopt, branch-restart ----------------------------
+#: The statuses of a solved estimate: the fast MHE's own answer, IPOPT's answer to a
+#: window the fast MHE could not certify, and another branch's answer to the window
+SOLVED = ("ok", "fallback-ipopt", "branch-restart")
+
+
+class _Labelled(ExtendedKalmanInference):
+    """The EKF's inference, whose ``ok`` and ``dropout`` answers carry ``status`` instead
+    (as the fast MHE's answers rescued by IPOPT or by the branch check do, at a sample
+    without a reading too), and whose state's position rows (the paper formulation's
+    x, y, z) are set to the forward kinematics of its own angles plus ``offset`` (m),
+    where given."""
+
+    def __init__(
+        self, formulation: Formulation, status: str, offset: np.ndarray | None = None
+    ) -> None:
+        self.status, self.offset = Status(status), offset
+        super().__init__(formulation)
+
+    def infer(self, m: Measurement) -> tuple[np.ndarray | None, np.ndarray | None, Status]:
+        x, P, status = super().infer(m)
+        if x is not None and self.offset is not None:
+            x = x.copy()
+            x[:3] = tip_position(x[3], x[4], self.formulation.length).ravel() + self.offset
+        return x, P, self.status if status in (Status.OK, Status.DROPOUT) else status
+
+
+@pytest.mark.parametrize("status", SOLVED)
+def test_a_solved_row_whose_state_the_model_does_not_hold_is_drifted(status: str) -> None:
+    """The paper formulation's state holds the tip position beside the angles: with the
+    position at the forward kinematics of the angles no row is ``drifted``, and each
+    keeps its solved status; with it twice DRIFT_FRACTION of the length off, every row
+    is ``drifted``, whether the inference answered ``ok``, ``fallback-ipopt`` or
+    ``branch-restart``."""
+    rec = simulate("paper3d", duration=3.0, seed=1)
+    f = make_formulation("paper")
+    off = np.array([2 * DRIFT_FRACTION * f.length, 0.0, 0.0])
+    held = Estimator(_Labelled(f, status, np.zeros(3)), RecoverySettings())
+    assert "drifted" not in set(held.run(rec.t, rec.z).status)
+    moved = Estimator(_Labelled(f, status, off), RecoverySettings())
+    assert set(moved.run(rec.t, rec.z).status) == {"drifted"}
+
+
+@pytest.mark.parametrize("status", SOLVED)
+def test_a_solved_row_with_a_wide_tip_std_is_uncertain(status: str) -> None:
+    """Every row after the start keeps its solved status with the default uncertain
+    fraction; with a fraction below every row's tip standard deviation (as written),
+    every row is ``uncertain``, whether the inference answered ``ok``,
+    ``fallback-ipopt`` or ``branch-restart``."""
+    rec = simulate("paper3d", duration=3.0, seed=1)
+    f = BendFormulation()
+    default = Estimator(_Labelled(f, status), RecoverySettings()).run(rec.t, rec.z)
+    assert list(default.status) == ["uncertain"] + [status] * (len(rec.t) - 1)
+    fraction = 1e-4
+    tip = np.hypot.reduce([default.std_column(c) for c in ("x", "y", "z")])
+    assert tip.min() > fraction * f.robot.length  # so every row is beyond it
+    wide = Estimator(_Labelled(f, status), RecoverySettings(uncertain_fraction=fraction))
+    assert set(wide.run(rec.t, rec.z).status) == {"uncertain"}
+
+
+@pytest.mark.parametrize("status", SOLVED[1:])
+def test_no_solved_row_of_an_untrusted_start_is_trusted(status: str) -> None:
+    """A start the formulation does not trust gives no ``fallback-ipopt`` or
+    ``branch-restart`` row, as it gives no ``ok`` one (the rows after the gap's start,
+    trusted, have that status again)."""
+    rec = simulate("paper3d", duration=6.0, seed=1)
+    keep = (rec.t < 2.5) | (rec.t > 4.0)  # a gap of 1.5 s: a new start at 4.05 s
+    t, z = rec.t[keep], rec.z[keep]
+    f = _DistrustedStarts(distrusted=frozenset({np.asarray(z[0], float).tobytes()}))
+    est = Estimator(_Labelled(f, status), RECOVERY)
+    got = np.asarray(est.run(t, z).status).astype(str)
+    first = t < 2.5
+    assert not set(got[first]) & set(SOLVED), sorted(set(got[first]))
+    assert est.diagnostics.untrusted_start_samples == first.sum()
+    assert set(got[~first][2:]) == {status}, sorted(set(got[~first]))
+
+
+@pytest.mark.parametrize("status", SOLVED)
+def test_a_solved_row_without_an_imu_reading_is_a_dropout(status: str) -> None:
+    """A sample without any IMU's reading is a ``dropout`` whichever solve answered it."""
+    rec = simulate("paper3d", duration=3.0, seed=1)
+    z = rec.z.copy()
+    lost = np.zeros(len(rec.t), bool)
+    lost[[20, 30, 31]] = True
+    z[lost] = np.nan
+    got = np.asarray(Estimator(_Labelled(BendFormulation(), status), RECOVERY).run(rec.t, z).status)
+    assert set(got[lost].astype(str)) == {"dropout"}
+
+
+@pytest.mark.parametrize("status", SOLVED)
+def test_no_solved_row_within_the_window_of_a_burst_of_tilt_readings(status: str) -> None:
+    """0.6 rad added to the tilt IMU's roll for 6 samples of paper3d (20 Hz): the burst's
+    first readings are beyond one sample's limit, and within the window (1 s) after
+    them no row is ``ok``, ``fallback-ipopt`` or ``branch-restart``
+    (tests/test_reliability.py measures how far off those rows are)."""
+    f = BendFormulation()
+    rec = simulate("paper3d", duration=10, seed=0)
+    z = rec.z.copy()
+    first = int(np.argmax(rec.t >= 4.0 - 1e-9))
+    rolls = [b.start for b in f.measurement_blocks]  # each tilt block is (roll, pitch)
+    z[first : first + 6, rolls] = np.angle(np.exp(1j * (z[first : first + 6, rolls] + 0.6)))
+    got = np.asarray(Estimator(_Labelled(f, status), RecoverySettings()).run(rec.t, z).status)
+    within = (rec.t >= rec.t[first]) & (rec.t < rec.t[first] + 1.0)
+    assert not set(got[within].astype(str)) & set(SOLVED), got[within]
+    assert status in set(got[~within].astype(str))  # the rest of the run has it
+
+
+@pytest.mark.parametrize("status", SOLVED)
+def test_a_solved_paper_row_whose_tip_std_passes_the_reach_is_uncertain(status: str) -> None:
+    """The paper formulation (its W a weight, no noise model; positions held at the
+    forward kinematics of the angles, so that no row is ``drifted``): a row whose tip
+    standard deviation as written exceeds the robot's length is ``uncertain``, and every
+    other row keeps its solved status, whichever it is."""
+    rec = simulate("paper3d", duration=5.0, seed=0)
+    f = make_formulation("paper")
+    s = Estimator(_Labelled(f, status, np.zeros(3)), RecoverySettings()).run(rec.t, rec.z)
+    beyond = np.hypot.reduce([s.std_column(c) for c in ("x", "y", "z")]) > f.length
+    got = np.asarray(s.status).astype(str)
+    assert beyond.any() and not beyond.all()
+    assert set(got[beyond]) == {"uncertain"} and set(got[~beyond]) == {status}

@@ -62,14 +62,17 @@ class Status(str, Enum):
     )
     FALLBACK_IPOPT = (
         "fallback-ipopt",
-        "the fast MHE backend could not certify its answer to this window; IPOPT solved it",
+        "the fast MHE backend could not certify its answer to this window; IPOPT solved "
+        "it, and no check made it drifted, uncertain, at-bound or inconsistent (each "
+        "judges it as an ok row)",
     )
     BRANCH_RESTART = (
         "branch-restart",
         "the MHE's window fit was implausible (chi-square test of its measurement cost) "
         "and a restart from another start found a lower window cost, or, with the arrival "
         "prior forgotten, a fit at least twice as good: this answer replaced the "
-        "warm-started one (the branch check: on by default with tilt only)",
+        "warm-started one (the branch check: on by default with tilt only), and no check "
+        "made it drifted, uncertain, at-bound or inconsistent (each judges it as an ok row)",
     )
     RESET = (
         "reset",
@@ -80,8 +83,11 @@ class Status(str, Enum):
     )
     UNCERTAIN = (
         "uncertain",
-        "an estimate was made, but it is the first of a start (the recording's first, or "
-        "a restart's, until the next reading agrees with it), or the tip position's "
+        "an estimate was made (one that would be ok, fallback-ipopt or branch-restart), "
+        "but it is the first estimate of a start (the recording's first, or a restart's "
+        "made at a sample after the restart's own; a restart's own row is reset) or comes "
+        "after a start or a restart before later readings agree with it, or the tip "
+        "position's "
         "standard deviation exceeds the stated fraction of the robot's length "
         "(--uncertain-fraction), or the IMUs (those "
         "that reported within the last SILENT_AFTER, 0.2 s, or --gap-reset where shorter) "
