@@ -1741,3 +1741,31 @@ def test_a_short_rest_with_a_board_turned_over_is_refused_without_a_warning_firs
     assert main(["calibrate", "--from", str(rest), "--robot", "two-section"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {rest}: "), err
+
+
+def test_a_measured_mounting_near_a_radian_turn_is_written_so_that_it_reads_back_silently(
+    tmp_path: Path,
+) -> None:
+    """A board's measured roll of 1.571 degrees (pi/2 rad to 0.0002) is written beside
+    the multiple's tolerance band, within 0.002 degrees of the measurement, so that
+    reading the written robot file gives no radians warning; values away from any such
+    turn are written to a thousandth as measured."""
+    from continuum_mhe.io.robot_file import read_robot, robot_source_text, with_imu_calibration
+    from continuum_mhe.model.robot import mount_rpy_hint
+
+    measured = [(0.866, 1.571, 0.0), (-3.1414, 0.7851, 2.5)]
+    text = with_imu_calibration(
+        robot_source_text("two-section", read_robot("two-section")),
+        measured,
+        None,
+        tmp_path / "cal.toml",
+    )
+    out = tmp_path / "cal.toml"
+    out.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a radians warning would raise here
+        robot = read_robot(out)
+    for imu, rpy in zip(robot.imus, measured):
+        assert mount_rpy_hint(imu.mount_rpy) == ""
+        assert np.allclose(imu.mount_rpy, rpy, atol=0.002)
+    assert robot.imus[0].mount_rpy[0] == 0.866 and robot.imus[1].mount_rpy[2] == 2.5

@@ -78,6 +78,7 @@ from continuum_mhe.model.robot import (
     DEFAULT_THETA_MAX,
     GYRO_BIAS_LIKE_DEG,
     MAX_MOUNT_DEG,
+    RADIAN_TOLERANCE,
     TENDON_ROUTES,
     Backbone,
     ImuPlacement,
@@ -729,6 +730,22 @@ def robot_source_text(name: str | None, robot: Robot) -> str:
     return p.read_text(encoding="utf-8-sig")  # a byte-order mark dropped, as read_robot does
 
 
+def _written_mount_angle(degrees: float) -> float:
+    """A measured mounting angle as ``calibrate`` writes it: to a thousandth of a degree
+    (no -0.0), and, where that lies within :data:`RADIAN_TOLERANCE` of a quarter or
+    eighth turn in radians (1.571 degrees is pi/2 rad to 0.0002), moved to the nearest
+    thousandth beyond it (at most 0.002 degrees, a hundredth of a calibration's noise at
+    rest), so that reading the file back does not take the measurement for a radian
+    slip (:func:`~continuum_mhe.model.robot.mount_rpy_hint`)."""
+    value = round(degrees, 3) + 0.0
+    if not mount_rpy_hint([value]):
+        return value
+    quarter = math.pi / 4
+    turn = round(value / quarter) * quarter
+    side = 1.0 if value >= turn else -1.0
+    return round(turn + side * (RADIAN_TOLERANCE + 0.0005), 3) + 0.0
+
+
 def with_imu_calibration(
     text: str,
     mount_rpy: Sequence[Sequence[float]],
@@ -746,7 +763,7 @@ def with_imu_calibration(
     if len(imus) != len(mount_rpy):
         raise InputError(f"{path}: {len(imus)} [[imu]] tables, calibrated {len(mount_rpy)} IMUs")
     for i, table in enumerate(imus):
-        table["mount_rpy"] = [round(float(v), 3) + 0.0 for v in mount_rpy[i]]  # no -0.0
+        table["mount_rpy"] = [_written_mount_angle(float(v)) for v in mount_rpy[i]]
         if gyro_bias is not None:
             table["gyro_bias"] = [round(float(v), 6) + 0.0 for v in gyro_bias[i]]
     out = tomlkit.dumps(doc)
