@@ -24,6 +24,7 @@ from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.settings import NoiseSettings
 from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.results import Status
 
 DATA = Path(__file__).resolve().parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
 HORIZON = 3
@@ -165,3 +166,49 @@ def test_a_robust_loss_weighs_the_imus_alone_and_ipopt_solves_its_window() -> No
     assert robust.solver.stats()["return_status"] == "Solve_Succeeded"
     best = np.asarray(out["x"]).reshape(HORIZON, f.nx)
     assert _core_gradient_norm(model, problem, best) < 1e-7 * _core_gradient_norm(model, problem, X)
+
+
+def test_the_branch_check_judges_the_readings_alone() -> None:
+    """The branch check's chi-square test counts the rows the consistency check judges:
+    a tendon robot's IMU readings and tensions, not its tension rates (inputs, a zero
+    residual at every state) nor its tip condition (a pseudo-measurement with a tiny
+    standard deviation, whose residual far exceeds it off the equilibrium), in its
+    degrees of freedom and in its measurement cost, from the residuals and from the
+    window cost alike; and the shortcut that passes a window on its window cost alone
+    takes the same degrees of freedom."""
+    from continuum_mhe.estimators.branch import BranchCheck
+
+    f = _formulation()
+    problem, X = _window(200, 0.0)
+    # off the equilibrium: the tip condition's residuals are thousands of its standard
+    # deviations (its share of every row's cost: 1e4 against the readings' 3)
+    X[1:] += 1e-4 * np.random.default_rng(2).normal(size=X[1:].shape)
+    problem.zmask[1, 0] = 0.0  # one IMU reading missing
+    readings = f.n_imu_measurements + f.robot.n_tendons  # 4 tilt angles, 6 tensions
+    assert readings == 10 and f.nz == 25
+    rinv = np.linalg.inv(f.meas_cov())
+    expected = 0.0  # r^T R^-1 r over the valid readings (R diagonal)
+    for i in range(HORIZON):
+        r = np.asarray(f.functions.innovate(problem.z[i], X[i])[0], dtype=float).ravel()
+        r = r[:readings] * problem.zmask[i, :readings]
+        expected += float(r @ rinv[:readings, :readings] @ r)
+    check = BranchCheck(f, HORIZON, quadratic=False)
+    c, dof = check.measurement_cost(problem, X)
+    assert dof == HORIZON * readings - 1
+    assert c == pytest.approx(expected, rel=1e-9)
+    model = fm.build_window_model(f, HORIZON)
+    quadratic = BranchCheck(f, HORIZON)
+    c, dof = quadratic.measurement_cost(problem, X, lambda p, Xc: window_cost(model, p, Xc))
+    assert dof == HORIZON * readings - 1
+    assert c == pytest.approx(expected, rel=1e-9)
+    # a window cost whose twice lies between the limits of 29 and 74 degrees of freedom:
+    # evaluated, not passed on it alone
+    limits = quadratic.plausible_limits
+    assert limits is not None
+    window = 0.25 * (limits[HORIZON * readings - 1] + limits[HORIZON * f.nz - 1])
+    quadratic.check(problem, X, Status.OK, _no_solve, lambda p, Xc: 0.0, window_cost=window)
+    assert quadratic.stats.evaluated == 1
+
+
+def _no_solve(problem: WindowProblem, X0: np.ndarray) -> tuple[np.ndarray, Status, object]:
+    raise AssertionError("the window is plausible: no restart")

@@ -63,8 +63,8 @@ class Status(str, Enum):
     FALLBACK_IPOPT = (
         "fallback-ipopt",
         "the fast MHE backend could not certify its answer to this window; IPOPT solved "
-        "it, and no check made it drifted, uncertain, at-bound or inconsistent (each "
-        "judges it as an ok row)",
+        "it, and no check made it a dropout, drifted, uncertain, at-bound or inconsistent "
+        "(each judges it as an ok row)",
     )
     BRANCH_RESTART = (
         "branch-restart",
@@ -72,7 +72,8 @@ class Status(str, Enum):
         "and a restart from another start found a lower window cost, or, with the arrival "
         "prior forgotten, a fit at least twice as good: this answer replaced the "
         "warm-started one (the branch check: on by default with tilt only), and no check "
-        "made it drifted, uncertain, at-bound or inconsistent (each judges it as an ok row)",
+        "made it a dropout, drifted, uncertain, at-bound or inconsistent (each judges it as "
+        "an ok row)",
     )
     RESET = (
         "reset",

@@ -6,10 +6,13 @@ its bound). A warm-started solver stays in the basin it was in, so once the MHE 
 the wrong branch it can stay there for seconds. The check:
 
 1. **Detect.** After the window is solved, its normalised measurement cost
-   ``c = sum_i r_i^T R^-1 r_i`` (valid components only) is compared with the
-   ``QUANTILE`` quantile of a chi-square with ``dof`` = the number of valid measurement
-   components in the window. Below it, nothing else happens (the check costs one
-   residual evaluation of the window).
+   ``c = sum_i r_i^T R^-1 r_i`` (valid readings only) is compared with the
+   ``QUANTILE`` quantile of a chi-square with ``dof`` = the number of valid readings in
+   the window: the rows the consistency check judges (:meth:`Formulation.judged_rows`;
+   every row of a PCC robot; not a tendon robot's tension rates, inputs whose residual
+   is zero, nor its tip condition, a pseudo-measurement whose tiny standard deviation
+   its residual exceeds off the equilibrium). Below it, nothing else happens (the check
+   costs one residual evaluation of the window).
 2. **Restart.** Above it, the SAME window problem is solved again from other starting
    trajectories (:meth:`BranchCheck.candidates`): a re-initialisation from the
    window's measurements (each sample's state from the formulation's tilt inverse,
@@ -123,14 +126,21 @@ class BranchCheck:
         self.horizon = horizon
         self._innovate = formulation.functions.innovate.map(horizon)
         self._rinv = np.linalg.inv(formulation.meas_cov())
+        #: the rows a chi-square test judges (:meth:`Formulation.judged_rows`)
+        self._judged = formulation.judged_rows()
+        # the mask's factor for the measurement cost where some row is not judged: the
+        # pseudo-measurements left out, the rows the model reads as inputs kept (their
+        # residual is zero, and a masked row's value is no input)
+        pseudo = ~self._judged & ~formulation.input_rows()
+        self._counted = (~pseudo).astype(float) if pseudo.any() else None
         self.stats = BranchStats()
         self._inverse: dict[bytes, FloatArray] = {}  # tilt inverse per sample, by its z
         self._node: NodeEvaluator | None = None  # the model's node in the compiled core
         self._process_noise = ProcessNoiseCache(formulation)  # (Q(dt), Q(dt)^-1)
         self._zero_weights: tuple[FloatArray, FloatArray] | None = None
         #: the first test of :meth:`check` (a quadratic loss; None otherwise): a certified
-        #: window whose twice window cost is at most entry ``dof`` (its valid measurement
-        #: components, 0 to ``horizon * nz``) is plausible without an evaluation; the
+        #: window whose twice window cost is at most entry ``dof`` (its valid readings,
+        #: :meth:`dof`, 0 to ``horizon * nz``) is plausible without an evaluation; the
         #: compiled MHE step applies it itself (``_core.MovingHorizon.plausible_limit``)
         dofs = range(1, horizon * formulation.nz + 1)
         self.plausible_limits: FloatArray | None = (
@@ -138,30 +148,41 @@ class BranchCheck:
         )
 
     # --- detect -----------------------------------------------------------------
+    def dof(self, zmask: FloatArray) -> int:
+        """The valid readings of a window's mask ``zmask`` (N, nz): its judged rows'."""
+        return int(zmask[:, self._judged].sum())
+
     def measurement_cost(
         self, problem: WindowProblem, X: FloatArray, cost: CostFn | None = None
     ) -> tuple[float, int]:
-        """``(sum r^T R^-1 r, dof)`` over the valid components of the window (rad^2/rad^2).
+        """``(sum r^T R^-1 r, dof)`` over the valid readings of the window (rad^2/rad^2;
+        :meth:`dof`).
 
         With ``cost`` (the backend's window cost, ``1/2`` of the weighted squares) and a
         quadratic loss, twice that cost with the arrival and process weights zeroed;
         otherwise from the formulation's residuals."""
         z, zmask = problem.z, problem.zmask
-        dof = int(zmask.sum())
+        dof = self.dof(zmask)
         if cost is not None and self.quadratic:
             return 2.0 * cost(self._measurements_only(problem), X), dof
+        if self._counted is not None:
+            zmask = zmask * self._counted
         r = np.asarray(self._innovate(z.T, X.T)[0], dtype=float).T * zmask  # (N, nz)
         return float(np.einsum("ij,jk,ik->", r, self._rinv, r)), dof
 
     def _measurements_only(self, problem: WindowProblem) -> WindowProblem:
-        """``problem`` with no arrival and no process weight (its cost: the measurements')."""
+        """``problem`` with no arrival and no process weight, and its pseudo-measurements
+        masked (its cost: the readings')."""
         zeros = self._zero_weights
         if zeros is None or zeros[0].shape != problem.arrival.shape:
             zeros = self._zero_weights = (
                 np.zeros_like(problem.arrival),
                 np.zeros_like(problem.qinv),
             )
-        return replace(problem, arrival=zeros[0], qinv=zeros[1])
+        if self._counted is None:
+            return replace(problem, arrival=zeros[0], qinv=zeros[1])
+        zmask = problem.zmask * self._counted
+        return replace(problem, zmask=zmask, arrival=zeros[0], qinv=zeros[1])
 
     def implausible(
         self, problem: WindowProblem, X: FloatArray, cost: CostFn | None = None
@@ -275,7 +296,7 @@ class BranchCheck:
             return X, status, None, False
         limits = self.plausible_limits
         if limits is not None and window_cost is not None:
-            if 2.0 * window_cost <= limits[int(problem.zmask.sum())]:
+            if 2.0 * window_cost <= limits[self.dof(problem.zmask)]:
                 return X, status, None, False
         self.stats.evaluated += 1
         if not self.implausible(problem, X, cost):

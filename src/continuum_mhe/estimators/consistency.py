@@ -198,10 +198,7 @@ class ConsistencyCheck:
         # robot's tip condition, met only to the linearisation of a step) nor the rows it
         # reads as inputs (a tendon robot's tension rates), whose residual is zero: counted
         # among the degrees of freedom they would loosen every chi-square limit
-        judged = (
-            np.concatenate([np.full(b.size, b.kind != "equilibrium") for b in f.measurement_blocks])
-            & ~f.input_rows()
-        )
+        judged = f.judged_rows()
         self._judged_rows = np.flatnonzero(judged)
         gravity_r = np.where(f.gravity_direction_rows(), np.diag(R), 0.0)
         # the shift test reads the update as a linear one of the judged rows alone

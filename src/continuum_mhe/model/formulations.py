@@ -589,6 +589,18 @@ class Formulation:
         counts them among a test's degrees of freedom (here none)."""
         return np.zeros(self.nz, dtype=bool)
 
+    def judged_rows(self) -> NDArray[np.bool_]:
+        """Which rows (nz,) of ``z`` are readings that a chi-square test judges and counts
+        among its degrees of freedom (the consistency check, the bad-start check, the
+        MHE's branch check): every row but a model's pseudo-measurements (blocks of kind
+        ``"equilibrium"``: a tendon robot's tip condition, met only to the linearisation
+        of a step) and the rows it reads as inputs (:meth:`input_rows`, whose residual is
+        zero)."""
+        pseudo = np.concatenate(
+            [np.full(b.size, b.kind == "equilibrium") for b in self.measurement_blocks]
+        )
+        return ~pseudo & ~self.input_rows()
+
     def reading_bias_cov(self) -> FloatArray:
         """The covariance (nz, nz) of the readings' constant errors, in the residual's
         units: ``noise.reading_bias_std^2`` on each gravity-direction reading
