@@ -66,6 +66,19 @@ def test_estimate_reads_tensions_and_writes_the_tip_force(tmp_path: Path) -> Non
     np.testing.assert_array_equal(data["fx"], table.column("fx"))
 
 
+def _small_robot_estimate(tmp_path: Path) -> tuple[Path, Path, Path, Path]:
+    """The small robot's recording, tensions file and robot file in ``tmp_path``, and
+    its EKF estimate ``e.csv`` made from them by ``estimate``: ``(meas, tensions, robot,
+    est)``."""
+    meas, tensions = small_robot_recording(tmp_path)
+    robot = small_robot(tmp_path)
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
+            "-o", str(est), "--method", "ekf"]  # fmt: skip
+    assert main(argv) == 0
+    return meas, tensions, robot, est
+
+
 def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -73,12 +86,7 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     backbone from the mechanics model; without them those its options line names
     (said in a note), and where those are gone the section ends joined, said in a
     note; ``--inputs`` on an estimate without a tip force: one line, nothing written."""
-    meas, tensions = small_robot_recording(tmp_path)
-    robot = small_robot(tmp_path)
-    est = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
-            "-o", str(est), "--method", "ekf"]  # fmt: skip
-    assert main(argv) == 0
+    meas, tensions, robot, est = _small_robot_estimate(tmp_path)
     capsys.readouterr()
     fig = tmp_path / "e.png"
     argv = ["plot", str(est), "--robot", str(robot), "--inputs", str(tensions), "-o", str(fig)]
@@ -298,12 +306,7 @@ def test_plot_and_view_read_a_tensions_file_as_estimate_does(
     only for a recording with all the robot's tension columns), exit 2, nothing
     written; tensions that end before the estimate are said with the estimate's name,
     as estimate names its recording."""
-    meas, tensions = small_robot_recording(tmp_path)
-    robot = small_robot(tmp_path)
-    est = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
-            "-o", str(est), "--method", "ekf"]  # fmt: skip
-    assert main(argv) == 0
+    meas, tensions, robot, est = _small_robot_estimate(tmp_path)
     bad = tmp_path / "bad.csv"
     bad.write_text(text)
     fig, saved = tmp_path / "f.png", tmp_path / "f.rrd"

@@ -101,9 +101,10 @@ def turn_boards(folder: Path, turned: Path, rpy: tuple[float, float, float]) -> 
 
 def statuses(estimate: Path) -> dict[str, int]:
     """The count of each status over every row of an estimate file."""
-    lines = [ln for ln in estimate.read_text().splitlines() if not ln.startswith("#")]
-    col = lines[0].split(",").index("status")
-    return dict(sorted(collections.Counter(ln.split(",")[col] for ln in lines[1:]).items()))
+    from continuum_mhe.io.state_tables import read_state_table
+
+    counts = collections.Counter(read_state_table(estimate).status.tolist())
+    return dict(sorted(counts.items()))
 
 
 def run(folder: Path, name: str, imu: str, robot: str, tag: str) -> dict[str, object]:
