@@ -21,7 +21,9 @@ Residuals are plain differences (no wrapping), so nothing is singular at
 Gyro bias (``estimate_gyro_bias=True``): the state gains a bias ``b_i`` (rad/s, IMU
 frame) per IMU, after the bend rates, and the gyro model becomes ``omega + b_i``. Each
 bias is a random walk, ``b+ = b + w``, ``w ~ N(0, gyro_bias_psd dt I_3)``, with prior
-standard deviation ``initial_gyro_bias_std``. It is observable because the
+standard deviation ``initial_gyro_bias_std`` about zero, or ``calibrated_gyro_bias_std``
+for an IMU whose robot file gives a calibrated ``gyro_bias`` (not zero; the readings
+have it removed, so the state is what is left of it). It is observable because the
 accelerometers pin the bends and hence their rates; the estimates settle over seconds
 (a few mrad/s after 12 s in the tests). It is a state, not an output.
 
@@ -126,7 +128,12 @@ class DirectFormulation(BendFormulation):
             (dimensionless, about rad). ``None`` uses ``noise.measurement_std``.
         estimate_gyro_bias: add a gyro bias per IMU to the state.
         gyro_bias_psd: the bias random walk's spectral density, (rad/s)^2/s.
-        initial_gyro_bias_std: prior standard deviation of each bias, rad/s.
+        initial_gyro_bias_std: prior standard deviation of each bias, rad/s, for an IMU
+            without a calibrated ``gyro_bias``.
+        calibrated_gyro_bias_std: prior standard deviation of each bias, rad/s, for an
+            IMU whose ``gyro_bias`` is calibrated (not zero): what a MEMS gyro's bias
+            moves between a calibration at rest and a recording of the same session
+            (warm-up, temperature).
         estimate_accel_bias: add an accelerometer bias per IMU to the state.
         accel_bias_psd: its random walk's spectral density, (m/s^2)^2/s.
         initial_accel_bias_std: prior standard deviation of each accelerometer bias
@@ -151,6 +158,7 @@ class DirectFormulation(BendFormulation):
     estimate_gyro_bias: bool = False
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
+    calibrated_gyro_bias_std: float = 0.01
     estimate_accel_bias: bool = False
     accel_bias_psd: float = 1e-6
     initial_accel_bias_std: float = 0.1
@@ -168,6 +176,7 @@ class DirectFormulation(BendFormulation):
             ("accel_direction_std", self.accel_direction_std),
             ("gyro_bias_psd", self.gyro_bias_psd),
             ("initial_gyro_bias_std", self.initial_gyro_bias_std),
+            ("calibrated_gyro_bias_std", self.calibrated_gyro_bias_std),
             ("accel_bias_psd", self.accel_bias_psd),
             ("initial_accel_bias_std", self.initial_accel_bias_std),
             ("bend_jerk_psd", self.bend_jerk_psd),
@@ -321,12 +330,29 @@ class DirectFormulation(BendFormulation):
             [
                 np.diag(super().initial_cov()),
                 np.full(n2, self.initial_bend_accel_std**2),
-                np.full(self.n_gyro_bias, self.initial_gyro_bias_std**2),
+                self.gyro_bias_prior_std() ** 2,
                 np.full(self.n_accel_bias, self.initial_accel_bias_std**2),
                 np.full(2 * self.n_twist, self.initial_twist_std**2),
             ]
         )
         return np.diag(var)
+
+    def gyro_bias_prior_std(self) -> FloatArray:
+        """The gyro-bias states' prior standard deviations, rad/s (three per IMU, in the
+        robot's IMU order; empty without ``estimate_gyro_bias``):
+        ``calibrated_gyro_bias_std`` for an IMU with a calibrated ``gyro_bias`` (not
+        zero), ``initial_gyro_bias_std`` for the others."""
+        if not self.estimate_gyro_bias:
+            return np.zeros(0)
+        return np.repeat(
+            [
+                self.calibrated_gyro_bias_std
+                if any(v != 0.0 for v in imu.gyro_bias)
+                else self.initial_gyro_bias_std
+                for imu in self.robot.imus
+            ],
+            3,
+        )
 
     @cached_property
     def outputs(self) -> tuple[OutputSpec, ...]:
