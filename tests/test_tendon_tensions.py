@@ -191,6 +191,49 @@ def test_plot_and_view_draw_an_estimate_with_its_recordings_tension_columns(
     assert "drawn through the section ends" in capsys.readouterr().err
 
 
+def _recorded_options(est: Path) -> dict[str, object]:
+    """The options line of the estimate file ``est``, read as TOML."""
+    import tomllib
+
+    line = next(ln for ln in est.read_text().splitlines() if ln.startswith("# options ="))
+    return dict(tomllib.loads(line[2:])["options"])
+
+
+def test_a_tendon_estimates_options_line_records_only_the_options_its_model_takes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tendon robot's estimate file records no option of the constant-curvature models
+    (the formulation, their noise terms, the IMU error and own-acceleration switches:
+    the tendon model has its own), and records the tensions and the noise it takes;
+    ``--config EST.csv`` repeats the run and its record. ``--formulation paper`` on a
+    tendon robot (one section with its IMU at the tip, which the paper's model takes
+    otherwise) is refused in one line, nothing written."""
+    meas, tensions, robot, est = _small_robot_estimate(tmp_path)
+    recorded = _recorded_options(est)
+    for key in ("formulation", "model-error-floor-deg", "reading-bias-deg", "accel-psd",
+                "estimate-accel-bias", "own-acceleration", "imu-twist"):  # fmt: skip
+        assert key not in recorded, key
+    assert recorded["inputs"] == str(tensions) and recorded["robot"] == str(robot)
+    for key in ("estimate-tension-gain", "noise-deg", "model-error-deg", "drift-reset"):
+        assert key in recorded, key
+    again = tmp_path / "again.csv"
+    assert main(["estimate", str(meas), "--config", str(est), "-o", str(again)]) == 0
+    assert _recorded_options(again) == recorded
+    np.testing.assert_array_equal(read_state_table(again).values, read_state_table(est).values)
+    capsys.readouterr()
+    paper = tmp_path / "paper.csv"
+    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
+            "--formulation", "paper", "--method", "ekf", "-o", str(paper)]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (
+        "continuum-mhe: error: --formulation paper is not available for a tendon robot (a "
+        "[backbone] robot file): it is a constant-curvature robot's model; a tendon robot's "
+        "is its mechanics model (leave --formulation out)"
+    )
+    assert not paper.exists()
+
+
 def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

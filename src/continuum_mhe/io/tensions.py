@@ -1044,7 +1044,15 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
     """The tendon formulation of ``base``'s robot, with ``base``'s IMU model (tilt, or
     raw with ``direct``) and noise. Its IMU-error states are the formulation's defaults
     (``--estimate-accel-bias`` asks for one of them); its tension gains with
-    ``--estimate-tension-gain``."""
+    ``--estimate-tension-gain``. The constant-curvature options that would change
+    ``base``'s model (``--formulation paper``, ``--own-acceleration``, ``--imu-twist``)
+    are refused in one line: the tendon model does not take them."""
+    if base.name == "paper":
+        raise InputError(
+            "--formulation paper is not available for a tendon robot (a [backbone] robot "
+            "file): it is a constant-curvature robot's model; a tendon robot's is its "
+            "mechanics model (leave --formulation out)"
+        )
     if options.own_acceleration:
         raise InputError(
             "--own-acceleration is not available for a tendon robot (a [backbone] robot "
