@@ -191,6 +191,49 @@ def test_plot_and_view_draw_an_estimate_with_its_recordings_tension_columns(
     assert "drawn through the section ends" in capsys.readouterr().err
 
 
+def _recorded_options(est: Path) -> dict[str, object]:
+    """The options line of the estimate file ``est``, read as TOML."""
+    import tomllib
+
+    line = next(ln for ln in est.read_text().splitlines() if ln.startswith("# options ="))
+    return dict(tomllib.loads(line[2:])["options"])
+
+
+def test_a_tendon_estimates_options_line_records_only_the_options_its_model_takes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tendon robot's estimate file records no option of the constant-curvature models
+    (the formulation, their noise terms, the IMU error and own-acceleration switches:
+    the tendon model has its own), and records the tensions and the noise it takes;
+    ``--config EST.csv`` repeats the run and its record. ``--formulation paper`` on a
+    tendon robot (one section with its IMU at the tip, which the paper's model takes
+    otherwise) is refused in one line, nothing written."""
+    meas, tensions, robot, est = _small_robot_estimate(tmp_path)
+    recorded = _recorded_options(est)
+    for key in ("formulation", "model-error-floor-deg", "reading-bias-deg", "accel-psd",
+                "estimate-accel-bias", "own-acceleration", "imu-twist"):  # fmt: skip
+        assert key not in recorded, key
+    assert recorded["inputs"] == str(tensions) and recorded["robot"] == str(robot)
+    for key in ("estimate-tension-gain", "noise-deg", "model-error-deg", "drift-reset"):
+        assert key in recorded, key
+    again = tmp_path / "again.csv"
+    assert main(["estimate", str(meas), "--config", str(est), "-o", str(again)]) == 0
+    assert _recorded_options(again) == recorded
+    np.testing.assert_array_equal(read_state_table(again).values, read_state_table(est).values)
+    capsys.readouterr()
+    paper = tmp_path / "paper.csv"
+    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
+            "--formulation", "paper", "--method", "ekf", "-o", str(paper)]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (
+        "continuum-mhe: error: --formulation paper is not available for a tendon robot (a "
+        "[backbone] robot file): it is a constant-curvature robot's model; a tendon robot's "
+        "is its mechanics model (leave --formulation out)"
+    )
+    assert not paper.exists()
+
+
 def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -296,6 +339,10 @@ def test_a_tensions_file_without_a_header_is_told_the_tensions_header(
         # a separator too many in the header, not a row too short
         ("t,,tension_1\n0,1.0\n0.1,1.5\n", "line 1: column 2 has no name (a separator too "
          "many?): expected the columns t,tension_1"),
+        # a column of another name beside all the tension columns: no IMU's readings,
+        # so a tensions file's, not a recording's whose other columns are left out
+        ("t,tension_1,foo\n0,1.0,2\n0.1,1.5,2\n", "line 1: foo not the robot's: expected "
+         "the columns t,tension_1 (one per [[tendon]]"),
     ],
 )  # fmt: skip
 def test_plot_and_view_read_a_tensions_file_as_estimate_does(
@@ -303,9 +350,9 @@ def test_plot_and_view_read_a_tensions_file_as_estimate_does(
 ) -> None:
     """``plot`` and ``view`` with ``--inputs`` refuse a bad tensions header in the line
     ``estimate --inputs`` gives it (one reader: a recording's other columns are left out
-    only for a recording with all the robot's tension columns), exit 2, nothing
-    written; tensions that end before the estimate are said with the estimate's name,
-    as estimate names its recording."""
+    only for a recording, with an IMU's readings and all the robot's tension columns),
+    exit 2, nothing written; tensions that end before the estimate are said with the
+    estimate's name, as estimate names its recording."""
     meas, tensions, robot, est = _small_robot_estimate(tmp_path)
     bad = tmp_path / "bad.csv"
     bad.write_text(text)
@@ -335,6 +382,29 @@ def test_plot_and_view_read_a_tensions_file_as_estimate_does(
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and f"but a sample of {est} is at t = " in err[0], err
         assert "the tensions must cover the recording" in err[0]
+
+
+def test_a_recordings_other_columns_are_left_out_and_a_tensions_files_refused(
+    tmp_path: Path,
+) -> None:
+    """The tensions of ``plot`` and ``view`` (``read_drawn_tensions``): a recording (an
+    IMU's readings beside the tension columns) has its other columns left out, a
+    temperature's too; a tensions file with that column is refused as ``estimate
+    --inputs`` refuses it."""
+    from continuum_mhe.errors import InputError
+    from continuum_mhe.io.tensions import read_drawn_tensions
+
+    robot = read_robot(small_robot(tmp_path))
+    rec, file = tmp_path / "rec.csv", tmp_path / "file.csv"
+    write_text_table(rec, ["t", "roll", "pitch", "tension_1", "temp_c"],
+                     [[0.0, 0.0, 0.0, 1.0, 20.0], [0.1, 0.0, 0.0, 1.5, 21.0]])  # fmt: skip
+    table, _ = read_drawn_tensions(rec, robot)
+    np.testing.assert_array_equal(table.values, [[1.0], [1.5]])
+    write_text_table(file, ["t", "tension_1", "temp_c"], [[0.0, 1.0, 20.0], [0.1, 1.5, 21.0]])
+    with pytest.raises(InputError, match=r"line 1: temp_c not the robot's: expected the colu"):
+        read_drawn_tensions(file, robot)
+    with pytest.raises(InputError, match=r"line 1: temp_c not the robot's: expected the colu"):
+        read_tensions(file, 1)  # as estimate --inputs reads it
 
 
 def _assert_refused_in_one_line(

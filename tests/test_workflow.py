@@ -928,16 +928,19 @@ def test_the_options_line_records_the_options_the_run_used(
 ) -> None:
     """An estimate file's options line leaves out what the run did not use: the reject
     reset but where a robust MHE rejects readings, the bad-start check and the glitch
-    skip for a robust MHE, the drift reset for a robot without tendons, an MHE option for
-    a filter."""
+    skip for a robust MHE, the drift reset and the tension gains for a robot without
+    tendons, an MHE option for a filter; it keeps the constant-curvature model's options
+    (a tendon robot's record leaves them out: test_tendon_tensions)."""
     from continuum_mhe.cli.config import recorded_option
 
     meas, out = tmp_path / "m.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
     assert main(["estimate", str(meas), "-o", str(out), *argv]) == 0
-    for key in left_out:
+    for key in (*left_out, "estimate-tension-gain"):
         assert recorded_option(str(out), key) is None, key
-    for key in kept:
+    model = ("formulation", "model-error-floor-deg", "reading-bias-deg", "accel-psd",
+             "estimate-accel-bias", "own-acceleration", "imu-twist")  # fmt: skip
+    for key in (*kept, *model):
         assert recorded_option(str(out), key) is not None, key
 
 

@@ -22,7 +22,7 @@ from continuum_mhe.settings import (
 
 if TYPE_CHECKING:
     from continuum_mhe.estimators import Method
-from continuum_mhe.cli.model_options import worse_on_rods
+from continuum_mhe.cli.model_options import options_not_taken, worse_on_rods
 from continuum_mhe.cli.options import given_options
 
 
@@ -130,6 +130,7 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
         leave_out |= {"bad_start", "glitch"} if robust else {"reject_reset"}
         if not formulation.drift_resets():
             leave_out.add("drift_reset")
+        leave_out |= set(options_not_taken(formulation))  # the other kind of robot's
         args.options_record = options_record(parser, args, leave_out)
     return method
 

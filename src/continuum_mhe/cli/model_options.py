@@ -141,6 +141,31 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+#: The options of a constant-curvature robot's models, by destination, which a tendon
+#: robot's model does not take: its process noise, its IMUs' error states (always
+#: estimated) and the IMUs' own acceleration are its own, and it has no formulation to
+#: choose (each is refused where it would change the model, or has no effect).
+CONSTANT_CURVATURE_OPTIONS = (
+    "formulation",
+    "model_error_floor_deg",
+    "reading_bias_deg",
+    "accel_psd",
+    "estimate_accel_bias",
+    "own_acceleration",
+    "imu_twist",
+)
+#: The options of a tendon robot alone, by destination (refused for another robot).
+TENDON_OPTIONS = ("inputs", "estimate_tension_gain")
+
+
+def options_not_taken(formulation: Formulation) -> tuple[str, ...]:
+    """The destinations of the options that ``formulation``'s robot does not take, which
+    an estimate file's options line leaves out: a tendon robot's model (with tendons)
+    takes none of :data:`CONSTANT_CURVATURE_OPTIONS`, another robot's none of
+    :data:`TENDON_OPTIONS`."""
+    return CONSTANT_CURVATURE_OPTIONS if formulation.robot.n_tendons else TENDON_OPTIONS
+
+
 def formulation_from_args(args: argparse.Namespace) -> Formulation:
     if not (math.isfinite(args.noise_deg) and args.noise_deg > 0):
         raise InputError(

@@ -48,7 +48,9 @@ from continuum_mhe.errors import (
     time_text,
 )
 from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_time_units
+from continuum_mhe.io.imu_columns import TILT_IMU_COLUMNS
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions, OptionWarning
+from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.sample_rows import RowProblems, read_samples
 from continuum_mhe.io.slack_readings import take_slack_readings
 from continuum_mhe.io.tension_derivatives import (
@@ -715,6 +717,17 @@ def _checked_rows(
     return t_arr, taken.values
 
 
+def holds_imu_readings(header: Sequence[str]) -> bool:
+    """Whether a table's ``header`` (lower-case) names an IMU's readings, tilt (``roll``,
+    ``pitch``) or raw (``ax`` ... ``gz``), of one IMU or numbered (``roll_1``): a
+    recording's columns, which a tensions file has none of."""
+    return any(
+        h in imu.names or imu.number(h)[0]
+        for h in header
+        for imu in (TILT_IMU_COLUMNS, RAW_IMU_COLUMNS)
+    )
+
+
 def read_tensions(
     path: str | os.PathLike[str],
     n_tendons: int,
@@ -727,9 +740,9 @@ def read_tensions(
     which are left out here, and whose rows are differenced one by one, as ``live``
     differenced them when it recorded them: a replay gives ``live``'s estimates; a
     tensions file of its own is differenced by :func:`tension_derivatives`; None: as
-    the header says, a recording's where it has all the robot's tension columns and
-    named columns of other kinds, else a tensions file's, its header checked as
-    ``estimate --inputs`` checks it).
+    the header says, a recording's where it has all the robot's tension columns and an
+    IMU's readings (:func:`holds_imu_readings`), else a tensions file's, its header
+    checked as ``estimate --inputs`` checks it: a column of another name is refused).
     ``skip_bad``: a row with a missing or non-finite tension,
     or a bad time, is left out (the tensions are interpolated across it; a
     :class:`~continuum_mhe.io.csv_files.DropoutWarning` counts them) instead of an
@@ -745,9 +758,7 @@ def read_tensions(
         written = rows.written[: len(header)]
         found = [c for c in header if c != "t"]
         recording = other_columns or (
-            other_columns is None
-            and set(names) <= set(found)
-            and any(c and not c.startswith("tension_") for c in found)
+            other_columns is None and set(names) <= set(found) and holds_imu_readings(header)
         )
         if recording:  # its other columns left out, as its IMU reader leaves out one
             found = [c for c in found if c.startswith("tension_")]  # without a name
@@ -1033,7 +1044,15 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
     """The tendon formulation of ``base``'s robot, with ``base``'s IMU model (tilt, or
     raw with ``direct``) and noise. Its IMU-error states are the formulation's defaults
     (``--estimate-accel-bias`` asks for one of them); its tension gains with
-    ``--estimate-tension-gain``."""
+    ``--estimate-tension-gain``. The constant-curvature options that would change
+    ``base``'s model (``--formulation paper``, ``--own-acceleration``, ``--imu-twist``)
+    are refused in one line: the tendon model does not take them."""
+    if base.name == "paper":
+        raise InputError(
+            "--formulation paper is not available for a tendon robot (a [backbone] robot "
+            "file): it is a constant-curvature robot's model; a tendon robot's is its "
+            "mechanics model (leave --formulation out)"
+        )
     if options.own_acceleration:
         raise InputError(
             "--own-acceleration is not available for a tendon robot (a [backbone] robot "
