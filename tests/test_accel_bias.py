@@ -245,7 +245,7 @@ def test_estimated_accel_biases_do_not_take_up_the_readings_constant_errors(
     degrees), so it is held there (``range_std``) and the rest is carried in the
     standard deviations. On the shipped spatial-tendon rod (the README's five steps,
     calibrated) the EKF's ``ok`` rows then lie within 4 standard deviations on every tip
-    axis; with the biases free to take the errors up, 402 of 484 of them would not (30
+    axis; with the biases free to take the errors up, 349 of 424 of them would not (31
     std)."""
     from cli_helpers import calibrated_spatial_tendon
 

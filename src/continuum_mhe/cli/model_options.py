@@ -37,7 +37,7 @@ WORSE_ON_RODS: dict[str, tuple[tuple[str, float, float], ...]] = {
 
 
 #: How :func:`worse_on_rods` names the recordings: the robot file as shipped, not
-#: calibrated (a calibrated one scores spatial-tendon lower: the README's 6.25 mm).
+#: calibrated (a calibrated one scores spatial-tendon lower: the README's 6.15 mm).
 ROD_CLAUSE = "worse on the shipped two-section rods (the shipped robot file, uncalibrated)"
 
 

@@ -377,7 +377,7 @@ class DirectFormulation(BendFormulation):
         deviation too: a bias explains one sample's constant error of a direction
         exactly, so left free it would take up the misalignment and the model error as
         well and leave the bends none (on the shipped spatial-tendon rod, calibrated,
-        402 of the EKF's 484 ``ok`` rows would lie more than 4 standard deviations off
+        349 of the EKF's 424 ``ok`` rows would lie more than 4 standard deviations off
         at the tip). With ``own_acceleration`` the bend accelerations and rates are held
         to their priors too (``initial_bend_accel_std``, rad/s^2, and the noise's
         ``initial_rate_std``, rad/s: the prior, clipped to this range, stays as given): a
@@ -385,7 +385,7 @@ class DirectFormulation(BendFormulation):
         follow it, and the gyros hold the rates; left free they would take up part of it
         along directions that nearly repeat the bends' and shift the bends' share by 3
         to 5 times what it is without own acceleration, now more and now less (on the
-        same rod, 154 of 356 ``ok`` rows beyond 4 standard deviations)."""
+        same rod, 164 of 368 ``ok`` rows beyond 4 standard deviations)."""
         std = super().range_std()
         n0 = self.n_motion + self.n_bias
         std[n0 : n0 + self.n_twist] = self.initial_twist_std
