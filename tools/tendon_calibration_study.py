@@ -1,5 +1,5 @@
 """Does a tendon robot gain from ``calibrate --write-robot`` before ``estimate``?
-(docs/tendon.md#raw-or-tilt-imus-one-or-several).
+(docs/tendon.md#the-estimator, docs/tendon-studies.md#calibrating-the-imus-at-rest).
 
 For each seed the generator's recordings (``continuum-mhe rod tendon --scenario NAME
 --seed S``: the same IMUs' errors in every scenario of one seed and duration) and a rest
