@@ -615,6 +615,43 @@ def test_the_tendon_truth_of_a_straight_robot_has_phi_0_and_no_minus_zero(
         assert "-0" not in cells, path.name
 
 
+def test_a_tendon_recording_comes_with_a_rest_recording_of_its_imus(tmp_path: Path) -> None:
+    """``rod tendon``'s ``NAME_rest.csv``: the recording's IMUs (the same misalignments
+    and biases) with the rod in its first state, straight and still: without noise
+    every row reads what the recording's first row reads, biases included. (A straight
+    trajectory given to the writer stands in for the rod's simulation.)"""
+    from dataclasses import replace
+
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.cosserat_sections import DEFAULT_IMU
+    from continuum_mhe.simulation.cosserat_tendon import (
+        TendonTrajectory,
+        recording_files,
+        write_tendon_recording,
+    )
+
+    n, k = 5, 81
+    nodes = np.zeros((n, 3, k))
+    nodes[:, 2] = np.linspace(0.0, 0.4, k)
+    dirs = np.broadcast_to(np.eye(3), (n, 2, 3, 3)).copy()
+    z = np.zeros((n, 2, 3))
+    sec = SectionTrajectory(np.arange(n) * 0.02, nodes, dirs, z, z.copy(), np.zeros(n), (40, 80))
+    traj = TendonTrajectory(sec, dirs, np.zeros((n, 6)), np.zeros((n, 3)))
+    quiet = replace(DEFAULT_IMU, accel_noise=0.0, gyro_noise=0.0)
+    robot = read_robot("tendon-two-section")
+    write_tendon_recording(tmp_path, "s", robot, "unloaded", 0.08, imu=quiet, seed=3,
+                           trajectory=traj)  # fmt: skip
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(recording_files("s"))
+    raw = np.loadtxt(tmp_path / "s_raw.csv", delimiter=",", skiprows=1, ndmin=2)
+    rest_lines = (tmp_path / "s_rest.csv").read_text().splitlines()
+    assert rest_lines[0] == (tmp_path / "s_raw.csv").read_text().splitlines()[0]
+    rest = np.loadtxt(rest_lines[1:], delimiter=",", ndmin=2)
+    assert len(rest) == len(raw)
+    np.testing.assert_allclose(rest[:, 1:], np.tile(raw[0, 1:], (len(rest), 1)), atol=1e-6)
+    gyro = [4, 5, 6, 10, 11, 12]
+    assert np.abs(raw[0, gyro]).min() > 1e-4  # the seed's gyro biases, read at rest too
+
+
 def test_the_section_truth_of_a_straight_rod_has_phi_0_and_no_minus_zero(
     tmp_path: Path,
 ) -> None:

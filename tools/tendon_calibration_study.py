@@ -4,8 +4,8 @@
 For each seed the generator's recordings (``continuum-mhe rod tendon --scenario NAME
 --seed S``: the same IMUs' errors in every scenario of one seed and duration) and a rest
 recording of the same IMUs (the rod held in its first, straight and still state, fresh
-noise: :func:`~continuum_mhe.simulation.cosserat_sections.write_rest_recording`, as
-``rod`` writes ``NAME_rest.csv`` for a robot of sections; ``rod tendon`` writes none).
+noise: :func:`~continuum_mhe.simulation.cosserat_sections.write_rest_recording`, which
+``rod tendon`` writes as ``NAME_rest.csv`` beside each recording).
 Then, through the command line: ``calibrate --from rest.csv --robot tendon-two-section
 --write-robot cal.toml``, and per scenario and IMU kind (raw, tilt) ``estimate`` with
 the shipped robot file and with ``cal.toml`` (``--inputs`` the tensions) and ``evaluate

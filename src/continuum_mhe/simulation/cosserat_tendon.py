@@ -37,7 +37,10 @@ Files, per recording (``write_tendon_recording``): ``NAME_raw.csv`` (as the rod
 generators', IMU noise and biases as theirs), ``NAME_tilt.csv``, ``NAME_tensions.csv``
 (``t,tension_1..6``, N), ``NAME_truth.csv`` (``t,x,y,z``, per section ``theta_k,
 phi_k, x_k, y_k, z_k, psi_k``, then ``fx,fy,fz``: the columns of the tendon
-formulation's estimates) and ``NAME_info.json`` (the largest bends, twist and force).
+formulation's estimates), ``NAME_info.json`` (the largest bends, twist and force) and
+``NAME_rest.csv`` (the same IMUs, their misalignments and biases, with the rod straight,
+unloaded and still, fresh noise: for ``continuum-mhe calibrate --from``; every recording
+of one seed and IMU settings has the same IMUs).
 
 Regenerate (CasADi and its IPOPT, no extra)::
 
@@ -66,6 +69,7 @@ from continuum_mhe.simulation.cosserat_sections import (
     DEFAULT_IMU,
     SectionTrajectory,
     imu_samples,
+    write_rest_recording,
 )
 
 SCENARIOS = ("unloaded", "planar-s", "force-08", "force-29", "twist-08", "twist-29", "static")
@@ -249,7 +253,7 @@ def truth_columns(n_sections: int) -> list[str]:
 
 def recording_files(name: str) -> tuple[str, ...]:
     """The files a recording named ``name`` writes in its folder (the module docstring)."""
-    kinds = ("raw.csv", "tilt.csv", "tensions.csv", "truth.csv", "info.json")
+    kinds = ("raw.csv", "tilt.csv", "tensions.csv", "truth.csv", "info.json", "rest.csv")
     return tuple(f"{name}_{kind}" for kind in kinds)
 
 
@@ -359,6 +363,7 @@ def write_tendon_recording(
         "route": route,
     }
     (out / f"{name}_info.json").write_text(json.dumps(info, indent=2) + "\n")
+    write_rest_recording(out, name, sec, imu, seed)  # the first state: straight and still
     return info
 
 
