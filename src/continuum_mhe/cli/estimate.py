@@ -71,8 +71,10 @@ from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 
 if TYPE_CHECKING:
+    from continuum_mhe.estimators.twist_evidence import TwistEvidence
     from continuum_mhe.io.background import WriteBehind
     from continuum_mhe.io.estimate_sink import EstimateSink
+    from continuum_mhe.model.formulations import Formulation
 
 #: Samples read, estimated and written as one block (the compiled policy steps a block in
 #: one call; memory stays flat).
@@ -232,6 +234,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
     check_output_path(args.output, args.measurements, args.overwrite)
     out = args.output
     base = formulation_from_args(args)
+    twist = choose_imu_twist(args, base)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
         formulation = stream.formulation
         check_noise_options_apply(args, formulation)
@@ -352,6 +355,8 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         msg += f"; {clause}"
     if free_note := free_of_load_clause(est.inference, n):
         msg += f"; {free_note}"
+    if twist is not None:
+        msg += f"; {twist_clause(twist)}"
     if gaps := tally.gaps.clause():
         msg += f"; {gaps}"
     frozen = ", ".join(f"{k}: {v}" for k, v in sorted(tally.frozen.items()))
@@ -417,6 +422,60 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         print(f"{PROG}: note: {note}", file=sys.stderr)
     print(msg, file=sys.stderr)
     return 0
+
+
+def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEvidence | None:
+    """Where neither ``--imu-twist`` nor ``--no-imu-twist`` was given, the input is a
+    recording file of raw IMUs (the direct model, its gyro biases estimated, no
+    ``--own-acceleration``) and the robot file gives every IMU a calibrated
+    ``gyro_bias``: the readings' evidence for the IMUs' twist
+    (:func:`~continuum_mhe.estimators.twist_evidence.twist_evidence`), and
+    ``args.imu_twist`` set to its choice; else None, ``args.imu_twist`` off where it was
+    not given. The recording is read once more for it (its warnings said by the
+    estimate's own reading)."""
+    from continuum_mhe.estimators.twist_evidence import twist_evidence
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
+
+    if getattr(args, "imu_twist", None) is not None:
+        return None
+    args.imu_twist = False
+    robot = base.robot
+    source = Path(args.measurements)
+    if (
+        args.measurements == "-"
+        or not source.is_file()
+        or robot.has_mechanics
+        or not robot.imus
+        or not gyro_biases_calibrated(robot)
+        or getattr(args, "own_acceleration", False)
+    ):
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        data = load_input(source, input_options(args), base)
+    f = data.formulation
+    if not isinstance(f, DirectFormulation) or not f.estimate_gyro_bias:
+        return None
+    evidence = twist_evidence(f, data.t, data.z)
+    args.imu_twist = evidence.twists
+    return evidence
+
+
+def twist_clause(evidence: TwistEvidence) -> str:
+    """The summary's clause on the IMUs' twist that :func:`choose_imu_twist` chose."""
+    if evidence.samples == 0:
+        return "the IMUs' twist not estimated: no sample to weigh it on"
+    weighed = (
+        f"the twist model predicted {100 * evidence.share:.0f} % of {evidence.samples} "
+        f"readings better, median log-density {evidence.median:+.3g} per reading"
+    )
+    if evidence.twists:
+        return (
+            f"the IMUs' twist estimated (--imu-twist: {weighed}; --no-imu-twist keeps the "
+            "constant-curvature frames)"
+        )
+    return f"the IMUs' twist not estimated ({weighed}; --imu-twist asks for it)"
 
 
 #: A run in which at least this many restarts, and more than the share of the samples

@@ -114,15 +114,18 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--imu-twist",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=None,
         help="for --imu-model direct: each IMU turned about the backbone's tangent by a "
         "twist state, for a backbone that twists (a rod under couples or a tip load); give "
         "calibrated gyro biases (calibrate --from REST.csv --write-robot), held then, not "
-        "estimated. On the shipped twisting rods, calibrated, it takes the EKF's mean tip "
-        "error from 66 and 13 mm to 8.8 and 8.1 mm; on a rod that hardly twists it costs "
-        "1.5 to 2.0 mm (about 4 mm with other draws of the IMUs' errors), and on readings "
-        "the model follows (simulate) 14 against 2.4 mm, with rows ok 20 mm off "
-        "(docs/model.md): only for a robot that twists",
+        "estimated. Default: estimate chooses it for a recording file whose robot file "
+        "has every IMU's gyro_bias calibrated, where the readings fit it better (the "
+        "summary says which; live: off). On the shipped twisting rods, calibrated, it "
+        "takes the EKF's mean tip error from 66 and 13 mm to 8.8 and 8.1 mm; on a rod that "
+        "hardly twists it costs 1.5 to 2.0 mm (about 4 mm with other draws of the IMUs' "
+        "errors), and on readings the model follows (simulate) 14 against 2.4 mm, with rows "
+        "ok 20 mm off (docs/model.md): --no-imu-twist keeps the constant-curvature frames",
     )
 
 

@@ -1,0 +1,98 @@
+"""Whether a recording's raw readings show IMUs that twist about the backbone.
+
+A backbone that twists (a rod under couples, a tendon robot under a tip load) turns
+each IMU about its tangent, which the constant-curvature frames cannot follow; the
+``direct`` model's ``imu_twist`` states follow it, but cost accuracy where the backbone
+does not twist (docs/model.md, "The IMUs' twist"). The readings say which: each model's
+compiled EKF predicts every reading, and the twist model's wider predictions make its
+log-density of a reading lower where the frames follow the robot, higher where they
+cannot. :func:`twist_evidence` runs both filters over a recording and compares the
+log-densities sample by sample (the prediction-error decomposition of each model's
+likelihood); :attr:`TwistEvidence.twists` is true where the twist model predicted the
+median sample better (docs/model-studies.md, "The IMUs' twist, measured").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from continuum_mhe.errors import UserError
+from continuum_mhe.estimators.base import Measurement
+from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
+from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
+
+#: The fewest samples whose readings both filters predicted (a log-density each) for a
+#: choice: 2 s at 50 Hz.
+MIN_SAMPLES = 100
+
+
+@dataclass(frozen=True)
+class TwistEvidence:
+    """What the readings say of the IMUs' twist.
+
+    Attributes:
+        median: the median over the samples of the twist model's log-density of the
+            reading less the constant-curvature frames' (nats per sample; positive:
+            the twist model predicted the reading better).
+        share: the share of those samples on which the twist model predicted better.
+        samples: the samples compared (those with a log-density in both filters).
+    """
+
+    median: float
+    share: float
+    samples: int
+
+    @property
+    def twists(self) -> bool:
+        """Whether the twist model is the better description: at least
+        :data:`MIN_SAMPLES` samples, and its log-density higher on the median one."""
+        return self.samples >= MIN_SAMPLES and self.median > 0.0
+
+
+def twisted_formulation(frames: DirectFormulation) -> DirectFormulation:
+    """``frames`` with each IMU's twist as states (``imu_twist``), its gyro biases held at
+    the robot file's calibration, as ``--imu-twist`` makes it for a calibrated robot
+    (:func:`~continuum_mhe.model.registry.make_formulation`)."""
+    return replace(frames, imu_twist=True, estimate_gyro_bias=False)
+
+
+def twist_evidence(frames: DirectFormulation, t: ArrayLike, z: ArrayLike) -> TwistEvidence:
+    """Run the compiled EKF of ``frames`` (the constant-curvature frames, raw IMUs with
+    gyro biases, every IMU's ``gyro_bias`` calibrated) and of its twisted formulation
+    (:func:`twisted_formulation`) over the readings ``z`` (n, nz) at ``t`` (n,) s, as an
+    estimator's ``run`` takes them, and compare their innovation log-densities sample by
+    sample (no restart: a filter that loses the readings keeps predicting them badly,
+    which is the evidence)."""
+    if not isinstance(frames, DirectFormulation) or frames.imu_twist:
+        raise UserError("twist_evidence takes the direct formulation without imu_twist")
+    if not frames.estimate_gyro_bias or not gyro_biases_calibrated(frames.robot):
+        raise UserError(
+            "twist_evidence needs every IMU's gyro_bias calibrated and the biases estimated "
+            "(calibrate --from REST.csv --write-robot)"
+        )
+    t_arr = np.asarray(t, dtype=float)
+    z_arr = np.asarray(z, dtype=float)
+    densities = []
+    for formulation in (frames, twisted_formulation(frames)):
+        inference = CompiledExtendedKalmanInference(formulation)
+        ll = np.full(len(t_arr), math.nan)
+        for i, (ti, zi) in enumerate(zip(t_arr, z_arr)):
+            try:
+                x, _, _ = inference.infer(Measurement(float(ti), zi))
+            except (ArithmeticError, RuntimeError):  # a filter that failed: no density
+                inference.restart()
+                continue
+            if x is not None and not np.all(np.isfinite(x)):  # diverged: start again
+                inference.restart()
+                continue
+            ll[i] = inference.log_likelihood
+        densities.append(ll)
+    diff = densities[1] - densities[0]
+    diff = diff[np.isfinite(diff)]
+    if not len(diff):
+        return TwistEvidence(math.nan, math.nan, 0)
+    return TwistEvidence(float(np.median(diff)), float(np.mean(diff > 0.0)), len(diff))
