@@ -464,8 +464,13 @@ def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEviden
 
 def twist_clause(evidence: TwistEvidence) -> str:
     """The summary's clause on the IMUs' twist that :func:`choose_imu_twist` chose."""
-    if evidence.samples == 0:
-        return "the IMUs' twist not estimated: no sample to weigh it on"
+    from continuum_mhe.estimators.twist_evidence import MIN_SAMPLES
+
+    if evidence.samples < MIN_SAMPLES:
+        return (
+            f"the IMUs' twist not estimated: {evidence.samples} readings to weigh it on, "
+            f"fewer than {MIN_SAMPLES} (--imu-twist asks for it)"
+        )
     weighed = (
         f"the twist model predicted {100 * evidence.share:.0f} % of {evidence.samples} "
         f"readings better, median log-density {evidence.median:+.3g} per reading"

@@ -83,7 +83,7 @@ from continuum_mhe.model.descriptions import (
 from continuum_mhe.model.imu import STANDARD_GRAVITY, shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
 from continuum_mhe.model.pcc import angular_velocity_at_sym, pose_at_sym
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import ImuPlacement, Robot
 from continuum_mhe.model.settings import FormulationName
 
 
@@ -347,7 +347,7 @@ class DirectFormulation(BendFormulation):
         return np.repeat(
             [
                 self.calibrated_gyro_bias_std
-                if any(v != 0.0 for v in imu.gyro_bias)
+                if gyro_bias_calibrated(imu)
                 else self.initial_gyro_bias_std
                 for imu in self.robot.imus
             ],
@@ -514,11 +514,17 @@ class DirectFormulation(BendFormulation):
         return x
 
 
+def gyro_bias_calibrated(imu: ImuPlacement) -> bool:
+    """Whether ``imu`` has a gyro bias from a calibration (a robot file's ``gyro_bias``,
+    not zero)."""
+    return any(v != 0.0 for v in imu.gyro_bias)
+
+
 def gyro_biases_calibrated(robot: Robot) -> bool:
-    """Whether every IMU of ``robot`` has a gyro bias from a calibration (a robot file's
-    ``gyro_bias``, not zero): with ``imu_twist`` their biases are then held at it, not
-    estimated (a bias about an IMU's z axis and its twist trade off)."""
-    return all(any(v != 0.0 for v in imu.gyro_bias) for imu in robot.imus)
+    """Whether every IMU of ``robot`` has a gyro bias from a calibration
+    (:func:`gyro_bias_calibrated`): with ``imu_twist`` their biases are then held at it,
+    not estimated (a bias about an IMU's z axis and its twist trade off)."""
+    return all(gyro_bias_calibrated(imu) for imu in robot.imus)
 
 
 def _turned(psi: Sym, v: Sym) -> Sym:
