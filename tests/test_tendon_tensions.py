@@ -268,7 +268,11 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
          "line 1: tension_1 missing; tension_2 not the robot's: expected the columns"),
         ([[0.0, 1.0], [0.1, 1.0]], ["t", "Tension_1 (N)"],  # as the file spells it
          "line 1: tension_1 missing; Tension_1 (N) not the robot's: expected the columns"),
-        ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"], "the tensions must cover the recording"),
+        # the row the recording runs past named by its line: the last, or the first
+        ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"],
+         "line 3: the tensions cover t = 0 to 0.05 s, but a sample of"),
+        ([[0.02, 1.0], [0.2, 1.0]], ["t", "tension_1"],
+         "line 2: the tensions cover t = 0.02 to 0.2 s, but a sample of"),
         # milliseconds in t: the 0.1 s recording lies within the first two rows, and would
         # be estimated on tensions held at their first values
         ([[0.0, 1.0], [20.0, 1.1], [40.0, 1.2], [60.0, 1.3], [80.0, 1.4], [100.0, 1.5]],

@@ -572,24 +572,38 @@ class Tensions:
         if len(outside):
             self.at(float(times[outside[0]]), source)
 
+    def coverage_problem(self, t: float, source: str = "", stream: bool = False) -> str:
+        """The line that says that a sample at ``t`` s lies outside the file's times
+        (``source``: the recording or stream it is of; ``stream``: a ``live`` stream,
+        whose ``t`` is the device clock), naming the file's first row's line for a ``t``
+        before it, else its last's, where the rows have lines; ``""`` where the file
+        covers ``t`` (:meth:`covers`)."""
+        if self.covers(t):
+            return ""
+        of = f" of {source}" if source else ""
+        epoch = ""
+        if self.t[0] >= EPOCH_LIKE_S > abs(t):  # a clock's absolute time, s
+            epoch = (
+                " (times since 1970, a clock's own? the recording's t counts from its "
+                "start: a robot log's t = 0 is IMU 1's first stamp, the estimate's "
+                "# t0_ns line)"
+            )
+        end = 0 if t < self.t[0] else len(self.t) - 1  # the row the sample lies beyond
+        line = "" if self.lines is None else f" line {self.lines[end]}"
+        clock, what = (" (the device clock)", "stream") if stream else ("", "recording")
+        return (
+            f"{self.name}{line}: the tensions cover t = {time_text(self.t[0])} to "
+            f"{time_text(self.t[-1])} s{epoch}, but a sample{of} is at t = "
+            f"{time_text(t)} s{clock}: the tensions must cover the {what}"
+        )
+
     def at(self, t: float, source: str = "") -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(tensions, rates, accelerations)`` at ``t`` s, linear between rows; an
-        :class:`InputError` outside the file's times (``source``: the recording, named
-        in it)."""
-        if not self.covers(t):
-            of = f" of {source}" if source else ""
-            epoch = ""
-            if self.t[0] >= EPOCH_LIKE_S > abs(t):  # a clock's absolute time, s
-                epoch = (
-                    " (times since 1970, a clock's own? the recording's t counts from its "
-                    "start: a robot log's t = 0 is IMU 1's first stamp, the estimate's "
-                    "# t0_ns line)"
-                )
-            raise InputError(
-                f"{self.name}: the tensions cover t = {time_text(self.t[0])} to "
-                f"{time_text(self.t[-1])} s{epoch}, but a sample{of} is at t = "
-                f"{time_text(t)} s: the tensions must cover the recording"
-            )
+        :class:`InputError` outside the file's times (:meth:`coverage_problem`;
+        ``source``: the recording, named in it)."""
+        problem = self.coverage_problem(t, source)
+        if problem:
+            raise InputError(problem)
         return tuple(  # type: ignore[return-value]
             np.array([np.interp(t, self.t, v) for v in a.T])
             for a in (self.values, self.rates, self.accelerations)

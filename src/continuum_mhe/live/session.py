@@ -835,14 +835,9 @@ class LiveSession:
             return None
         given = None
         if self.tension_file is not None:
-            if not self.tension_file.covers(t):
-                ts = self.tension_file.t
-                self.fatal = (
-                    f"{self.tension_file.name}: the tensions cover t = {time_text(ts[0])} to "
-                    f"{time_text(ts[-1])} s, but a sample of {self.settings.port} is at "
-                    f"t = {time_text(t)} s "
-                    "(the device clock): the tensions must cover the stream"
-                )
+            outside = self.tension_file.coverage_problem(t, self.settings.port, stream=True)
+            if outside:
+                self.fatal = outside
                 return None  # neither recorded nor estimated: the session stops
             first = float(self.tension_file.t[0])
             if c.samples == 0 and t - first > TENSIONS_LATE_START_S:
