@@ -9,6 +9,8 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <memory>
 #include <optional>
@@ -381,6 +383,7 @@ class KalmanInference final : public PolicyInference {
   void output_std(const double* x, const double* P, double* s) override {
     node_.output_std(x, P, s);
   }
+  int nz() const { return node_.nz(); }
   bool is_diverged(const double* x, const double* P) override {
     return check("is_diverged", x, P);
   }
@@ -389,6 +392,41 @@ class KalmanInference final : public PolicyInference {
   bool start_untrusted(double t, const double* z) override {
     nb::gil_scoped_acquire gil;
     return nb::cast<bool>(py_.attr("start_untrusted")(t, copy_of(z, {size_t(node_.nz())})));
+  }
+  // Each of the ``n`` samples' innovation log-density (the node's ``log_likelihood``)
+  // into ``ll``, the filter stepped over the readings ``z`` (n, nz) at ``t`` (n,) with
+  // the validity ``mask`` (n, nz) and no policy: NaN for a start, a sample without a
+  // valid reading, and one whose step failed or left a non-finite state, after which
+  // the filter starts again from the next sample. Called without the GIL (the Python
+  // hooks of a start and a restart take it), which it takes every 1,024 samples for a
+  // signal's handler: one that raises ends the call with its exception.
+  void log_likelihoods(size_t n, const double* t, const double* z, const double* mask,
+                       double* ll) {
+    const int nx = node_.nx(), nz = node_.nz();
+    std::vector<double> x(nx), P(size_t(nx) * nx);
+    for (size_t i = 0; i < n; ++i) {
+      if (i % 1024 == 0) {
+        nb::gil_scoped_acquire gil;
+        if (PyErr_CheckSignals() != 0) throw nb::python_error();
+      }
+      ll[i] = NAN;
+      const bool started = has_x_;
+      bool has_state = false, has_cov = false;
+      try {
+        infer(t[i], z + i * nz, mask + i * nz, x.data(), P.data(), has_state, has_cov);
+      } catch (const nb::python_error&) {
+        throw;  // not a numerical failure: the caller's to see
+      } catch (const std::runtime_error&) {  // a failed step: start again
+        restart(nullptr, nullptr, NAN);
+        continue;
+      }
+      if (!has_state) continue;
+      if (!std::all_of(x.begin(), x.end(), [](double v) { return std::isfinite(v); })) {
+        restart(nullptr, nullptr, NAN);  // diverged: start again
+        continue;
+      }
+      if (started) ll[i] = node_.log_likelihood;
+    }
   }
 
  private:
@@ -763,7 +801,25 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "``inference``: its hooks (``restart(kept_x, kept_P, kept_t)``, "
           "``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); "
           "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``; "
-          "``unscented``: the UKF's steps (an UnscentedFilter) instead of the EKF's.");
+          "``unscented``: the UKF's steps (an UnscentedFilter) instead of the EKF's.")
+      .def(
+          "log_likelihoods",
+          [](KalmanInference& self, In t, In z, In mask, OutArray<double> ll) {
+            const size_t n = t.size(), nz = size_t(self.nz());
+            check_size(z, n * nz, "z");
+            check_size(mask, n * nz, "mask");
+            if (ll.size() != n) throw std::invalid_argument("ll needs n values");
+            nb::gil_scoped_release released;  // two filters may step side by side
+            self.log_likelihoods(n, t.data(), z.data(), mask.data(), ll.data());
+          },
+          nb::arg("t"), nb::arg("z"), nb::arg("mask"), nb::arg("ll"),
+          "Step the filter, without the policy, over the readings ``z`` (n, nz) at ``t`` "
+          "(n,) s with the validity ``mask`` (n, nz: 1 where a component is valid), writing "
+          "each sample's innovation log-density ``-(r^T S^-1 r + log|S|) / 2`` into ``ll`` "
+          "(n,): NaN for a start, a sample without a valid reading, and one whose step "
+          "failed or left a non-finite state, after which the filter starts again from the "
+          "next sample. Runs without the GIL but for the filter's Python hooks (a start, a "
+          "restart).");
 
   nb::class_<Policy>(
       m, "SensorHealth",

@@ -331,6 +331,40 @@ def test_the_readings_evidence_tells_a_twisting_rod_from_one_that_does_not(tmp_p
     assert -10.0 < planar.median < 0.0 and planar.share < 0.05
 
 
+def test_the_evidence_s_compiled_run_is_the_filter_stepped_sample_by_sample(tmp_path) -> None:
+    """``KalmanInference.log_likelihoods`` (the evidence's filters, each over the whole
+    recording in one compiled call) gives each sample's innovation log-density as the
+    compiled EKF stepped one :meth:`infer` at a time does: the calibrated ``spatial`` rod,
+    twist model and frames, with one IMU's readings missing on some samples and every
+    reading on others (NaN where there is none). The masks are :meth:`measurement_mask`'s,
+    row by row."""
+    from continuum_mhe.estimators.base import Measurement
+    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
+    from continuum_mhe.estimators.twist_evidence import twisted_formulation
+
+    robot = read_robot(str(_calibrated(tmp_path, "spatial")))
+    data = load_input(ROD / "spatial_raw.csv", InputOptions(), make_formulation("bend", robot))
+    t, z = data.t[:200], data.z[:200].copy()
+    imu_2 = data.formulation.measurement_blocks[1].slice
+    z[50:53, imu_2] = np.nan  # IMU 2 silent
+    z[80] = np.nan  # no reading at all
+    for formulation in (data.formulation, twisted_formulation(data.formulation)):
+        masks = formulation.measurement_masks(z)
+        assert np.array_equal(masks, [formulation.measurement_mask(zk) for zk in z])
+        assert masks[51, imu_2].sum() == 0 and masks[51].sum() > 0 and masks[80].sum() == 0
+        stepped = CompiledExtendedKalmanInference(formulation).policy_inference()
+        assert stepped is not None
+        batch = np.full(len(t), np.nan)
+        stepped.log_likelihoods(t, np.ascontiguousarray(z), masks, batch)
+        one_by_one = CompiledExtendedKalmanInference(formulation)
+        expected = []
+        for tk, zk in zip(t, z):
+            one_by_one.infer(Measurement(float(tk), zk))
+            expected.append(one_by_one.log_likelihood)
+        assert np.isnan(batch[0]) and np.isnan(batch[80]) and np.isfinite(batch[51])
+        np.testing.assert_allclose(batch, expected, rtol=1e-12, atol=1e-9)
+
+
 def test_estimate_chooses_the_twist_for_a_calibrated_twisting_rod(tmp_path, capsys) -> None:
     """Without ``--imu-twist`` or ``--no-imu-twist``, ``estimate`` of a calibrated raw
     recording estimates the twist where the readings say so, says it, and records it:

@@ -893,6 +893,11 @@ class KalmanInference:
         ``node``: the filter's NodeModel (its outputs, and the EKF's step); ``inference``: its hooks (``restart(kept_x, kept_P, kept_t)``, ``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``; ``unscented``: the UKF's steps (an UnscentedFilter) instead of the EKF's.
         """
 
+    def log_likelihoods(self, t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ll: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> None:
+        """
+        Step the filter, without the policy, over the readings ``z`` (n, nz) at ``t`` (n,) s with the validity ``mask`` (n, nz: 1 where a component is valid), writing each sample's innovation log-density ``-(r^T S^-1 r + log|S|) / 2`` into ``ll`` (n,): NaN for a start, a sample without a valid reading, and one whose step failed or left a non-finite state, after which the filter starts again from the next sample. Runs without the GIL but for the filter's Python hooks (a start, a restart).
+        """
+
 class SensorHealth:
     """
     The sensor-health policy of an estimator (continuum_mhe.estimators.sensor_health): step one sample, or run a recording into arrays, in compiled code (csrc/sensor_health.hpp).

@@ -301,6 +301,15 @@ class Formulation:
                 mask[sl] = 1.0
         return mask
 
+    def measurement_masks(self, z: FloatArray) -> FloatArray:
+        """``(n, nz)``: :meth:`measurement_mask` of each of the readings ``z`` (n, nz)."""
+        finite = np.isfinite(np.asarray(z, dtype=float))
+        mask = np.zeros(finite.shape)
+        for sl in self._block_slices:
+            mask[:, sl] = finite[:, sl].all(axis=1, keepdims=True)
+        mask[finite.all(axis=1)] = 1.0
+        return mask
+
     # --- symbolic model (override) ---------------------------------------------
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
         """The next state ``f(x, u, dt)`` (nx,) from the state ``x`` (nx,), the input
