@@ -628,6 +628,49 @@ def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> No
     assert check.check(t + dt, z, f.measurement_mask(z), x, P)
 
 
+def test_two_readings_in_a_row_beyond_the_99_percent_quantile_are_inconsistent() -> None:
+    """The run rule (docs/options.md): a sample whose statistic (the larger of its NIS and
+    fit) lies beyond the chi-square 99 % quantile of its degrees of freedom, after one
+    that did too, is ``inconsistent``; one such sample alone is not, nor two apart, nor
+    two in a row at the 98.5 % quantile. Each sample's statistic is put at a quantile by
+    moving its first reading (bisection) with the previous estimate held, so it does not
+    depend on the samples before it."""
+    from continuum_mhe.estimators.consistency import ConsistencyCheck
+    from continuum_mhe.quantiles import chi2_quantile
+
+    f = _formulation("bend")
+    x0, P0, z0 = _consistent_sample(f, np.random.default_rng(7))
+    mask = f.measurement_mask(z0)
+    dof, std = int(mask.sum()), math.sqrt(f.meas_cov()[0, 0])
+
+    def run(scales: list[float]) -> tuple[list[bool], list[float]]:
+        """Flags and statistics of samples 1, 2, ... with the first reading moved by
+        ``scales`` of its noise std (the same estimate at each, after sample 0)."""
+        check = ConsistencyCheck(f)
+        assert not check.check(0.0, z0, mask, x0, P0)
+        flags, worst = [], []
+        for k, scale in enumerate(scales, start=1):
+            z = z0.copy()
+            z[0] += scale * std
+            flags.append(check.check(0.02 * k, z, mask, x0, P0))
+            worst.append(max(check._core.nis, check._core.fit))
+        return flags, worst
+
+    def at(quantile: float) -> float:
+        a, b = 0.0, 100.0
+        for _ in range(60):
+            mid = (a + b) / 2
+            a, b = (mid, b) if run([mid])[1][0] < chi2_quantile(quantile, dof) else (a, mid)
+        return (a + b) / 2
+
+    high, low = at(0.995), at(0.985)
+    flags, worst = run([high, high, 0.0, high, 0.0, high])
+    assert chi2_quantile(0.99, dof) < worst[0] < chi2_quantile(0.999, dof)
+    assert flags == [False, True, False, False, False, False]
+    flags, worst = run([low, low, low])
+    assert worst[0] < chi2_quantile(0.99, dof) and flags == [False, False, False]
+
+
 @pytest.mark.parametrize("imu", ["tilt", "raw"])
 def test_a_tendon_robots_check_counts_only_the_rows_that_carry_a_residual(imu) -> None:
     """A tendon robot's tension rates are the model's inputs, whose rows of the residual

@@ -56,6 +56,10 @@ def test_line_splitter_accepts_lf_cr_crlf_and_drops_long_lines() -> None:
     assert sp.feed(b"x" * 1_000_000) == [] and sp.too_long == []
     assert sp.feed(b"x\nf,6\n") == [b"f,6"] and sp.too_long == [1_000_011]
     assert sp.feed(b"g,7") == [] and sp.pending() == b"g,7"
+    # the cap is the longest line kept (its line end aside), whole or in two reads
+    assert sp.feed(b"1" * 16 + b"\r\n") == [b"1" * 16] and sp.too_long == []
+    assert sp.feed(b"2" * 9) == [] and sp.feed(b"2" * 7 + b"\n") == [b"2" * 16]
+    assert sp.feed(b"3" * 17 + b"\n") == [] and sp.too_long == [17]
 
 
 def test_the_tail_of_a_line_cut_at_a_reopen_is_not_a_sample() -> None:

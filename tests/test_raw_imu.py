@@ -24,6 +24,7 @@ from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.raw_imu import (
     RawImuConverter,
     RawImuSettings,
+    gravity_from_quaternion,
     mount_rotation,
     raw_to_measurements,
     read_raw_imu,
@@ -149,6 +150,28 @@ def test_raw_imus_estimate_better_than_their_tilt(
         s = make_estimator(method, f, mhe).run(t, z)
         errors[model] = compute_metrics(s.output, truth, robot.length).tip_mean_mm
     assert errors["direct"] < 0.5 * errors["tilt"], errors
+
+
+def test_the_up_direction_of_an_attitude_quaternion_is_scipys() -> None:
+    """The up direction in the sensor frame of a sensor-to-world quaternion ``(w, x, y,
+    z)`` is ``R(q)^T e_z`` of SciPy's rotation of that quaternion, at any yaw (where
+    every term counts: near yaw 0 the ``y z`` one vanishes) and of any norm; known
+    answers: a turn by ``a`` about x reads ``(0, sin a, cos a)``, a half turn about y
+    ``(0, 0, -1)``."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(4)
+    quats = rng.normal(size=(200, 4)) * rng.uniform(0.1, 3.0, (200, 1))
+    quats[:3] = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 0.0]]
+    up = Rotation.from_quat(quats[:, [1, 2, 3, 0]]).as_matrix()[:, 2, :]  # R^T e_z: row 3
+    got = np.array([gravity_from_quaternion(q) for q in quats])
+    np.testing.assert_allclose(got, up, rtol=0, atol=1e-14)
+    a = 0.7
+    about_x = [math.cos(a / 2), math.sin(a / 2), 0.0, 0.0]
+    np.testing.assert_allclose(gravity_from_quaternion(about_x), [0.0, math.sin(a), math.cos(a)],
+                               rtol=0, atol=1e-15)  # fmt: skip
+    np.testing.assert_allclose(gravity_from_quaternion([0.0, 0.0, 1.0, 0.0]), [0.0, 0.0, -1.0],
+                               rtol=0, atol=1e-15)  # fmt: skip
 
 
 def test_gyro_fusion_tracks_tilt(moving_tip: dict[str, np.ndarray]) -> None:

@@ -261,6 +261,28 @@ def test_robot_classes_take_numpy_numbers_and_refuse_bools_and_slips() -> None:
             make()
 
 
+@pytest.mark.parametrize("at", ["0", "-0.25", "1.0000001", "2"])
+def test_an_imu_at_a_fraction_outside_0_to_1_is_refused_naming_its_line(
+    tmp_path: Path, at: str
+) -> None:
+    """``at`` is a fraction of the section in (0, 1]: 0 (the section's base, the end of
+    the one before), a negative one or one past the end is one InputError naming the
+    file, the line of its ``at`` and the range, and a UserError from the library's
+    ``ImuPlacement``; 1 (the end) is read."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.robot import ImuPlacement
+
+    robot = _robot(tmp_path / "r.toml", "section = 1", f"section = 2\nat = {at}")
+    said = f"at must lie in (0, 1] (fraction of the section), got {float(at)!r}"
+    with pytest.raises(InputError, match=rf"r\.toml: line 11: imu 2: {re.escape(said)}$"):
+        read_robot(robot)
+    said = f"IMU 'at' must be a number in (0, 1] (a fraction of the section), got {float(at)!r}"
+    with pytest.raises(UserError, match=f"^{re.escape(said)}$"):
+        ImuPlacement(1, float(at))
+    assert read_robot(_robot(robot, "section = 1", "section = 2\nat = 1")).imus[1].at == 1.0
+    assert ImuPlacement(1, 1.0).at == 1.0
+
+
 def test_an_imu_at_a_subnormal_fraction_is_refused_where_it_is_given(tmp_path: Path) -> None:
     """``at = 5e-324`` (a subnormal fraction, in (0, 1] but 1 / at overflows: a raw
     recording's start failed in scipy's least squares) is refused by ``ImuPlacement``
