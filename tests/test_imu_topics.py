@@ -56,8 +56,10 @@ def test_samples_that_lose_their_nearest_pair_with_a_free_one_in_order() -> None
     other = np.array([9, 31, 49, 71], dtype=np.int64)
     # 20's nearest (31 and 9 tie: the later) is 40's nearest: 20 takes 31, which is free
     assert [list(i) for i in pair_stamps([ref, other], 12)] == [[0, 1, 2, 3], [0, 1, 2, 3]]
-    # within the tolerance only: 20 and 31 are 11 apart
+    # within the tolerance only: 20 and 31 are 11 apart, as are 60 and 71 (mutual nearest)
     assert [list(i) for i in pair_stamps([ref, other], 10)] == [[0, 1, 2, 3], [0, -1, 2, -1]]
+    # the tolerance is the largest difference taken, by either rule
+    assert [list(i) for i in pair_stamps([ref, other], 11)] == [[0, 1, 2, 3], [0, 1, 2, 3]]
     # not across a pair: 1's partner lies between 0 and 2's, none is free there
     assert [list(i) for i in pair_stamps([np.array([0, 4]), np.array([3])], 5)] == [[0, 1], [-1, 0]]
 
