@@ -354,6 +354,33 @@ def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
     assert "t advances by a median of" in err and "name the column t_ms" in err
 
 
+@pytest.mark.parametrize(("gaps", "refused"), [(15, False), (16, True)])
+def test_estimate_refuses_a_recording_where_most_samples_restart_after_a_gap(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], gaps: int, refused: bool
+) -> None:
+    """The refusal's threshold: of 30 samples, 15 that each follow a gap longer than
+    --gap-reset (half of them) are estimated and written; 16 (more than half) are
+    refused in one line, exit 2, nothing written."""
+    from continuum_mhe.cli import main
+
+    lines = _csv(30).splitlines()
+    rows = []
+    for i, r in enumerate(lines[1:]):
+        t = 0.05 * i + 2.0 * min(i, gaps)  # samples 1 to gaps each 2 s after the one before
+        rows.append(",".join([f"{t:.6f}", *r.split(",")[1:]]))
+    path = _write(tmp_path / "gaps.csv", "\n".join([lines[0], *rows]) + "\n")
+    out = tmp_path / "e.csv"
+    code = main(["estimate", str(path), "-o", str(out), "--method", "ekf"])
+    err = capsys.readouterr().err
+    if refused:
+        assert code == 2 and not out.exists()
+        assert err.count("\n") == 1, err
+        assert f"gaps.csv: {gaps} of 30 samples restarted the estimator after a gap" in err
+    else:
+        assert code == 0 and len(_estimate_rows(out)) == 30, err
+        assert "samples restarted the estimator after a gap" not in err
+
+
 def _raw_recording(path: Path, dt: float, duration: float, scale: float, column: str) -> Path:
     """A two-section raw recording (``simulate spatial --imu raw``) at ``dt`` s, its times
     multiplied by ``scale`` in a column named ``column``."""

@@ -231,7 +231,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
     from continuum_mhe.io.inputs import open_input
 
     refuse_inputs(args.output, input_files(args))  # first: an input is the worst to lose
-    check_output_path(args.output, args.measurements, args.overwrite)
+    check_output_path(args.output, args.overwrite)
     out = args.output
     base = formulation_from_args(args)
     twist = choose_imu_twist(args, base)
@@ -542,18 +542,17 @@ def no_estimate_cause(args: argparse.Namespace, readings: int, outliers: int) ->
 ESTIMATE_SUFFIXES = (".csv", ".txt", "", ".mcap")
 
 
-def check_output_path(output: str, source: str, overwrite: bool = False) -> None:
+def check_output_path(output: str, overwrite: bool = False) -> None:
     """The output must be a writable file name in an existing folder (see
-    :func:`check_output_target`), not the input itself, and new unless ``overwrite``;
-    checked before any work."""
+    :func:`check_output_target`) with an estimate's suffix, and new unless
+    ``overwrite``; checked before any work, after :func:`refuse_inputs` has refused an
+    output that is one of the inputs."""
     out = check_output_target(output)
     if out.suffix.lower() not in ESTIMATE_SUFFIXES:  # a name another reader would misread
         raise InputError(
             f"{output}: an estimate is written as CSV (.csv or .txt, or no suffix) or MCAP "
             f"(.mcap), not {out.suffix}"
         )
-    if source != "-" and out.exists() and out.resolve() == Path(source).resolve():
-        raise InputError(f"{out}: refusing to overwrite the input file")
     check_output_target(output, overwrite)
 
 
