@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import functools
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators.load_hypotheses import LoadHypothesesKalmanFilter
 from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import open_input
@@ -32,6 +35,37 @@ def shipped_recording(scenario: str, imu: str) -> tuple[TendonFormulation, np.nd
         blocks = list(stream.blocks)
     assert isinstance(f, TendonFormulation)
     return f, np.concatenate([b[0] for b in blocks]), np.vstack([b[1] for b in blocks])
+
+
+@dataclass
+class EkfRun:
+    """The EKF that ``make_estimator`` gives (two hypotheses) run over a whole shipped
+    recording, and the count of its compiled measurement terms' remembered evaluations
+    taken during the run (``hits``)."""
+
+    f: TendonFormulation
+    t: np.ndarray
+    z: np.ndarray
+    estimator: LoadHypothesesKalmanFilter
+    series: object
+    hits: int
+
+
+@functools.cache
+def default_ekf_run(scenario: str, imu: str) -> EkfRun:
+    """The :class:`EkfRun` of the shipped recording ``scenario`` (``raw`` or ``tilt``
+    IMUs), run once a test process and shared by the test modules that read the default
+    EKF's run over the whole of it (each such run takes seconds). Read only: a test that
+    changes the estimator makes its own."""
+    from continuum_mhe.estimators.fast import node_functions
+
+    f, t, z = shipped_recording(scenario, imu)
+    memo = node_functions(f).measurement
+    est = make_estimator("ekf", f)
+    assert isinstance(est, LoadHypothesesKalmanFilter)
+    before = memo.hits
+    series = est.run(t, z)
+    return EkfRun(f, t, z, est, series, memo.hits - before)
 
 
 #: the shipped tendon robot's backbone (nitinol-like, 0.7 mm)

@@ -153,7 +153,7 @@ def test_the_bound_warning_names_the_robot_files_key_or_the_option(tmp_path, cap
 def test_a_bound_reached_by_readings_that_restart_the_estimator_puts_the_robot_file_first(
     tmp_path, capsys
 ):
-    """The spatial rod's raw recording (its first 4 s) with its two IMUs' columns swapped
+    """The spatial rod's raw recording (its first 2 s) with its two IMUs' columns swapped
     in the header, and a robot file bounding each bend at 2 rad: the readings restart
     the estimator on many samples (warned of), and estimates sit on the bound; the
     bound's warning, besides raising the bound, says that where the robot file does not
@@ -163,7 +163,7 @@ def test_a_bound_reached_by_readings_that_restart_the_estimator_puts_the_robot_f
     lines = (ROD / "spatial_raw.csv").read_text(encoding="utf-8").splitlines(keepends=True)
     swapped = lines[0].replace("_1", "_X").replace("_2", "_1").replace("_X", "_2")
     meas = tmp_path / "swapped_raw.csv"
-    meas.write_text(swapped + "".join(lines[1:201]), encoding="utf-8")
+    meas.write_text(swapped + "".join(lines[1:101]), encoding="utf-8")
     robot = _robot(tmp_path, "\ntheta_max = 2.0")
     assert main(["estimate", str(meas), "--robot", str(robot), "-o", str(tmp_path / "e.csv")]) == 0
     err = capsys.readouterr().err

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tendon_helpers import DATA, shipped_recording
+from tendon_helpers import DATA, EkfRun, default_ekf_run, shipped_recording
 
 from continuum_mhe.errors import UnobservableShapeWarning
 from continuum_mhe.estimators import make_estimator
@@ -51,41 +51,12 @@ def _errors(f: TendonFormulation, series, scenario: str) -> tuple[np.ndarray, np
     return err(("x", "y", "z")), err(("fx", "fy", "fz"))
 
 
-@dataclass
-class EkfRun:
-    """The EKF that ``make_estimator`` gives (two hypotheses) run over a whole shipped
-    recording, and the count of its compiled measurement terms' remembered evaluations
-    taken during the run (``hits``)."""
-
-    f: TendonFormulation
-    t: np.ndarray
-    z: np.ndarray
-    estimator: LoadHypothesesKalmanFilter
-    series: object
-    hits: int
-
-
 @pytest.fixture(scope="module")
 def default_ekf() -> Callable[[str, str], EkfRun]:
-    """``default_ekf(scenario, imu)``: the :class:`EkfRun` of that shipped recording, run
-    once a module and shared by the tests that run the default EKF over the whole of it
-    (each such run takes seconds)."""
-    from continuum_mhe.estimators.fast import node_functions
-
-    runs: dict[tuple[str, str], EkfRun] = {}
-
-    def run(scenario: str, imu: str) -> EkfRun:
-        if (scenario, imu) not in runs:
-            f, t, z = shipped_recording(scenario, imu)
-            memo = node_functions(f).measurement
-            est = make_estimator("ekf", f)
-            assert isinstance(est, LoadHypothesesKalmanFilter)
-            before = memo.hits
-            series = est.run(t, z)
-            runs[scenario, imu] = EkfRun(f, t, z, est, series, memo.hits - before)
-        return runs[scenario, imu]
-
-    return run
+    """``default_ekf(scenario, imu)``: the :class:`EkfRun` of that shipped recording,
+    run once a test process (:func:`tendon_helpers.default_ekf_run`) and shared by the
+    tests that run the default EKF over the whole of it."""
+    return default_ekf_run
 
 
 @dataclass

@@ -6,7 +6,6 @@ send the tendon robot's estimate off for the rest of the recording."""
 
 from __future__ import annotations
 
-import functools
 import math
 import warnings
 from pathlib import Path
@@ -15,7 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from tendon_helpers import DATA
+from tendon_helpers import DATA, default_ekf_run
 
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
@@ -292,14 +291,19 @@ def test_a_tension_glitch_does_not_send_the_estimate_off(tmp_path: Path, glitch:
         rows[r][1] = f"{float(rows[r][1]) + 0.05:.6f}"
     glitched = tmp_path / "glitched.csv"
     glitched.write_text("\n".join([*lines[: head + 1], *(",".join(r) for r in rows)]))
-    clean = _force29_ekf_tips(str(DATA / "force-29_tensions.csv"))
+    run = default_ekf_run("force-29", "raw")  # the clean file's, once a test process
+    clean = _tips(run.f, run.series)
     assert np.mean(np.linalg.norm(_force29_ekf_tips(str(glitched)) - clean, axis=1)) < 1e-4
 
 
-@functools.cache
+def _tips(f: object, series: object) -> np.ndarray:
+    """The tip (x, y, z) of every estimate of ``series``."""
+    cols = [o.name for o in f.outputs]  # type: ignore[attr-defined]
+    return np.asarray(series.output, float)[:, [cols.index(c) for c in "xyz"]]  # type: ignore[attr-defined]
+
+
 def _force29_ekf_tips(tensions: str) -> np.ndarray:
-    """The EKF's tip (x, y, z) on the shipped ``force-29`` (raw IMUs) with ``tensions``
-    (the clean file's once per test process)."""
+    """The EKF's tip (x, y, z) on the shipped ``force-29`` (raw IMUs) with ``tensions``."""
     base = make_formulation("bend", read_robot("tendon-two-section"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -308,5 +312,4 @@ def _force29_ekf_tips(tensions: str) -> np.ndarray:
             blocks = list(s.blocks)
         t, z = np.concatenate([b[0] for b in blocks]), np.vstack([b[1] for b in blocks])
         series = make_estimator("ekf", f).run(t, z)
-    cols = [o.name for o in f.outputs]
-    return np.asarray(series.output, float)[:, [cols.index(c) for c in "xyz"]]
+    return _tips(f, series)
