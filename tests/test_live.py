@@ -324,6 +324,8 @@ def test_live_takes_its_port_from_an_options_file_and_records_it(tmp_path: Path)
     assert send_until_rows(live, master, data, est, len(lines), signal.SIGINT) == 0, live.err
     assert f"reading {port}" in live.err and data_rows(est) == len(lines)
     assert f'port = "{port}"' in est.read_text().split("\n# model", 1)[0]
+    # live keeps the IMUs' constant-curvature frames, and says so for a replay
+    assert "imu-twist = false" in est.read_text().split("\n# model", 1)[0]
     res = subprocess.run(
         [sys.executable, "-m", "continuum_mhe.cli", "live", "--method", "ekf", "-o", str(est)],
         capture_output=True, text=True, timeout=SAFETY_S,

@@ -73,6 +73,11 @@ def run(args: argparse.Namespace) -> int:
         status_every=args.status_every,
         retry_max_s=args.retry_max,
     )
+    # the IMUs' constant-curvature frames unless --imu-twist is given: a stream gives no
+    # recording to weigh the twist on first, as estimate does; recorded so, so that
+    # estimate --config EST.csv replays the session with them
+    if getattr(args, "imu_twist", None) is None:
+        args.imu_twist = False
     # the options checked and the IMU model decided as estimate does (io.inputs)
     line = serial_input(
         settings.port, settings.fmt, input_options(args), formulation_from_args(args)
