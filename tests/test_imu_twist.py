@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import warnings
 from pathlib import Path
 
@@ -363,6 +364,43 @@ def test_the_evidence_s_compiled_run_is_the_filter_stepped_sample_by_sample(tmp_
             expected.append(one_by_one.log_likelihood)
         assert np.isnan(batch[0]) and np.isnan(batch[80]) and np.isfinite(batch[51])
         np.testing.assert_allclose(batch, expected, rtol=1e-12, atol=1e-9)
+
+
+def test_estimate_chooses_the_twist_for_a_ros2_bag_folder_as_for_its_csv(tmp_path, capsys) -> None:
+    """A ROS 2 bag is a folder: ``estimate`` weighs the twist on it as on the same
+    readings in a CSV file (the calibrated ``spatial`` rod's first 200 samples, one
+    ``sensor_msgs/msg/Imu`` topic per IMU), with the same choice and evidence."""
+    from robot_log_helpers import IMU, T0_NS, imu_msg
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    cal = _calibrated(tmp_path, "spatial")
+    lines = (ROD / "spatial_raw.csv").read_text().splitlines()[:201]
+    csv = tmp_path / "spatial200.csv"
+    csv.write_text("\n".join(lines) + "\n")
+    raw = np.loadtxt(csv, delimiter=",", skiprows=1)
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    bag = tmp_path / "spatial_bag"
+    with Writer(bag, version=9) as w:
+        topics = [w.add_connection(f"/imu{k}", IMU, typestore=store) for k in (1, 2)]
+        for row in raw:
+            ns = T0_NS + round(row[0] * 1e9)
+            for k, conn in enumerate(topics):
+                acc, gyr = row[1 + 6 * k : 4 + 6 * k], row[4 + 6 * k : 7 + 6 * k]
+                w.write(conn, ns, store.serialize_cdr(imu_msg(store, ns, acc, gyr), IMU))
+    said = {}
+    for name, source, extra in (
+        ("csv", csv, []),
+        ("bag", bag, ["--topic", "/imu1", "--topic", "/imu2"]),
+    ):
+        out = tmp_path / f"{name}.csv"
+        capsys.readouterr()
+        assert main(["estimate", str(source), "--robot", str(cal), "-o", str(out), *extra]) == 0
+        summary = capsys.readouterr().err.strip().splitlines()[-1]
+        said[name] = re.search(r"the IMUs' twist estimated \([^)]*\)", summary)
+        assert said[name] is not None, summary
+        assert "imu-twist = true" in out.read_text()
+    assert said["csv"].group(0) == said["bag"].group(0)
 
 
 def test_estimate_chooses_the_twist_for_a_calibrated_twisting_rod(tmp_path, capsys) -> None:

@@ -426,8 +426,9 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
 
 def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEvidence | None:
     """Where neither ``--imu-twist`` nor ``--no-imu-twist`` was given, the input is a
-    recording file of raw IMUs (the direct model, its gyro biases estimated, no
-    ``--own-acceleration``) and the robot file gives every IMU a calibrated
+    recording (a file, or a ROS 2 bag's folder; not a pipe) of raw IMUs (the direct
+    model, its gyro biases estimated, no ``--own-acceleration``) and the robot file
+    gives every IMU a calibrated
     ``gyro_bias``: the readings' evidence for the IMUs' twist
     (:func:`~continuum_mhe.estimators.twist_evidence.twist_evidence`), and
     ``args.imu_twist`` set to its choice; else None, ``args.imu_twist`` off where it was
@@ -435,6 +436,7 @@ def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEviden
     estimate's own reading)."""
     from continuum_mhe.estimators.twist_evidence import twist_evidence
     from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.robot_logs import is_robot_log
     from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
 
     if getattr(args, "imu_twist", None) is not None:
@@ -444,7 +446,7 @@ def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEviden
     source = Path(args.measurements)
     if (
         args.measurements == "-"
-        or not source.is_file()
+        or not (source.is_file() or is_robot_log(source))  # a ROS 2 bag is a folder
         or robot.has_mechanics
         or not robot.imus
         or not gyro_biases_calibrated(robot)

@@ -119,7 +119,7 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         help="for --imu-model direct: each IMU turned about the backbone's tangent by a "
         "twist state, for a backbone that twists (a rod under couples or a tip load); give "
         "calibrated gyro biases (calibrate --from REST.csv --write-robot), held then, not "
-        "estimated. Default: estimate chooses it for a recording file whose robot file "
+        "estimated. Default: estimate chooses it for a recording (not a pipe) whose robot file "
         "has every IMU's gyro_bias calibrated, where the readings fit it better (the "
         "summary says which; live: off). On the shipped twisting rods, calibrated, it "
         "takes the EKF's mean tip error from 66 and 13 mm to 8.8 and 8.1 mm; on a rod that "
