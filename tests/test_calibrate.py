@@ -188,6 +188,29 @@ def test_calibrate_from_the_port_says_a_board_sending_degrees_must_send_radians(
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_names_a_gyro_in_deg_s(tmp_path: Path) -> None:
+    """A still board whose gyro sends deg/s (a bias of 2.1 deg/s, noise 0.1 deg/s as the
+    shipped rod's MPU9250s have in rad/s): one line saying deg/s, as ``--from`` and
+    ``live`` say it, not "the robot moved" and to raise --still-gyro-std (its noise in
+    deg/s, read as rad/s, is twice the stillness bound)."""
+    rng = np.random.default_rng(3)
+    n = 200
+    acc = np.tile([0.1, -0.05, G], (n, 1)) + 0.02 * rng.standard_normal((n, 3))
+    gyr_rad = np.array([0.03, -0.02, 0.005]) + 0.0018 * rng.standard_normal((n, 3))
+    lines = ["# continuum_imu 1.1.0 imus=1", "# fields: t_ms,ax,ay,az,gx,gy,gz (ms)"]
+    lines += [
+        "{},{}".format(2300 + 10 * i, ",".join(f"{v:.5f}" for v in (*a, *np.degrees(w))))
+        for i, (a, w) in enumerate(zip(acc, gyr_rad))
+    ]
+    code, out, err = _calibrate_port(tmp_path, lines, seconds="1.5")
+    assert code == 2 and out == ""
+    error = [ln for ln in err.splitlines() if ln.startswith("continuum-mhe: error:")]
+    assert len(error) == 1 and "with the gyro in deg/s" in error[0], err
+    assert error[0].endswith("give rad/s (gx, gy, gz times pi/180 = 0.0174533)")
+    assert "the robot moved" not in err and "--still-gyro-std" not in err
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_calibrate_from_the_port_refuses_a_moving_robot(tmp_path: Path) -> None:
     """The device tilts from 0 to 30 deg about x while calibrate reads it: exit 2."""
     a = np.radians(np.linspace(0.0, 30.0, 400))

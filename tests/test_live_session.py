@@ -1589,23 +1589,17 @@ def test_live_skips_readings_at_a_declared_gyro_range_and_names_them() -> None:
     assert all(st == "dropout" for st, hit in zip(status, at_scale) if hit)
 
 
-def test_live_names_a_forward_clock_jump_that_restarts_the_estimate() -> None:
-    """The shipped planar-s rod's raw lines (two IMUs, 50 Hz) whose device clock steps
-    0.9 s forward at 4 s: as ``estimate`` of the same file, the readings after the jump
-    restart the EKF (one ``reset``) and the summary names the jump, not a glitch."""
-    from pathlib import Path
+#: The shipped two-section rod recordings (raw: t in s, two IMUs at 50 Hz).
+ROD2 = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
 
+
+def _two_section_ekf_summary(lines: list[str]) -> str:
+    """The summary of a live session of the EKF of the ``two-section`` robot's two raw
+    IMUs on ``lines`` (the line protocol's), each handled 1 ms after the last."""
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import serial_input
     from continuum_mhe.io.robot_file import read_robot
 
-    rod = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
-    lines = []
-    for line in (rod / "planar-s_raw.csv").read_text().splitlines()[1:]:
-        t, rest = line.split(",", 1)
-        lines.append(
-            f"{round((float(t) + (0.9 if float(t) >= 4.0 - 1e-9 else 0.0)) * 1000)},{rest}"
-        )
     base = make_formulation("bend", read_robot("two-section"), NoiseSettings())
     serial = serial_input("/dev/ttyIMU", "raw", InputOptions(), base)
     s = LiveSession(
@@ -1617,6 +1611,43 @@ def test_live_names_a_forward_clock_jump_that_restarts_the_estimate() -> None:
     )
     _handle(s, lines)
     s.finish()
-    summary = s.summary()
+    return s.summary()
+
+
+def test_live_names_a_forward_clock_jump_that_restarts_the_estimate() -> None:
+    """The shipped planar-s rod's raw lines (two IMUs, 50 Hz) whose device clock steps
+    0.9 s forward at 4 s: as ``estimate`` of the same file, the readings after the jump
+    restart the EKF (one ``reset``) and the summary names the jump, not a glitch."""
+    lines = []
+    for line in (ROD2 / "planar-s_raw.csv").read_text().splitlines()[1:]:
+        t, rest = line.split(",", 1)
+        lines.append(
+            f"{round((float(t) + (0.9 if float(t) >= 4.0 - 1e-9 else 0.0)) * 1000)},{rest}"
+        )
+    summary = _two_section_ekf_summary(lines)
     assert "restarted after 1 jump(s) in t shorter than 1 s (the first 0.92 s long" in summary
     assert "glitch" not in summary and "reset: 1" in summary
+
+
+def test_live_warns_of_readings_that_restart_the_estimator_as_estimate_does() -> None:
+    """The shipped spatial-tendon rod's raw lines with the two IMUs' fields swapped (the
+    boards' addresses the other way round): the EKF restarts on about a third of the
+    samples, and the summary says so in ``estimate``'s warning, which names the IMUs'
+    order; the lines in the right order restart it too seldom to be said."""
+    rows = (ROD2 / "spatial-tendon_raw.csv").read_text().splitlines()[1:]
+    summaries = []
+    for swap in (False, True):
+        lines = []
+        for row in rows:
+            t, *v = row.split(",")
+            v = v[6:] + v[:6] if swap else v
+            lines.append(f"{2300 + round(float(t) * 1000)}," + ",".join(v))
+        summaries.append(_two_section_ekf_summary(lines))
+    assert "restarted the estimator" not in summaries[0]
+    said = re.search(
+        r"warning: (\d+) of 601 samples \((\d+) %\) restarted the estimator", summaries[1]
+    )
+    assert said is not None, summaries[1]
+    assert 20 <= int(said[2]) <= 45
+    assert "the readings do not fit the model of the robot" in summaries[1]
+    assert "(the IMUs' order, their mount_rpy and at" in summaries[1]

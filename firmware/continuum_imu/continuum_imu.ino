@@ -182,8 +182,9 @@ static void calibrateGyros() {
     for (uint8_t k = 0; k < 3; k++) {
       gyro_bias[imu][k] = n[imu] ? GYRO_SCALE * (float)sum[imu][k] / n[imu] : 0.0f;
       Serial.print(gyro_bias[imu][k], 5);
-      Serial.print(k < 2 ? ',' : '\n');
+      if (k < 2) Serial.print(',');
     }
+    Serial.println();  // "\r\n", as every '#' line ends
   }
 }
 

@@ -47,6 +47,7 @@ from continuum_mhe.errors import (
     time_text,
 )
 from continuum_mhe.io.inputs import read_recording
+from continuum_mhe.io.raw_units import check_gyro_units
 from continuum_mhe.io.robot_logs import is_robot_log, refuse_bag_metadata
 from continuum_mhe.io.sample_rows import DROPOUT_HINT
 from continuum_mhe.io.text_rows import READINGS_READER
@@ -223,6 +224,18 @@ def calibrate_robot(
     )
 
 
+def _check_port_gyro_units(source: str, t: FloatArray, values: FloatArray, n_imus: int) -> None:
+    """Each IMU's gyro read from the port ``source`` checked for deg/s as ``estimate``
+    checks a raw file's and ``live`` a port's (its median rate, and the turn of gravity's
+    direction that its rates would make), before the stillness bounds: a still gyro in
+    deg/s spreads by its noise in deg/s, which read as rad/s is a motion."""
+    for i in range(n_imus):
+        block = values[:, 6 * i : 6 * i + 6]
+        full = np.isfinite(block).all(axis=1)  # an IMU's unreadable lines left out
+        label = source if n_imus == 1 else f"{source}: IMU {i + 1}"
+        check_gyro_units(label, block[full, 3:], True, t[full], block[full, :3])
+
+
 def calibrate_readings(
     robot: Robot,
     source: str,
@@ -261,6 +274,8 @@ def calibrate_readings(
         raise InputError(f"{source}: {unit}")
     if scaled := rest_gravity_note(values, fmt, robot.n_imus):
         held.append((f"{source}: {scaled}", CalibrationNote))
+    if from_port and fmt == "raw":  # a file's units are checked as it is read
+        _check_port_gyro_units(source, t, values, robot.n_imus)
     fix = "the board must send radians" if from_port else "pass --degrees"
     moved = motion_at_rest(
         values, fmt, robot.n_imus, still_acc_std, gyro_std, None if degrees else fix

@@ -61,6 +61,7 @@ from continuum_mhe.estimators.run_notices import (
     free_of_load_clause,
     inconsistent_notice,
     recovery_clauses,
+    restarts_notice,
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
@@ -483,42 +484,6 @@ def twist_clause(evidence: TwistEvidence) -> str:
             "constant-curvature frames)"
         )
     return f"the IMUs' twist not estimated ({weighed}; --imu-twist asks for it)"
-
-
-#: A run in which at least this many restarts, and more than the share of the samples
-#: measured for Imu topics out of order
-#: (:data:`~continuum_mhe.io.imu_topics.ORDER_RESTART_SHARE`), restarted the estimator is
-#: said at the end of ``estimate`` (:func:`restarts_notice`): one restart in a file of a
-#: few samples says nothing of the robot file.
-RESTARTS_SAID = 5
-
-
-def restarts_notice(samples: int, restarts: int, last_failure: str | None = None) -> str | None:
-    """One line where more than ``ORDER_RESTART_SHARE`` of ``samples``, and at least
-    :data:`RESTARTS_SAID`, restarted the estimator (``restarts``, gaps not counted): the
-    readings do not fit the model of the robot, or (``last_failure``, the policy's last
-    numerical failure, the UKF's) its sigma points spread a tilt reading across a half
-    turn; None otherwise."""
-    from continuum_mhe.estimators.kalman import UNSCENTED_SPREAD
-    from continuum_mhe.io.imu_topics import ORDER_RESTART_SHARE
-
-    if restarts < RESTARTS_SAID or restarts <= ORDER_RESTART_SHARE * samples:
-        return None
-    said = f"{restarts} of {samples} samples ({100 * restarts / samples:.0f} %) restarted the "
-    if last_failure is not None and UNSCENTED_SPREAD in last_failure:
-        return said + (
-            "UKF: its sigma points spread a tilt reading across a half turn, where the "
-            "unscented transform means nothing (a robot whose IMUs bend far from level, or "
-            "an estimate this uncertain; the last restart's: "
-            f"{last_failure.split(': ', 1)[-1]}); the EKF (--method ekf) has no sigma points"
-        )
-    return said + (
-        "estimator (readings inconsistent with its estimate, or an estimate that diverged): "
-        "the readings do not fit the model of the robot; check the robot file against the "
-        "robot (the IMUs' order, their mount_rpy and at, the sections' lengths; "
-        "check-robot lists them), or the robot does what the model cannot follow (a "
-        "backbone that twists about itself)"
-    )
 
 
 def _passthrough(it: Iterable[int]) -> Iterator[int]:

@@ -29,6 +29,7 @@ from continuum_mhe.estimators.run_notices import (
     free_of_load_clause,
     inconsistent_notice,
     recovery_clauses,
+    restarts_notice,
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
@@ -1285,6 +1286,10 @@ class LiveSession:
                 f"; replaced {self._tension_stream.glitches} tension glitch(es) (a tension "
                 "off the curve through the samples around alone)"
             )
+        diag = self.estimator.diagnostics
+        restarts = diag.restarts + diag.bad_starts + diag.reject_resets  # as estimate counts
+        if restarts_note := restarts_notice(c.estimates, restarts, diag.last_failure):
+            msg += "; warning: " + restarts_note
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (
                 f"; warning: stopped restarting {chains} time(s) after "
