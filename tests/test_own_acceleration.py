@@ -191,9 +191,9 @@ def test_gauss_newton_answers_lie_near_the_converged_ones() -> None:
     """Gauss-Newton steps (``FastOptions(newton=False)``) on three sections with the
     IMUs' own acceleration: their rate is linear and drifts from one iteration to the
     next. Certified by the bound and the step size as a Newton step is (as if the
-    steps were exact), answers would lie up to 8.7 times ``err_tol`` from the answer
-    iterated to 1e-13 (17 of 161 windows of an 8 s recording); with the core's safety
-    factor on both they lie within twice ``err_tol`` (the worst 1.33 times: a rate that
+    steps were exact), answers would lie up to 11 times ``err_tol`` from the answer
+    iterated to 1e-13 (10 of the 81 windows of a 4 s recording); with the core's safety
+    factor on both they lie within twice ``err_tol`` (the worst 1.49 times: a rate that
     jumps between iterations). The steps are Gauss-Newton: the model
     forms the second-order term (Newton steps by default), and Newton steps from the
     same windows' starts take fewer iterations on more than half of the windows."""
@@ -214,7 +214,7 @@ def test_gauss_newton_answers_lie_near_the_converged_ones() -> None:
     three = Robot(
         tuple(Section(0.1, 3.0) for _ in range(3)), tuple(ImuPlacement(k) for k in range(3))
     )
-    rec = simulate_robot("spatial", three, duration=8.0, seed=0)
+    rec = simulate_robot("spatial", three, duration=4.0, seed=0)
     values, names = raw_readings(rec, three, seed=0)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "raw.csv"
@@ -229,7 +229,7 @@ def test_gauss_newton_answers_lie_near_the_converged_ones() -> None:
     est = MovingHorizonEstimator(f, MHESettings(horizon=30), steps)
     windows = fast_windows(est, data.t, data.z)
     worst = worst_certified_error(model, windows, steps)
-    assert len(windows) > 150
+    assert len(windows) > 75
     assert worst <= 2 * fm.FastOptions().err_tol, worst
     assert newton_steps(model, fm.FastOptions()) and not newton_steps(model, steps)
     gauss = np.array([res.iterations for *_, res in windows])
