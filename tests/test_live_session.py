@@ -1037,9 +1037,16 @@ def test_live_stops_where_the_first_readings_put_the_robot_the_other_way_up() ->
             assert s.counts.samples == 25 and s.counts.estimator_failures == 1
             assert s.wrong_mounting and not s.wrong_units
             assert s.discarded == "made with the robot described the wrong way up"
+            # the estimates are not kept, and why is said: their warnings are left out
+            assert s.summary().endswith(
+                "; the estimates' own warnings left out (every one made with the robot "
+                "described the wrong way up)"
+            )
+            assert "warning:" not in s.summary()
         else:
             assert s.fatal is None and s.discarded is None
             assert s.counts.estimates >= len(lines) - 1
+            assert "left out" not in s.summary()
 
 
 def test_live_checks_the_gyro_again_after_a_board_reset() -> None:

@@ -1263,6 +1263,9 @@ class LiveSession:
             )
         if c.reasons:
             msg += "; garbled: " + ", ".join(f"{k} x{v}" for k, v in c.reasons.items())
+        if self.discarded is not None and self.discard_from == (0, 0):
+            # no estimate is kept, and why is said: what the estimates showed is moot
+            return msg + f"; the estimates' own warnings left out (every one {self.discarded})"
         if gain_note := self.gains.notice():
             msg += "; warning: " + gain_note
         if twist_note := self.twist.notice():
