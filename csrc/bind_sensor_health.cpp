@@ -397,11 +397,15 @@ class KalmanInference final : public PolicyInference {
   // into ``ll``, the filter stepped over the readings ``z`` (n, nz) at ``t`` (n,) with
   // the validity ``mask`` (n, nz) and no policy: NaN for a start, a sample without a
   // valid reading, and one whose step failed or left a non-finite state, after which
-  // the filter starts again from the next sample. Called without the GIL (the Python
-  // hooks of a start and a restart take it), which it takes every 1,024 samples for a
-  // signal's handler: one that raises ends the call with its exception.
+  // the filter starts again from the next sample. The EKF's step only (an unscented
+  // inference is refused). Called without the GIL (the Python hooks of a start and a
+  // restart take it), which it takes every 1,024 samples for a signal's handler: one
+  // that raises ends the call with its exception (Python runs handlers on its main
+  // thread alone: a call on another thread runs to its end).
   void log_likelihoods(size_t n, const double* t, const double* z, const double* mask,
                        double* ll) {
+    if (unscented_ != nullptr)
+      throw std::invalid_argument("log_likelihoods steps the EKF: this inference is the UKF's");
     const int nx = node_.nx(), nz = node_.nz();
     std::vector<double> x(nx), P(size_t(nx) * nx);
     for (size_t i = 0; i < n; ++i) {
@@ -806,20 +810,24 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "log_likelihoods",
           [](KalmanInference& self, In t, In z, In mask, OutArray<double> ll) {
             const size_t n = t.size(), nz = size_t(self.nz());
-            check_size(z, n * nz, "z");
-            check_size(mask, n * nz, "mask");
-            if (ll.size() != n) throw std::invalid_argument("ll needs n values");
+            for (const auto& [a, name] : {std::pair{&z, "z"}, std::pair{&mask, "mask"}})
+              if (a->ndim() != 2 || a->shape(0) != n || a->shape(1) != nz)
+                throw std::invalid_argument(std::string(name) + " must be (n, nz): " +
+                                            std::to_string(n) + " x " + std::to_string(nz));
+            if (ll.ndim() != 1 || ll.size() != n)
+              throw std::invalid_argument("ll must be (n,): " + std::to_string(n));
             nb::gil_scoped_release released;  // two filters may step side by side
             self.log_likelihoods(n, t.data(), z.data(), mask.data(), ll.data());
           },
-          nb::arg("t"), nb::arg("z"), nb::arg("mask"), nb::arg("ll"),
-          "Step the filter, without the policy, over the readings ``z`` (n, nz) at ``t`` "
+          nb::arg("t"), nb::arg("z"), nb::arg("mask"), nb::arg("ll").noconvert(),
+          "Step the EKF, without the policy, over the readings ``z`` (n, nz) at ``t`` "
           "(n,) s with the validity ``mask`` (n, nz: 1 where a component is valid), writing "
           "each sample's innovation log-density ``-(r^T S^-1 r + log|S|) / 2`` into ``ll`` "
           "(n,): NaN for a start, a sample without a valid reading, and one whose step "
           "failed or left a non-finite state, after which the filter starts again from the "
-          "next sample. Runs without the GIL but for the filter's Python hooks (a start, a "
-          "restart).");
+          "next sample (``ll`` a C-contiguous float64 array, written in place). Runs without "
+          "the GIL but for the filter's Python hooks (a start, a restart); on the main "
+          "thread a signal whose handler raises ends it.");
 
   nb::class_<Policy>(
       m, "SensorHealth",

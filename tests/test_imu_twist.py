@@ -364,6 +364,19 @@ def test_the_evidence_s_compiled_run_is_the_filter_stepped_sample_by_sample(tmp_
             expected.append(one_by_one.log_likelihood)
         assert np.isnan(batch[0]) and np.isnan(batch[80]) and np.isfinite(batch[51])
         np.testing.assert_allclose(batch, expected, rtol=1e-12, atol=1e-9)
+    # refused, not written into a copy or read across: another dtype, readings transposed
+    zc = np.ascontiguousarray(z)
+    with pytest.raises(TypeError):
+        stepped.log_likelihoods(t, zc, masks, np.full(len(t), np.nan, dtype=np.float32))
+    with pytest.raises(ValueError, match=r"z must be \(n, nz\)"):
+        stepped.log_likelihoods(t, np.ascontiguousarray(zc.T), masks, batch)
+    # the UKF's inference has no EKF step to weigh readings with
+    from continuum_mhe.estimators.kalman import UnscentedKalmanInference
+
+    unscented = UnscentedKalmanInference(data.formulation).policy_inference()
+    assert unscented is not None
+    with pytest.raises(ValueError, match="steps the EKF"):
+        unscented.log_likelihoods(t, zc, data.formulation.measurement_masks(zc), batch)
 
 
 def test_estimate_chooses_the_twist_for_a_ros2_bag_folder_as_for_its_csv(tmp_path, capsys) -> None:

@@ -895,7 +895,7 @@ class KalmanInference:
 
     def log_likelihoods(self, t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ll: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> None:
         """
-        Step the filter, without the policy, over the readings ``z`` (n, nz) at ``t`` (n,) s with the validity ``mask`` (n, nz: 1 where a component is valid), writing each sample's innovation log-density ``-(r^T S^-1 r + log|S|) / 2`` into ``ll`` (n,): NaN for a start, a sample without a valid reading, and one whose step failed or left a non-finite state, after which the filter starts again from the next sample. Runs without the GIL but for the filter's Python hooks (a start, a restart).
+        Step the EKF, without the policy, over the readings ``z`` (n, nz) at ``t`` (n,) s with the validity ``mask`` (n, nz: 1 where a component is valid), writing each sample's innovation log-density ``-(r^T S^-1 r + log|S|) / 2`` into ``ll`` (n,): NaN for a start, a sample without a valid reading, and one whose step failed or left a non-finite state, after which the filter starts again from the next sample (``ll`` a C-contiguous float64 array, written in place). Runs without the GIL but for the filter's Python hooks (a start, a restart); on the main thread a signal whose handler raises ends it.
         """
 
 class SensorHealth:

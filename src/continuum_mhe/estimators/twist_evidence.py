@@ -66,8 +66,8 @@ def twist_evidence(frames: DirectFormulation, t: ArrayLike, z: ArrayLike) -> Twi
     """Run the compiled EKF of ``frames`` (the constant-curvature frames, raw IMUs with
     gyro biases, every IMU's ``gyro_bias`` calibrated) and of its twisted formulation
     (:func:`twisted_formulation`) over the readings ``z`` (n, nz) at ``t`` (n,) s, as an
-    estimator's ``run`` takes them, each in one compiled call (the two side by side, on
-    two threads), and compare their
+    estimator's ``run`` takes them, each in one compiled call (the two side by side, the
+    twist model's on a second thread), and compare their
     innovation log-densities sample by sample (no restart but after a failed step: a
     filter that loses the readings keeps predicting them badly, which is the
     evidence)."""
@@ -93,9 +93,11 @@ def twist_evidence(frames: DirectFormulation, t: ArrayLike, z: ArrayLike) -> Twi
         stepped.log_likelihoods(t_arr, z_arr, masks, ll)  # without the GIL
         return ll
 
-    # the two filters side by side, one a thread
-    with ThreadPoolExecutor(2, thread_name_prefix="twist-evidence") as pool:
-        densities = list(pool.map(step, runs))
+    # the two filters side by side: the twist model's on a worker, the frames' on this
+    # thread, where a signal's handler (Ctrl-C) can end it
+    with ThreadPoolExecutor(1, thread_name_prefix="twist-evidence") as pool:
+        twisted = pool.submit(step, runs[1])
+        densities = [step(runs[0]), twisted.result()]
     diff = densities[1] - densities[0]
     diff = diff[np.isfinite(diff)]
     if not len(diff):

@@ -1263,6 +1263,16 @@ class LiveSession:
             )
         if c.reasons:
             msg += "; garbled: " + ", ".join(f"{k} x{v}" for k, v in c.reasons.items())
+        # the readings' own notes (not of the estimates)
+        if clip_note := clip_notice(self.converters or ()):  # as estimate's warning
+            msg += "; warning: " + clip_note
+        if self._span_buckling:  # as a tensions file's warning
+            msg += "; warning: " + self._span_buckling
+        if self._tension_stream is not None and self._tension_stream.glitches:
+            msg += (
+                f"; replaced {self._tension_stream.glitches} tension glitch(es) (a tension "
+                "off the curve through the samples around alone)"
+            )
         if self.discarded is not None and self.discard_from == (0, 0):
             # no estimate is kept, and why is said: what the estimates showed is moot
             return msg + f"; the estimates' own warnings left out (every one {self.discarded})"
@@ -1276,19 +1286,10 @@ class LiveSession:
             msg += "; warning: " + force_note
         if wide_note := self.wide.notice(c.estimates):
             msg += "; note: " + wide_note
-        if clip_note := clip_notice(self.converters or ()):  # as estimate's warning
-            msg += "; warning: " + clip_note
-        if self._span_buckling:  # as a tensions file's warning
-            msg += "; warning: " + self._span_buckling
         for clause in recovery_clauses(
             self.estimator.diagnostics, self.estimator.recovery, c.estimates
         ):  # as estimate's summary says them
             msg += f"; {clause}"
-        if self._tension_stream is not None and self._tension_stream.glitches:
-            msg += (
-                f"; replaced {self._tension_stream.glitches} tension glitch(es) (a tension "
-                "off the curve through the samples around alone)"
-            )
         diag = self.estimator.diagnostics
         restarts = diag.restarts + diag.bad_starts + diag.reject_resets  # as estimate counts
         if restarts_note := restarts_notice(c.estimates, restarts, diag.last_failure):
