@@ -562,15 +562,15 @@ class Tensions:
         return bool(self.t[0] - COVER_TOLERANCE_S <= t <= self.t[-1] + COVER_TOLERANCE_S)
 
     def check_covers(self, t: FloatArray, source: str) -> None:
-        """:meth:`at`'s :class:`InputError` for the first of the times ``t`` (s,
-        increasing) the file does not cover (:meth:`covers`), naming ``source``, the
-        recording or estimate they are of."""
+        """An :class:`InputError` (:meth:`coverage_problem`) for the first of the times
+        ``t`` (s, increasing) the file does not cover (:meth:`covers`), naming
+        ``source``, the recording or estimate they are of."""
         times = np.asarray(t, dtype=float)
         outside = np.flatnonzero(
             (times < self.t[0] - COVER_TOLERANCE_S) | (times > self.t[-1] + COVER_TOLERANCE_S)
         )
         if len(outside):
-            self.at(float(times[outside[0]]), source)
+            raise InputError(self.coverage_problem(float(times[outside[0]]), source))
 
     def coverage_problem(self, t: float, source: str = "", stream: bool = False) -> str:
         """The line that says that a sample at ``t`` s lies outside the file's times
