@@ -660,6 +660,37 @@ def test_the_gravity_check_of_gyro_units_judges_still_stretches_alone() -> None:
     assert gyro_gravity_problem(t, np.tile([0.0, 0.0, 9.8], (len(t), 1)), yaw) is None
 
 
+def _turning_about_x(rates: np.ndarray, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """The specific force (n, 3; m/s^2, noise 0.05) of an IMU that starts level and turns
+    about its x axis at ``rates`` (n,; rad/s) over the times ``t`` (n,; s)."""
+    angle = np.r_[0.0, np.cumsum(0.5 * (rates[1:] + rates[:-1]) * np.diff(t))]
+    acc = 9.8 * np.column_stack([np.zeros_like(t), np.sin(angle), np.cos(angle)])
+    return acc + rng.normal(0.0, 0.05, acc.shape)
+
+
+def test_a_turn_tells_a_rad_s_gyros_large_offset_from_deg_s() -> None:
+    """A still gyro in rad/s with a zero-rate offset of 18 deg/s across gravity (0.32
+    rad/s, within some MEMS gyros' tolerance) reads as deg/s on its still stretches. The
+    same IMU turned about its x axis by 46 degrees and back (0.8 rad/s, 1 s each way,
+    over 10 s mostly still) shows rad/s: not refused. Still throughout it is, in words
+    that name the offset a rad/s gyro would need; a gyro in deg/s (offsets of 1 to 2
+    deg/s) with the same turns is refused too."""
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 10.0, 0.01)
+    rates = np.where((t >= 4.0) & (t < 5.0), 0.8, 0.0) - np.where((t >= 7.0) & (t < 8.0), 0.8, 0.0)
+    acc = _turning_about_x(rates, t, rng)
+    offset = np.array([0.25, -0.2, 0.05])  # rad/s
+    turning = np.column_stack([rates, 0 * t, 0 * t]) + offset + rng.normal(0.0, 0.003, acc.shape)
+    assert gyro_gravity_problem(t, acc, turning) is None
+    still = offset + rng.normal(0.0, 0.003, acc.shape)
+    flat = np.array([0.0, 0.0, 9.8]) + rng.normal(0.0, 0.05, acc.shape)
+    problem = gyro_gravity_problem(t, flat, still)
+    assert problem is not None
+    assert "a zero-rate offset of 18 deg/s across gravity" in problem
+    deg_s = np.degrees(turning - offset) + np.array([1.2, -1.5, 0.9])
+    assert gyro_gravity_problem(t, acc, deg_s) is not None
+
+
 def test_the_gravity_check_of_gyro_units_judges_recordings_under_10_hz() -> None:
     """At 5 Hz and at 1 Hz, half a second holds too few readings for a stretch: the
     check judges stretches of five and a half steps, with the mismatch allowed in

@@ -60,6 +60,16 @@ FROZEN_GYRO_SPREAD = 1e-4
 #: (under 0.05, a cheap one's 0.09) turns a direction by about 1.5 (2.5) deg in a
 #: stretch, one of 1 deg/s read as rad/s by 29 deg, of 0.4 deg/s by 11 deg.
 GRAVITY_TURN_MISMATCH = math.radians(6.0)
+#: A still gyro in rad/s whose zero-rate offset across gravity exceeds about 12 deg/s
+#: (some MEMS parts allow 20) reads as deg/s there too: a turn tells the two apart. A
+#: stretch in which the gravity direction turns by more than this (rad) as the gyro read
+#: as rad/s, less its median (the offset), says shows rad/s
+#: (:func:`_turns_as_rad_s`): a gyro in deg/s, read so, turns it 57 times too far, and a
+#: push of the IMU that turns its specific force this far changes its magnitude by more
+#: than :data:`GRAVITY_TURN_ACCEL_SPREAD`. At least :data:`RAD_S_TURN_STRETCHES` such
+#: stretches clear the gyro.
+RAD_S_TURN_MIN = math.radians(12.0)
+RAD_S_TURN_STRETCHES = 2
 #: An acceleration (m/s^2) or a rate (rad/s) of a larger magnitude is beyond any IMU's
 #: range (high-g accelerometers end near 4,000 m/s^2, MEMS gyros near 70 rad/s): a
 #: corrupt value, not a reading.
@@ -239,8 +249,11 @@ def gyro_gravity_problem(
     longer stretches of a recording under 11 Hz: :func:`gravity_turn_span`), while read
     as deg/s they follow it at least three times as closely: what to say, naming the
     columns ``names``; else None (also with fewer than two still stretches, and where
-    the stretches would be longer than :data:`GRAVITY_TURN_SPAN_MAX_S`). A turn about
-    the vertical moves no accelerometer and says nothing."""
+    the stretches would be longer than :data:`GRAVITY_TURN_SPAN_MAX_S`, and where at
+    least :data:`RAD_S_TURN_STRETCHES` stretches turn the gravity direction as the rates
+    read as rad/s say (:func:`_turns_as_rad_s`): a turn shows rad/s where the still
+    stretches cannot tell a gyro in deg/s from a rad/s gyro's large offset). A turn
+    about the vertical moves no accelerometer and says nothing."""
     t = np.asarray(t, float)
     span = gravity_turn_span(t)
     if span > GRAVITY_TURN_SPAN_MAX_S:
@@ -251,12 +264,31 @@ def gyro_gravity_problem(
     as_rad, as_deg = (float(v) for v in np.median(errors, axis=0))
     if as_rad <= GRAVITY_TURN_MISMATCH * span / GRAVITY_TURN_SPAN_S or as_deg * 3.0 > as_rad:
         return None
+    if _turns_as_rad_s(t, np.asarray(acc, float), np.asarray(gyr, float), span):
+        return None
     return (
         "the accelerometer's gravity direction turns as the gyro says only with the gyro "
         f"in deg/s (read as rad/s it misses by {math.degrees(as_rad):.0f} deg every "
         f"{span:.3g} s, median; read as deg/s by {math.degrees(as_deg):.1f} "
-        f"deg): give rad/s ({names} times pi/180 = {math.pi / 180:.7f})"
+        f"deg; in rad/s it would need a zero-rate offset of {math.degrees(as_rad) / span:.0f} "
+        "deg/s across gravity, beyond most MEMS gyros': where yours has one, subtract it "
+        "on the board, or record the IMU turning about a horizontal axis too, which tells "
+        f"the units apart): give rad/s ({names} times pi/180 = {math.pi / 180:.7f})"
     )
+
+
+def _turns_as_rad_s(t: FloatArray, acc: FloatArray, gyr: FloatArray, span: float) -> bool:
+    """Whether at least :data:`RAD_S_TURN_STRETCHES` stretches of ``span`` s
+    (:func:`_turn_errors`) turn the gravity direction by more than
+    :data:`RAD_S_TURN_MIN` as the rates ``gyr`` (n, 3), read as rad/s less their
+    per-axis median (a still gyro's offset), say: to within a third of the miss read as
+    deg/s. A gyro in deg/s, read so, turns it 57 times too far."""
+    finite = np.isfinite(gyr).all(axis=1)
+    if not finite.any():
+        return False
+    errors = _turn_errors(t, acc, gyr - np.median(gyr[finite], axis=0), span)
+    turned = (errors[:, 1] > RAD_S_TURN_MIN) & (3.0 * errors[:, 0] <= errors[:, 1])
+    return int(np.count_nonzero(turned)) >= RAD_S_TURN_STRETCHES
 
 
 #: The time check of a raw recording (:func:`time_unit_problem`) cuts the rows into
