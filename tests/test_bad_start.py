@@ -31,6 +31,7 @@ from tendon_helpers import shipped_recording
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator, start_check
 from continuum_mhe.estimators.base import Inference, Measurement, Status
+from continuum_mhe.estimators.run_notices import restarts_notice
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.estimators.start_check import SAMPLES
 from continuum_mhe.io.estimate_csv import write_measurements
@@ -103,17 +104,18 @@ def test_many_restarts_say_the_readings_do_not_fit_the_robot(
 ) -> None:
     """A recording of CSV readings on which more than 5 % of the samples restart the
     estimator (the shipped ``spatial`` rod, raw IMUs: its backbone twists, which the
-    PCC model cannot follow) ends with one warning naming the file, the share and what
-    to check in the robot file; the planar S (no restart) has none."""
+    PCC model cannot follow) ends with one warning naming the file and the share; its
+    readings are inconsistent too, and what to check in the robot file is said once, in
+    the warning on inconsistent estimates that follows, which the restarts' warning
+    points to; the planar S (no restart) has none."""
     data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
     for name, warned in (("spatial_raw.csv", True), ("planar-s_raw.csv", False)):
         capsys.readouterr()
         argv = ["estimate", str(data / name), "--robot", "two-section", "--method", "ekf",
                 "-o", str(tmp_path / f"{name}.est.csv")]  # fmt: skip
         assert main(argv) == 0
-        said = [
-            ln for ln in capsys.readouterr().err.splitlines() if "restarted the estimator" in ln
-        ]
+        err = capsys.readouterr().err
+        said = [ln for ln in err.splitlines() if "restarted the estimator" in ln]
         if not warned:
             assert said == []
             continue
@@ -123,7 +125,33 @@ def test_many_restarts_say_the_readings_do_not_fit_the_robot(
         assert head.startswith(f"continuum-mhe: warning: {data / name}: ")
         assert samples == 601 and restarts > 0.05 * samples
         assert share.startswith(f"{100 * restarts / samples:.0f} %) restarted the estimator")
-        assert "check the robot file against the robot (the IMUs' order" in said[0]
+        assert said[0].endswith(
+            "the readings do not fit the model of the robot (what to check: the warning on "
+            "inconsistent estimates, which follows)"
+        )
+        lines = err.splitlines()
+        follows = lines[lines.index(said[0]) + 1 :]
+        assert any(" are inconsistent: " in ln for ln in follows)
+        assert err.count("check the robot file against the robot (the IMUs' order") == 1
+
+
+def test_the_restarts_warning_lists_the_causes_where_no_other_warning_does() -> None:
+    """Without the warning on inconsistent estimates after it, the restarts' warning says
+    what to check itself; with it, it points there."""
+    alone = restarts_notice(601, 200)
+    assert alone is not None
+    assert alone.endswith(
+        "the readings do not fit the model of the robot; check the robot file against the "
+        "robot (the IMUs' order, their mount_rpy and at, the sections' lengths; check-robot "
+        "lists them), or the robot does what the model cannot follow (a backbone that "
+        "twists about itself)"
+    )
+    pointing = restarts_notice(601, 200, causes_follow=True)
+    assert pointing is not None and "check the robot file" not in pointing
+    assert pointing.endswith(
+        "(what to check: the warning on inconsistent estimates, which follows)"
+    )
+    assert restarts_notice(601, 30, causes_follow=True) is None  # 5 % or less: not said
 
 
 def test_a_burst_of_wild_readings_does_not_count_as_a_held_back_chain() -> None:
@@ -327,7 +355,9 @@ def test_no_row_is_ok_while_the_readings_keep_forcing_restarts(
     out = tmp_path / "e.csv"
     capsys.readouterr()
     assert main(["estimate", str(swapped), "--robot", str(robot), "-o", str(out)]) == 0
-    assert "of the robot; check the robot file against the robot" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the readings do not fit the model of the robot (what to check: the warning" in err
+    assert err.count("check the robot file against the robot (the IMUs' order") == 1
     est, true = read_state_table(out), read_state_table(truth)
     off = np.linalg.norm(
         est.values[:, [est.names.index(c) for c in "xyz"]]

@@ -180,10 +180,10 @@ def test_a_bound_reached_by_readings_that_restart_the_estimator_puts_the_robot_f
 def test_a_bound_no_robot_reaches_points_to_the_robot_file_not_to_raising_it(tmp_path, capsys):
     """Estimates held at the default bound (3 rad, 172 degrees) come from readings the
     model does not explain (here a rod that twists about itself), not from a robot
-    bending that far: the warning says to check the robot file, not to raise the bound;
-    and the rows that disagree with their readings for most of the run get a line of
-    their own (with the summary's count alone, an ``ok`` share could be read as
-    reassurance)."""
+    bending that far: the warning says so, not to raise the bound; and the rows that
+    disagree with their readings for most of the run get a line of their own after it
+    (with the summary's count alone, an ``ok`` share could be read as reassurance),
+    which says what to check in the robot file, once: the bound's warning points to it."""
     argv = ["estimate", str(ROD / "spatial_tilt.csv"), "--method", "ekf"]
     assert main([*argv, "--robot", str(_robot(tmp_path)), "-o", str(tmp_path / "a.csv")]) == 0
     err = capsys.readouterr().err
@@ -191,12 +191,13 @@ def test_a_bound_no_robot_reaches_points_to_the_robot_file_not_to_raising_it(tmp
     assert "if it bends so far" not in line and "raise theta_max" not in line
     assert line.endswith(
         "and a bound of 3 rad or more is one a robot does not reach: readings that the model "
-        "of the robot does not explain pushed the estimates there; check the robot file "
-        "against the robot (the IMUs' order, section, at and mount_rpy, the sections' "
-        "lengths and order, the mounting; check-robot lists them), or the robot does what "
-        "the model cannot follow (a backbone that twists about itself)"
+        "of the robot does not explain pushed the estimates there (what to check: the "
+        "warning on inconsistent estimates, which follows)"
     ), line
     (warned,) = [ln for ln in err.splitlines() if "are inconsistent:" in ln]
+    assert err.index(line) < err.index(warned)
+    assert "check the robot file against the robot (the IMUs' order" in warned
+    assert err.count("check the robot file against the robot") == 1
     status = read_state_table(tmp_path / "a.csv").status
     bad = int(np.sum(status == "inconsistent"))
     assert bad > 0.25 * len(status)
@@ -204,6 +205,37 @@ def test_a_bound_no_robot_reaches_points_to_the_robot_file_not_to_raising_it(tmp
         f"continuum-mhe: warning: {bad} of {len(status)} estimates "
         f"({100 * bad / len(status):.0f} %) are inconsistent: their readings disagree"
     ), warned
+
+
+def test_the_bound_warning_lists_the_causes_where_no_other_warning_does(tmp_path) -> None:
+    """Estimates on a default bound that no robot reaches: without the warning on
+    inconsistent estimates after it, the bound's warning says what to check itself; with
+    it, it points there."""
+    from continuum_mhe.estimators.run_notices import BendsOnBound
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.registry import make_formulation
+
+    f = make_formulation("bend", read_robot(_robot(tmp_path)))
+    tally = BendsOnBound(f)
+    names = [o.name for o in f.outputs]
+    out = np.zeros((4, len(names)))
+    out[:, names.index("theta_2")] = 3.0  # the default bound
+    tally.add(out, ["at-bound"] * 4)
+    own, pointing = (
+        tally.notice(10, "mhe", True, "raise theta_max", causes_follow=follow)
+        for follow in (False, True)
+    )
+    assert own is not None and pointing is not None
+    reached = "readings that the model of the robot does not explain pushed the estimates there"
+    assert own.endswith(
+        f"{reached}; check the robot file against the robot (the IMUs' order, section, at "
+        "and mount_rpy, the sections' lengths and order, the mounting; check-robot lists "
+        "them), or the robot does what the model cannot follow (a backbone that twists "
+        "about itself)"
+    ), own
+    assert pointing.endswith(
+        f"{reached} (what to check: the warning on inconsistent estimates, which follows)"
+    ), pointing
 
 
 def test_no_inconsistency_line_where_the_readings_fit(tmp_path, capsys):

@@ -1657,4 +1657,6 @@ def test_live_warns_of_readings_that_restart_the_estimator_as_estimate_does() ->
     assert said is not None, summaries[1]
     assert 20 <= int(said[2]) <= 45
     assert "the readings do not fit the model of the robot" in summaries[1]
-    assert "(the IMUs' order, their mount_rpy and at" in summaries[1]
+    # what to check is said once, in the warning on inconsistent estimates it points to
+    assert "(what to check: the warning on inconsistent estimates, which follows)" in summaries[1]
+    assert summaries[1].count("check the robot file against the robot (the IMUs' order") == 1

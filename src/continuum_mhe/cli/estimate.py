@@ -342,9 +342,14 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         )
         raise interrupted
     restarts = diag.restarts + diag.bad_starts + diag.reject_resets
+    # (a row whose reading the robust cost rejected says what the estimator did, not
+    # that the model does not follow the robot: the summary counts those as outliers)
+    inconsistent = tally.counts.get("inconsistent", 0) - tally.rejected_inconsistent
+    inconsistent_note = inconsistent_notice(inconsistent, n, formulation)
+    causes_follow = inconsistent_note is not None  # its causes, said once after the others
     if stream.kind == "log" and len(args.topic or ()) > 1:  # topics in the wrong order, most often
         warn_topic_order(stream.name, args.topic, n, restarts)
-    elif restarts_note := restarts_notice(n, restarts, diag.last_failure):
+    elif restarts_note := restarts_notice(n, restarts, diag.last_failure, causes_follow):
         print(f"{PROG}: warning: {stream.name}: {restarts_note}", file=sys.stderr)
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     if flags_outliers:
@@ -392,7 +397,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
     # estimate that diverged (which an estimate held beyond a bound it passes may do)
     contradicted = restarts_notice(n, diag.bad_starts + diag.reject_resets) is not None
     if bound_note := tally.bound.notice(
-        n, args.method, holds, raise_it, est.shape_observable, contradicted
+        n, args.method, holds, raise_it, est.shape_observable, contradicted, causes_follow
     ):
         print(f"{PROG}: warning: {bound_note}", file=sys.stderr)
     if beyond_note := tally.beyond.notice(n):
@@ -409,10 +414,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         print(f"{PROG}: warning: {drift_note}", file=sys.stderr)
     if load_note := untrusted_start_notice(diag, n, bool(formulation.robot.tendons)):
         print(f"{PROG}: warning: {load_note}", file=sys.stderr)
-    # (a row whose reading the robust cost rejected says what the estimator did, not
-    # that the model does not follow the robot: the summary counts those as outliers)
-    inconsistent = tally.counts.get("inconsistent", 0) - tally.rejected_inconsistent
-    if inconsistent_note := inconsistent_notice(inconsistent, n, formulation):
+    if inconsistent_note is not None:
         print(f"{PROG}: warning: {inconsistent_note}", file=sys.stderr)
     if diag.reject_resets:
         msg += (

@@ -109,6 +109,7 @@ class BendsOnBound:
         raise_it: str,
         observable: bool = True,
         contradicted: bool = False,
+        causes_follow: bool = False,
     ) -> str | None:
         """One line for the estimates counted on (or beyond) the bound, of ``n``, by
         ``method`` (the estimator's name), which ``holds`` its bends to the bound (the
@@ -118,7 +119,9 @@ class BendsOnBound:
         drift to the bound); ``contradicted``: whether the readings restarted the
         estimator on many samples (said in a warning of its own): a bound too tight
         does that, and so does a robot file that does not describe the robot, which
-        raising the bound does not mend. None without."""
+        raising the bound does not mend; ``causes_follow``: the warning on inconsistent
+        estimates follows, and a bound that readings the model does not explain reached
+        points to its list of causes instead of giving its own. None without."""
         if not self.count:
             return None
         sections = self._robot.sections
@@ -174,7 +177,12 @@ class BendsOnBound:
             further = (
                 f"and a bound of {DEFAULT_THETA_MAX:g} rad or more is one a robot does not "
                 f"reach{missing}: readings that the model of the robot does not explain pushed the "
-                "estimates there; check the robot file against the robot (the IMUs' order, "
+                "estimates there"
+            )
+            further += (
+                f" ({CAUSES_FOLLOW})"
+                if causes_follow
+                else "; check the robot file against the robot (the IMUs' order, "
                 "section, at and mount_rpy, the sections' lengths and order, the mounting; "
                 "check-robot lists them), or the robot does what the model cannot follow "
                 "(a backbone that twists about itself)"
@@ -778,12 +786,21 @@ def untrusted_start_notice(diagnostics: Diagnostics, n: int, tendons: bool = Tru
 RESTARTS_SAID = 5
 
 
-def restarts_notice(samples: int, restarts: int, last_failure: str | None = None) -> str | None:
+#: What a warning of a model that does not fit the readings says instead of its own list
+#: of causes where the warning on inconsistent estimates (:func:`inconsistent_notice`),
+#: which lists them all, follows it.
+CAUSES_FOLLOW = "what to check: the warning on inconsistent estimates, which follows"
+
+
+def restarts_notice(
+    samples: int, restarts: int, last_failure: str | None = None, causes_follow: bool = False
+) -> str | None:
     """One line where more than ``ORDER_RESTART_SHARE`` of ``samples``, and at least
     :data:`RESTARTS_SAID`, restarted the estimator (``restarts``, gaps not counted): the
     readings do not fit the model of the robot, or (``last_failure``, the policy's last
     numerical failure, the UKF's) its sigma points spread a tilt reading across a half
-    turn; None otherwise."""
+    turn; None otherwise. ``causes_follow``: the warning on inconsistent estimates
+    follows, and this one points to its list of causes instead of giving its own."""
     from continuum_mhe.estimators.kalman import UNSCENTED_SPREAD
     from continuum_mhe.io.imu_topics import ORDER_RESTART_SHARE
 
@@ -797,9 +814,14 @@ def restarts_notice(samples: int, restarts: int, last_failure: str | None = None
             "an estimate this uncertain; the last restart's: "
             f"{last_failure.split(': ', 1)[-1]}); the EKF (--method ekf) has no sigma points"
         )
-    return said + (
+    said += (
         "estimator (readings inconsistent with its estimate, or an estimate that diverged): "
-        "the readings do not fit the model of the robot; check the robot file against the "
+        "the readings do not fit the model of the robot"
+    )
+    if causes_follow:
+        return f"{said} ({CAUSES_FOLLOW})"
+    return said + (
+        "; check the robot file against the "
         "robot (the IMUs' order, their mount_rpy and at, the sections' lengths; "
         "check-robot lists them), or the robot does what the model cannot follow (a "
         "backbone that twists about itself)"

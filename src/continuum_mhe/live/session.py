@@ -1292,7 +1292,11 @@ class LiveSession:
             msg += f"; {clause}"
         diag = self.estimator.diagnostics
         restarts = diag.restarts + diag.bad_starts + diag.reject_resets  # as estimate counts
-        if restarts_note := restarts_notice(c.estimates, restarts, diag.last_failure):
+        inconsistent = self.status_counts.get("inconsistent", 0) - self.rejected_inconsistent
+        inconsistent_note = inconsistent_notice(inconsistent, c.estimates, self.formulation)
+        if restarts_note := restarts_notice(
+            c.estimates, restarts, diag.last_failure, inconsistent_note is not None
+        ):
             msg += "; warning: " + restarts_note
         if chains := self.estimator.diagnostics.bad_start_chains:
             msg += (
@@ -1308,8 +1312,7 @@ class LiveSession:
             self.estimator.diagnostics, c.estimates, bool(self.formulation.robot.tendons)
         ):
             msg += "; warning: " + load_note
-        inconsistent = self.status_counts.get("inconsistent", 0) - self.rejected_inconsistent
-        if inconsistent_note := inconsistent_notice(inconsistent, c.estimates, self.formulation):
+        if inconsistent_note is not None:
             msg += "; warning: " + inconsistent_note
         if self.record is not None and c.first_restart_t is not None:
             msg += (
