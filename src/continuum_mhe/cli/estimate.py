@@ -235,6 +235,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
     check_output_path(args.output, args.overwrite)
     out = args.output
     base = formulation_from_args(args)
+    twist_given = getattr(args, "imu_twist", None) is not None
     twist = choose_imu_twist(args, base)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
         formulation = stream.formulation
@@ -416,6 +417,8 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         print(f"{PROG}: warning: {load_note}", file=sys.stderr)
     if inconsistent_note is not None:
         print(f"{PROG}: warning: {inconsistent_note}", file=sys.stderr)
+        if not twist_given and twist is None and (hint := uncalibrated_twist_hint(args, base)):
+            print(f"{PROG}: warning: {hint}", file=sys.stderr)
     if diag.reject_resets:
         msg += (
             f"; restarted {diag.reject_resets} time(s) after rejecting every reading for over "
@@ -437,14 +440,31 @@ def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEviden
     ``args.imu_twist`` set to its choice; else None, ``args.imu_twist`` off where it was
     not given. The recording is read once more for it (its warnings said by the
     estimate's own reading)."""
-    from continuum_mhe.estimators.twist_evidence import twist_evidence
-    from continuum_mhe.io.inputs import load_input
-    from continuum_mhe.io.robot_logs import is_robot_log
-    from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
+    from continuum_mhe.model.direct import gyro_biases_calibrated
 
     if getattr(args, "imu_twist", None) is not None:
         return None
     args.imu_twist = False
+    if not gyro_biases_calibrated(base.robot):
+        return None
+    evidence = _twist_evidence(args, base)
+    if evidence is not None:
+        args.imu_twist = evidence.twists
+    return evidence
+
+
+def _twist_evidence(args: argparse.Namespace, base: Formulation) -> TwistEvidence | None:
+    """The readings' evidence for the IMUs' twist
+    (:func:`~continuum_mhe.estimators.twist_evidence.twist_evidence`) where the input is
+    a recording (a file, or a ROS 2 bag's folder; not a pipe) of raw IMUs on a robot
+    without a mechanics model, read by the direct model with its gyro biases estimated
+    and without ``--own-acceleration``; else None. The recording is read once more for
+    it (its warnings said by the estimate's own reading)."""
+    from continuum_mhe.estimators.twist_evidence import twist_evidence
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.robot_logs import is_robot_log
+    from continuum_mhe.model.direct import DirectFormulation
+
     robot = base.robot
     source = Path(args.measurements)
     if (
@@ -452,7 +472,6 @@ def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEviden
         or not (source.is_file() or is_robot_log(source))  # a ROS 2 bag is a folder
         or robot.has_mechanics
         or not robot.imus
-        or not gyro_biases_calibrated(robot)
         or getattr(args, "own_acceleration", False)
     ):
         return None
@@ -460,11 +479,35 @@ def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEviden
         warnings.simplefilter("ignore")
         data = load_input(source, input_options(args), base)
     f = data.formulation
-    if not isinstance(f, DirectFormulation) or not f.estimate_gyro_bias:
+    if not isinstance(f, DirectFormulation) or not f.estimate_gyro_bias or f.imu_twist:
         return None
-    evidence = twist_evidence(f, data.t, data.z)
-    args.imu_twist = evidence.twists
-    return evidence
+    return twist_evidence(f, data.t, data.z)
+
+
+def uncalibrated_twist_hint(args: argparse.Namespace, base: Formulation) -> str | None:
+    """For a run the model did not fit (the warning on inconsistent estimates) of raw
+    IMUs whose gyro biases the robot file does not calibrate (so :func:`choose_imu_twist`
+    did not weigh the twist): where the readings show the IMUs twisting about the
+    backbone (:func:`_twist_evidence`, the twist model estimating the biases too), the
+    line that says so and to calibrate first; else None."""
+    from continuum_mhe.model.direct import gyro_biases_calibrated
+
+    if gyro_biases_calibrated(base.robot):
+        return None
+    evidence = _twist_evidence(args, base)
+    if evidence is None or not evidence.twists:
+        return None
+    robot = args.robot or "ROBOT.toml"
+    return (
+        f"{args.measurements}: the readings show the IMUs turning about the backbone, which "
+        "the constant-curvature frames do not follow (a model of each IMU's twist predicted "
+        f"{100 * evidence.share:.0f} % of {evidence.samples} readings better, median "
+        f"log-density {evidence.median:+.3g} per reading): calibrate the gyro biases with "
+        f"the robot straight and still (continuum-mhe calibrate --from REST.csv --robot "
+        f"{robot} --write-robot CAL.toml) and estimate with --robot CAL.toml, which weighs "
+        "the twist on the readings; uncalibrated, --imu-twist takes a gyro's bias about its "
+        "z axis for a twist (docs/model.md)"
+    )
 
 
 def twist_clause(evidence: TwistEvidence) -> str:

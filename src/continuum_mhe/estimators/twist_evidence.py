@@ -56,28 +56,31 @@ class TwistEvidence:
 
 
 def twisted_formulation(frames: DirectFormulation) -> DirectFormulation:
-    """``frames`` with each IMU's twist as states (``imu_twist``), its gyro biases held at
-    the robot file's calibration, as ``--imu-twist`` makes it for a calibrated robot
-    (:func:`~continuum_mhe.model.registry.make_formulation`)."""
-    return replace(frames, imu_twist=True, estimate_gyro_bias=False)
+    """``frames`` with each IMU's twist as states (``imu_twist``), as ``--imu-twist`` makes
+    it (:func:`~continuum_mhe.model.registry.make_formulation`): its gyro biases held at
+    the robot file's calibration where every IMU has one, else estimated as the frames'
+    are (a bias about an IMU's z axis then reads as a twist)."""
+    return replace(
+        frames, imu_twist=True, estimate_gyro_bias=not gyro_biases_calibrated(frames.robot)
+    )
 
 
 def twist_evidence(frames: DirectFormulation, t: ArrayLike, z: ArrayLike) -> TwistEvidence:
     """Run the compiled EKF of ``frames`` (the constant-curvature frames, raw IMUs with
-    gyro biases, every IMU's ``gyro_bias`` calibrated) and of its twisted formulation
+    their gyro biases estimated) and of its twisted formulation
     (:func:`twisted_formulation`) over the readings ``z`` (n, nz) at ``t`` (n,) s, as an
     estimator's ``run`` takes them, each in one compiled call (the two side by side, the
     twist model's on a second thread), and compare their
     innovation log-densities sample by sample (no restart but after a failed step: a
     filter that loses the readings keeps predicting them badly, which is the
-    evidence)."""
+    evidence). With every IMU's ``gyro_bias`` calibrated the twist model holds the
+    biases, which is what ``estimate`` chooses on; without, it estimates them too, which
+    tells a twisting robot from one that does not as well but estimates it worse
+    (docs/model-studies.md, "The IMUs' twist, measured")."""
     if not isinstance(frames, DirectFormulation) or frames.imu_twist:
         raise UserError("twist_evidence takes the direct formulation without imu_twist")
-    if not frames.estimate_gyro_bias or not gyro_biases_calibrated(frames.robot):
-        raise UserError(
-            "twist_evidence needs every IMU's gyro_bias calibrated and the biases estimated "
-            "(calibrate --from REST.csv --write-robot)"
-        )
+    if not frames.estimate_gyro_bias:
+        raise UserError("twist_evidence needs the gyro biases estimated")
     t_arr = np.ascontiguousarray(t, dtype=float)
     z_arr = np.ascontiguousarray(z, dtype=float)
     runs = []  # each model's compiled steps, built here (CasADi builds on one thread)
