@@ -508,3 +508,22 @@ def test_an_uncalibrated_twisting_rod_is_told_to_calibrate_first(tmp_path, capsy
                  "--noise-deg", "0.3", "-o", str(out)]) == 0  # fmt: skip
     err = capsys.readouterr().err
     assert " are inconsistent: " in err and "turning about the backbone" not in err
+
+
+def test_a_calibrated_robot_files_refusal_is_in_the_command_lines_words(tmp_path, capsys) -> None:
+    """The readings weighed for the twist before the estimate are read again by the
+    estimate, which says what is wrong with them: a calibrated robot file that says
+    ``z-down`` for the standing ``spatial`` rod is refused naming the robot file's key,
+    as for an uncalibrated one, not in the words for a Robot made in Python."""
+    cal = _calibrated(tmp_path, "spatial")
+    down = tmp_path / "down.toml"
+    down.write_text(cal.read_text().replace('mounting = "z-up"', 'mounting = "z-down"'))
+    capsys.readouterr()
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(ROD / "spatial_raw.csv"), "--robot", str(down),
+                 "-o", str(out)]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and not out.exists()
+    assert err.rstrip().endswith(
+        f'the robot stands on its base? set mounting = "z-up" in the robot file {down}'
+    )

@@ -11,7 +11,7 @@ import sys
 import warnings
 from collections import Counter
 from collections.abc import Generator, Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO, cast
 
@@ -47,7 +47,7 @@ from continuum_mhe.cli.model_options import (
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.cli.recovery_options import add_recovery_options, recovery_settings_from_args
-from continuum_mhe.errors import InputError, TimeUnitError, time_text
+from continuum_mhe.errors import InputError, TimeUnitError, UserError, time_text
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.run_notices import (
     BendsBeyondBound,
@@ -72,9 +72,11 @@ from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 
 if TYPE_CHECKING:
+    from continuum_mhe.calibration.still_start import StillStart
     from continuum_mhe.estimators.twist_evidence import TwistEvidence
     from continuum_mhe.io.background import WriteBehind
     from continuum_mhe.io.estimate_sink import EstimateSink
+    from continuum_mhe.io.inputs import EstimateInput
     from continuum_mhe.model.formulations import Formulation
 
 #: Samples read, estimated and written as one block (the compiled policy steps a block in
@@ -236,6 +238,7 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
     out = args.output
     base = formulation_from_args(args)
     twist_given = getattr(args, "imu_twist", None) is not None
+    still, base = still_start_biases(args, base)
     twist = choose_imu_twist(args, base)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
         formulation = stream.formulation
@@ -362,6 +365,8 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
         msg += f"; {clause}"
     if free_note := free_of_load_clause(est.inference, n):
         msg += f"; {free_note}"
+    if still is not None:
+        msg += f"; {still.clause()}"
     if twist is not None:
         msg += f"; {twist_clause(twist)}"
     if gaps := tally.gaps.clause():
@@ -430,6 +435,56 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
     return 0
 
 
+def _recording_for_a_choice(args: argparse.Namespace, base: Formulation) -> EstimateInput | None:
+    """The whole input as ``load_input`` reads it for ``base``, for a choice made before
+    the estimate (:func:`still_start_biases`, :func:`choose_imu_twist`), where it is a
+    recording (a file, or a ROS 2 bag's folder; not a pipe) of a robot with IMUs and
+    without a mechanics model; else None, and None where it cannot be read: the
+    estimate's own reading then says why, in the command line's words, with the
+    warnings it holds."""
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.robot_logs import is_robot_log
+
+    source = Path(args.measurements)
+    if (
+        args.measurements == "-"
+        or not (source.is_file() or is_robot_log(source))  # a ROS 2 bag is a folder
+        or base.robot.has_mechanics
+        or not base.robot.imus
+    ):
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            return load_input(source, input_options(args), base)
+        except UserError:
+            return None
+
+
+def still_start_biases(
+    args: argparse.Namespace, base: Formulation
+) -> tuple[StillStart | None, Formulation]:
+    """Where the input is a recording (a file, or a ROS 2 bag's folder; not a pipe) of
+    raw IMUs read by the direct model, on a robot without a mechanics model whose robot
+    file does not calibrate every IMU's gyro bias, and the recording starts still
+    (:func:`~continuum_mhe.calibration.still_start.find_still_start`): the still start,
+    and ``base`` with its robot's uncalibrated IMUs given the still start's gyro biases;
+    else ``(None, base)``. The recording is read once more for it (its warnings said by
+    the estimate's own reading)."""
+    from continuum_mhe.calibration.still_start import find_still_start, with_still_start_biases
+    from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
+
+    robot = base.robot
+    data = None if gyro_biases_calibrated(robot) else _recording_for_a_choice(args, base)
+    f = None if data is None else data.formulation
+    if data is None or not isinstance(f, DirectFormulation):
+        return None, base
+    still = find_still_start(data.t, data.z, f.measurement_names, robot.n_imus)
+    if still is None:
+        return None, base
+    return still, replace(base, robot=with_still_start_biases(robot, still))
+
+
 def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEvidence | None:
     """Where neither ``--imu-twist`` nor ``--no-imu-twist`` was given, the input is a
     recording (a file, or a ROS 2 bag's folder; not a pipe) of raw IMUs (the direct
@@ -461,25 +516,18 @@ def _twist_evidence(args: argparse.Namespace, base: Formulation) -> TwistEvidenc
     and without ``--own-acceleration``; else None. The recording is read once more for
     it (its warnings said by the estimate's own reading)."""
     from continuum_mhe.estimators.twist_evidence import twist_evidence
-    from continuum_mhe.io.inputs import load_input
-    from continuum_mhe.io.robot_logs import is_robot_log
     from continuum_mhe.model.direct import DirectFormulation
 
-    robot = base.robot
-    source = Path(args.measurements)
-    if (
-        args.measurements == "-"
-        or not (source.is_file() or is_robot_log(source))  # a ROS 2 bag is a folder
-        or robot.has_mechanics
-        or not robot.imus
-        or getattr(args, "own_acceleration", False)
-    ):
+    if getattr(args, "own_acceleration", False):
         return None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        data = load_input(source, input_options(args), base)
-    f = data.formulation
-    if not isinstance(f, DirectFormulation) or not f.estimate_gyro_bias or f.imu_twist:
+    data = _recording_for_a_choice(args, base)
+    f = None if data is None else data.formulation
+    if (
+        data is None
+        or not isinstance(f, DirectFormulation)
+        or not f.estimate_gyro_bias
+        or f.imu_twist
+    ):
         return None
     return twist_evidence(f, data.t, data.z)
 

@@ -1,0 +1,167 @@
+"""Gyro biases from a recording's still start (``calibration.still_start``): known
+answers of the detection (a still start found to its length and biases, a slow steady
+turn, a start in motion and a dropout not taken for one), the biases written so that
+the robot's readings at rest read zero (any mounting), and ``estimate`` of a shipped
+twisting rod's recording that starts still: the biases taken, the twist weighed and
+estimated, near its calibrated result."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from numpy.testing import assert_allclose
+
+from continuum_mhe.calibration.still_start import (
+    BLOCK_S,
+    find_still_start,
+    with_still_start_biases,
+)
+from continuum_mhe.cli import main
+from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.inputs import load_input
+from continuum_mhe.io.robot_file import read_robot, shipped_robots
+from continuum_mhe.io.state_tables import read_state_table
+from continuum_mhe.model.registry import make_formulation
+
+ROD = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+NAMES = tuple(f"{q}{a}_{k}" for k in (1, 2) for q in "fw" for a in "xyz")
+BIASES = np.array([[0.03, -0.05, 0.02], [-0.01, 0.04, -0.06]])  # rad/s
+
+
+def _recording(
+    still_s: float, turn_rate: float = 0.0, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two IMUs at 50 Hz over 4 s: at rest for ``still_s`` s (each gyro reading its bias
+    with 0.002 rad/s of noise, each accelerometer gravity with 0.02 m/s^2), turning
+    about their x axes at ``turn_rate`` rad/s meanwhile; then swinging about x at up
+    to 1 rad/s."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 4.0, 0.02)
+    moving = t >= still_s
+    rate = np.where(moving, np.sin(3.0 * (t - still_s)), turn_rate)
+    angle = np.cumsum(rate) * 0.02
+    z = np.empty((len(t), 12))
+    for k in range(2):
+        force = 9.81 * np.column_stack([np.zeros_like(t), np.sin(angle), np.cos(angle)])
+        rates = np.column_stack([rate, np.zeros_like(t), np.zeros_like(t)]) + BIASES[k]
+        z[:, 6 * k : 6 * k + 3] = force + rng.normal(0.0, 0.02, force.shape)
+        z[:, 6 * k + 3 : 6 * k + 6] = rates + rng.normal(0.0, 0.002, rates.shape)
+    return t, z
+
+
+def test_a_still_start_is_found_to_its_length_with_the_gyro_biases() -> None:
+    """Two seconds at rest: four still blocks of 0.5 s, the last left out (the motion
+    may begin in it), so 1.5 s and 75 samples; the biases within the mean of 75 noisy
+    readings (0.002 / sqrt(75) rad/s: 0.001 is over four of its standard errors)."""
+    t, z = _recording(2.0)
+    still = find_still_start(t, z, NAMES, 2)
+    assert still is not None
+    assert still.seconds == 3 * BLOCK_S and still.samples == 75
+    assert_allclose(np.array(still.gyro_biases), BIASES, atol=1e-3)
+    assert "gyro biases from the still start (its first 1.5 s, 75 samples)" in still.clause()
+
+
+def test_no_still_start_where_the_robot_moves_turns_or_drops_out() -> None:
+    """No still start in a recording that moves from its first sample, nor in one whose
+    first second is too short a rest (0.9 s: one block left, 0.5 s), nor where the IMUs
+    turn steadily at 0.05 rad/s about a horizontal axis (a steady rate, like a bias, but
+    the gravity direction turns 1.4 degrees a block), nor with a dropout in the first
+    block, nor without gyro columns."""
+    for still_s in (0.0, 0.9):
+        t, z = _recording(still_s)
+        assert find_still_start(t, z, NAMES, 2) is None, still_s
+    t, z = _recording(3.0, turn_rate=0.05)
+    assert find_still_start(t, z, NAMES, 2) is None
+    t, z = _recording(2.0)
+    z[3, 4] = math.nan
+    assert find_still_start(t, z, NAMES, 2) is None
+    tilt_names = tuple(n for n in NAMES if n.startswith("f"))
+    assert find_still_start(t, z[:, [0, 1, 2, 6, 7, 8]], tilt_names, 2) is None
+
+
+def _rest_then_run(tmp_path: Path, name: str, still_s: float = 2.0) -> tuple[Path, Path]:
+    """The shipped rod recording ``name``: its rest recording's first ``still_s`` s, then
+    its raw recording (times moved by ``still_s``); the truth moved alike."""
+    rest = (ROD / f"{name}_rest.csv").read_text().splitlines()
+    raw = (ROD / f"{name}_raw.csv").read_text().splitlines()
+    assert rest[0] == raw[0]
+    lines = [raw[0]] + [ln for ln in rest[1:] if float(ln.split(",")[0]) < still_s - 1e-9]
+    for ln in raw[1:]:
+        t, rest_of_row = ln.split(",", 1)
+        lines.append(f"{float(t) + still_s!r},{rest_of_row}")
+    run = tmp_path / f"{name}_still_raw.csv"
+    run.write_text("\n".join(lines) + "\n")
+    truth = (ROD / f"{name}_truth.csv").read_text().splitlines()
+    moved = [truth[0]]
+    for ln in truth[1:]:
+        t, rest_of_row = ln.split(",", 1)
+        moved.append(f"{float(t) + still_s!r},{rest_of_row}")
+    truth_path = tmp_path / f"{name}_still_truth.csv"
+    truth_path.write_text("\n".join(moved) + "\n")
+    return run, truth_path
+
+
+def test_the_biases_taken_make_the_still_start_read_zero_for_any_mounting(tmp_path) -> None:
+    """The biases go into the robot file's ``gyro_bias`` (the sensor's frame), which the
+    reading removes before turning the rates into the disk's frame by ``mount_rpy``: the
+    still start's rates, read with the robot given them, average zero, with one IMU
+    mounted turned (20, -10, 35 degrees). An IMU with a calibrated ``gyro_bias`` keeps
+    it."""
+    run, _ = _rest_then_run(tmp_path, "planar-s")
+    robot = read_robot(shipped_robots()["two-section"])
+    turned = replace(robot.imus[1], mount_rpy=(20.0, -10.0, 35.0))
+    robot = replace(robot, imus=(robot.imus[0], turned))
+    data = load_input(run, InputOptions(), make_formulation("bend", robot))
+    names = data.formulation.measurement_names
+    still = find_still_start(data.t, data.z, names, 2)
+    assert still is not None and still.seconds == 1.5
+    given = with_still_start_biases(robot, still)
+    again = load_input(run, InputOptions(), make_formulation("bend", given))
+    rates = [names.index(f"w{a}_{k}") for k in (1, 2) for a in "xyz"]
+    at_rest = again.t < again.t[0] + still.seconds - 1e-9
+    assert_allclose(again.z[at_rest][:, rates].mean(axis=0), 0.0, atol=1e-12)
+    calibrated = replace(robot.imus[0], gyro_bias=(0.1, 0.2, 0.3))
+    kept = with_still_start_biases(replace(robot, imus=(calibrated, turned)), still)
+    assert kept.imus[0].gyro_bias == (0.1, 0.2, 0.3)
+    assert kept.imus[1].gyro_bias == given.imus[1].gyro_bias
+
+
+def _tip_error_mm(est: Path, truth: Path, after_s: float) -> float:
+    e, tr = read_state_table(est), read_state_table(truth)
+    keep = e.t >= after_s - 1e-9
+    tip_e = np.column_stack([e.column(c) for c in "xyz"])[keep]
+    tip_t = np.column_stack([np.interp(e.t[keep], tr.t, tr.column(c)) for c in "xyz"])
+    return float(np.mean(np.linalg.norm(tip_e - tip_t, axis=1))) * 1e3
+
+
+def test_estimate_takes_the_gyro_biases_from_a_still_start(tmp_path, capsys) -> None:
+    """The shipped ``spatial`` rod (its IMUs twist up to 122 degrees) recorded after 2 s
+    at rest, the robot file uncalibrated: ``estimate`` takes the gyro biases from the
+    still start, says so, weighs the twist on the readings and estimates it, within 10
+    mm of the tip on average after the rest (the frames, ``--no-imu-twist``, over 50 mm).
+    The same recording without its rest, or with a calibrated robot file, takes none."""
+    run, truth = _rest_then_run(tmp_path, "spatial")
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(run), "--robot", "two-section", "-o", str(out)]) == 0
+    said = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "; gyro biases from the still start (its first 1.5 s, 75 samples): IMU 1 (" in said
+    assert "; the IMUs' twist estimated (--imu-twist: " in said
+    assert _tip_error_mm(out, truth, 2.0) < 10.0
+    frames = tmp_path / "f.csv"
+    assert main(["estimate", str(run), "--robot", "two-section", "--no-imu-twist",
+                 "-o", str(frames)]) == 0  # fmt: skip
+    assert _tip_error_mm(frames, truth, 2.0) > 50.0
+    capsys.readouterr()
+    plain = tmp_path / "p.csv"
+    assert main(["estimate", str(ROD / "spatial_raw.csv"), "--robot", "two-section",
+                 "-o", str(plain)]) == 0  # fmt: skip
+    assert "still start" not in capsys.readouterr().err
+    cal = tmp_path / "cal.toml"
+    assert main(["calibrate", "--from", str(ROD / "spatial_rest.csv"), "--robot", "two-section",
+                 "--write-robot", str(cal)]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["estimate", str(run), "--robot", str(cal), "-o", str(plain), "--overwrite"]) == 0
+    assert "still start" not in capsys.readouterr().err
