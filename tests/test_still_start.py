@@ -82,6 +82,21 @@ def test_no_still_start_where_the_robot_moves_turns_or_drops_out() -> None:
     assert find_still_start(t, z[:, [0, 1, 2, 6, 7, 8]], tilt_names, 2) is None
 
 
+def test_no_still_start_where_a_turn_about_the_vertical_speeds_up() -> None:
+    """A turn about the vertical moves no accelerometer: the IMUs level, their rates about
+    z growing by 0.02 rad/s each second from the first sample (each half-second's rates
+    scatter by 0.003 rad/s, well within the noise bound) change their mean by more than
+    0.01 rad/s from the first half-second's within 1 s, which is no still start."""
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 4.0, 0.02)
+    z = np.empty((len(t), 12))
+    for k in range(2):
+        z[:, 6 * k : 6 * k + 3] = [0.0, 0.0, 9.81] + rng.normal(0.0, 0.02, (len(t), 3))
+        z[:, 6 * k + 3 : 6 * k + 6] = BIASES[k] + rng.normal(0.0, 0.002, (len(t), 3))
+        z[:, 6 * k + 5] += 0.02 * t
+    assert find_still_start(t, z, NAMES, 2) is None
+
+
 def _rest_then_run(tmp_path: Path, name: str, still_s: float = 2.0) -> tuple[Path, Path]:
     """The shipped rod recording ``name``: its rest recording's first ``still_s`` s, then
     its raw recording (times moved by ``still_s``); the truth moved alike."""
@@ -165,3 +180,62 @@ def test_estimate_takes_the_gyro_biases_from_a_still_start(tmp_path, capsys) -> 
     capsys.readouterr()
     assert main(["estimate", str(run), "--robot", str(cal), "-o", str(plain), "--overwrite"]) == 0
     assert "still start" not in capsys.readouterr().err
+
+
+def test_the_biases_are_turned_by_the_mount_rpy_option_for_imus_without_their_own(
+    tmp_path,
+) -> None:
+    """An IMU without a robot-file ``mount_rpy`` is turned by ``--mount-rpy`` (its
+    readings' conversion), and so is the bias ``estimate`` writes for it: the
+    ``spatial`` rod's still start recorded in a sensor frame turned by (20, -10, 35)
+    degrees, read with ``--mount-rpy 20,-10,35``, reads zero over the still start, as
+    with the robot file's ``mount_rpy``."""
+    from continuum_mhe.cli import build_parser
+    from continuum_mhe.cli.estimate import still_start_biases
+    from continuum_mhe.cli.input_options import input_options
+    from continuum_mhe.cli.model_options import formulation_from_args
+    from continuum_mhe.io.raw_imu import mount_rotation
+
+    run, _ = _rest_then_run(tmp_path, "spatial")
+    rows = run.read_text().splitlines()
+    turn = mount_rotation((20.0, -10.0, 35.0))
+    turned = [rows[0]]
+    for ln in rows[1:]:
+        v = np.array([float(x) for x in ln.split(",")])
+        for c in (1, 4, 7, 10):  # each IMU's accelerometer and gyro: sensor = R^T disk
+            v[c : c + 3] = turn.T @ v[c : c + 3]
+        turned.append(",".join(repr(float(x)) for x in v))
+    path = tmp_path / "turned.csv"
+    path.write_text("\n".join(turned) + "\n")
+    argv = ["estimate", str(path), "--robot", "two-section", "--mount-rpy", "20,-10,35",
+            "-o", str(tmp_path / "e.csv")]  # fmt: skip
+    args = build_parser().parse_args(argv)
+    still, base = still_start_biases(args, formulation_from_args(args))
+    assert still is not None and still.seconds == 1.5
+    data = load_input(path, input_options(args), base)
+    names = data.formulation.measurement_names
+    rates = [names.index(f"w{a}_{k}") for k in (1, 2) for a in "xyz"]
+    at_rest = data.t < data.t[0] + still.seconds - 1e-9
+    assert_allclose(data.z[at_rest][:, rates].mean(axis=0), 0.0, atol=1e-12)
+
+
+def test_a_one_imu_robot_has_a_still_start(tmp_path, capsys) -> None:
+    """With one IMU the measurements' columns have no ``_1`` (``fx ... wz``): its still
+    start is found as with two, and ``estimate`` of a one-section robot (``--length``)
+    takes its gyro bias from it."""
+    from continuum_mhe.model.descriptions import direct_blocks
+
+    t, z = _recording(2.0)
+    names = tuple(n for b in direct_blocks(1) for n in b.names)
+    still = find_still_start(t, z[:, :6], names, 1)
+    assert still is not None and still.seconds == 3 * BLOCK_S
+    assert_allclose(np.array(still.gyro_biases), BIASES[:1], atol=1e-3)
+    run, _ = _rest_then_run(tmp_path, "spatial")
+    rows = [",".join(ln.split(",")[:7]) for ln in run.read_text().splitlines()]
+    one = tmp_path / "one.csv"
+    one.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(one), "--length", "0.16", "--method", "ekf",
+                 "-o", str(out)]) == 0  # fmt: skip
+    said = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "; gyro biases from the still start (its first 1.5 s, 75 samples): IMU 1 (" in said

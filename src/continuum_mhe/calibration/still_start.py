@@ -25,6 +25,7 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.io.raw_imu import mount_rotation
+from continuum_mhe.model.descriptions import imu_suffix
 from continuum_mhe.model.direct import gyro_bias_calibrated
 from continuum_mhe.model.robot import Robot
 
@@ -75,11 +76,13 @@ class StillStart:
         )
 
 
-def _imu_columns(names: tuple[str, ...], k: int) -> tuple[list[int], list[int]] | None:
+def _imu_columns(names: tuple[str, ...], k: int, n_imus: int) -> tuple[list[int], list[int]] | None:
     """The columns of IMU ``k``'s (1-based) specific force and rates among the
-    measurement ``names`` (``fx_k ... wz_k``), or None where it has no gyro there."""
-    force = [f"f{a}_{k}" for a in "xyz"]
-    rates = [f"w{a}_{k}" for a in "xyz"]
+    measurement ``names`` of ``n_imus`` IMUs (``fx_k ... wz_k``; ``fx ... wz`` with one
+    IMU), or None where it has no gyro there."""
+    suffix = imu_suffix(k - 1, n_imus)
+    force = [f"f{a}{suffix}" for a in "xyz"]
+    rates = [f"w{a}{suffix}" for a in "xyz"]
     if not all(c in names for c in force + rates):
         return None
     return [names.index(c) for c in force], [names.index(c) for c in rates]
@@ -89,10 +92,11 @@ def find_still_start(
     t: FloatArray, z: FloatArray, names: tuple[str, ...], n_imus: int
 ) -> StillStart | None:
     """The still start (module docstring) of the measurements ``z`` (n, nz; columns
-    ``names``, raw IMUs as ``fx_k, fy_k, fz_k, wx_k, wy_k, wz_k``: m/s^2 and rad/s) at
+    ``names``, raw IMUs as ``fx_k, fy_k, fz_k, wx_k, wy_k, wz_k``, without ``_k`` for one
+    IMU: m/s^2 and rad/s) at
     the times ``t`` (n,) s, of ``n_imus`` IMUs; None where there is none (or an IMU has
     no gyro)."""
-    found = [_imu_columns(names, k) for k in range(1, n_imus + 1)]
+    found = [_imu_columns(names, k, n_imus) for k in range(1, n_imus + 1)]
     columns = [c for c in found if c is not None]
     if not n_imus or len(columns) < n_imus or len(t) == 0:
         return None
@@ -151,16 +155,23 @@ def _still(
     return math.degrees(math.acos(cos)) <= TURN_DEG
 
 
-def with_still_start_biases(robot: Robot, still: StillStart) -> Robot:
+def with_still_start_biases(
+    robot: Robot,
+    still: StillStart,
+    mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> Robot:
     """``robot`` with the still start's gyro biases as the ``gyro_bias`` (sensor frame,
     rad/s) of each IMU that has none calibrated; the others kept. A measurement's rates
-    are the sensor's less its ``gyro_bias``, turned into the disk frame by its
-    ``mount_rpy``, so the sensor's bias is the disk-frame mean turned back."""
+    are the sensor's less its ``gyro_bias``, turned into the disk frame by its mounting
+    (the robot file's ``mount_rpy`` where it gives one, else ``mount_rpy``, as
+    ``--mount-rpy`` gives it: :func:`~continuum_mhe.io.input_options.imu_settings_for`),
+    so the sensor's bias is the disk-frame mean turned back."""
     imus = []
     for imu, bias in zip(robot.imus, still.gyro_biases):
         if gyro_bias_calibrated(imu):
             imus.append(imu)
             continue
-        sensor = mount_rotation(imu.mount_rpy).T @ np.asarray(bias, dtype=float)
+        mount = imu.mount_rpy if any(imu.mount_rpy) else mount_rpy
+        sensor = mount_rotation(mount).T @ np.asarray(bias, dtype=float)
         imus.append(replace(imu, gyro_bias=(float(sensor[0]), float(sensor[1]), float(sensor[2]))))
     return replace(robot, imus=tuple(imus))

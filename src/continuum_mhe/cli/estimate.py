@@ -482,7 +482,8 @@ def still_start_biases(
     still = find_still_start(data.t, data.z, f.measurement_names, robot.n_imus)
     if still is None:
         return None, base
-    return still, replace(base, robot=with_still_start_biases(robot, still))
+    mount = input_options(args).raw.mount_rpy  # --mount-rpy: the IMUs without their own
+    return still, replace(base, robot=with_still_start_biases(robot, still, mount))
 
 
 def choose_imu_twist(args: argparse.Namespace, base: Formulation) -> TwistEvidence | None:
