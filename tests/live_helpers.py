@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import math
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -160,6 +161,26 @@ def send_and_finish(proc: LiveProcess, master: int, lines: list[str]) -> int:
         proc.wait_ready()
         send(master, ("\n".join(lines) + "\n").encode(), lambda: proc.proc.poll() is None)
         return proc.finish()
+    finally:
+        if proc.proc.poll() is None:
+            proc.proc.kill()
+        os.close(master)
+
+
+def send_until_estimated(
+    proc: LiveProcess, master: int, chunks: list[str], est: Path, rows: int, pause: float
+) -> int:
+    """Once ``proc`` reads its port, write ``chunks`` to the pty's ``master`` one at a
+    time, ``pause`` s apart, wait for ``rows`` estimates in ``est`` and end ``proc`` with
+    SIGTERM; returns its exit status. The process is killed and ``master`` closed
+    whatever happens."""
+    try:
+        proc.wait_ready()
+        for chunk in chunks:
+            send(master, chunk.encode())
+            time.sleep(pause)
+        wait_for(lambda: data_rows(est) >= rows, "every estimate")
+        return proc.finish(signal.SIGTERM)
     finally:
         if proc.proc.poll() is None:
             proc.proc.kill()

@@ -28,6 +28,7 @@ from live_helpers import (
     raw_lines,
     send,
     send_and_finish,
+    send_until_estimated,
     send_until_rows,
     specific_force,
     unplug,
@@ -246,6 +247,56 @@ def _two_imu_stream(t0_ms: int, n: int, dt_ms: int = 10) -> list[str]:
     return lines
 
 
+def test_a_live_session_that_starts_still_replays_with_its_options(tmp_path: Path) -> None:
+    """``live`` estimates from its first sample and takes no gyro biases from a still
+    start, as ``estimate`` of a recording does, and records ``still-start = false``: a
+    session whose robot rests for 2 s (gyro biases of 0.03 to 0.06 rad/s) before its
+    s-curve replays with ``estimate RAW.csv --config EST.csv`` to 1e-9, while ``estimate
+    RAW.csv`` alone takes the biases from the rest and says so. ``live --still-start``
+    is refused in one line."""
+    port, est, raw = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "raw.csv"
+    master = new_pty(port)
+    moving = _two_imu_stream(200 * 10, 200)
+    rng = np.random.default_rng(5)
+    bias = np.array([[0.03, -0.04, 0.05], [-0.06, 0.03, 0.04]])
+    rest = np.array([specific_force(0.0, 0.0)] * 2)
+    lines = [raw_line(i * 10, rest + rng.normal(0, 0.02, (2, 3)),
+                      bias + rng.normal(0, 0.002, (2, 3))) for i in range(200)]  # fmt: skip
+    for line in moving:  # the same biases in the motion
+        t_ms, rest_of_line = line.split(",", 1)
+        values = np.array(rest_of_line.split(","), dtype=float).reshape(2, 6)
+        values[:, 3:] += bias
+        lines.append(raw_line(int(t_ms), values[:, :3], values[:, 3:]))
+    header = "# fields: t_ms," + ",".join(
+        f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")
+    )
+    live = LiveProcess(
+        ["--port", str(port), "--robot", "two-section", "--method", "ekf", "-o", str(est)]
+        + ["--record", str(raw)]
+    )
+    chunks = ["# continuum_imu 1.1.0 imus=2\n", header + "\n", *(ln + "\n" for ln in lines)]
+    code = send_until_estimated(live, master, chunks, est, len(lines), 0.0005)
+    assert code == 143, live.err
+    assert "still-start = false" in est.read_text().splitlines()[1]  # the options line
+    from continuum_mhe.cli import main
+
+    a = read_state_table(est)
+    for extra, same in ((["--config", str(est)], True), ([], False)):
+        replay = tmp_path / f"replay{len(extra)}.csv"
+        said = io.StringIO()
+        with contextlib.redirect_stderr(said):
+            assert main(["estimate", str(raw), "-o", str(replay), "--robot", "two-section",
+                         "--method", "ekf", *extra]) == 0, said.getvalue()  # fmt: skip
+        b = read_state_table(replay)
+        assert ("gyro biases from the still start" in said.getvalue()) is not same
+        assert bool(np.abs(a.values - b.values).max() <= 1e-9) is same
+    said = io.StringIO()
+    with contextlib.redirect_stderr(said):
+        assert main(["live", "--port", str(port), "--robot", "two-section",
+                     "--still-start"]) == 2  # fmt: skip
+    assert said.getvalue().startswith("continuum-mhe: error: --still-start: live estimates")
+
+
 def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
     """Two raw IMUs through a pty with CR, LF and CRLF line ends, garbage, a 1 MB line
     without a line end, device messages and a millis() wrap; then SIGTERM. The
@@ -276,17 +327,7 @@ def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
         ["--port", str(port), "--robot", "two-section", "--method", "mhe", "-o", str(est)]
         + ["--record", str(raw), "--status-every", "0.5"]
     )
-    try:
-        live.wait_ready()
-        for chunk in stream:
-            send(master, chunk.encode())
-            time.sleep(0.001)
-        wait_for(lambda: data_rows(est) >= len(lines), "every estimate")
-        code = live.finish(signal.SIGTERM)
-    finally:
-        if live.proc.poll() is None:
-            live.proc.kill()
-        os.close(master)
+    code = send_until_estimated(live, master, stream, est, len(lines), 0.001)
     err = live.err
     assert code == 143, err
     assert data_rows(raw) == len(lines) and data_rows(est) == len(lines)

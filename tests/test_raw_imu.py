@@ -674,7 +674,8 @@ def test_a_turn_tells_a_rad_s_gyros_large_offset_from_deg_s() -> None:
     same IMU turned about its x axis by 46 degrees and back (0.8 rad/s, 1 s each way,
     over 10 s mostly still) shows rad/s: not refused. Still throughout it is, in words
     that name the offset a rad/s gyro would need; a gyro in deg/s (offsets of 1 to 2
-    deg/s) with the same turns is refused too."""
+    deg/s) with the same turns is refused too, and so are a single half-second of turning
+    and turns the gyro's rates do not follow (its x and y swapped)."""
     rng = np.random.default_rng(11)
     t = np.arange(0.0, 10.0, 0.01)
     rates = np.where((t >= 4.0) & (t < 5.0), 0.8, 0.0) - np.where((t >= 7.0) & (t < 8.0), 0.8, 0.0)
@@ -689,6 +690,14 @@ def test_a_turn_tells_a_rad_s_gyros_large_offset_from_deg_s() -> None:
     assert "a zero-rate offset of 18 deg/s across gravity" in problem
     deg_s = np.degrees(turning - offset) + np.array([1.2, -1.5, 0.9])
     assert gyro_gravity_problem(t, acc, deg_s) is not None
+    # one half-second of turning is not enough to clear the still stretches' verdict
+    once = np.where((t >= 4.0) & (t < 4.5), 0.8, 0.0)
+    one_turn = np.column_stack([once, 0 * t, 0 * t]) + offset + rng.normal(0.0, 0.003, acc.shape)
+    assert gyro_gravity_problem(t, _turning_about_x(once, t, rng), one_turn) is not None
+    # nor are turns the rates, read as rad/s, do not follow (a gyro whose x and y are
+    # swapped: it says a turn about y where the accelerometer turns about x)
+    swapped = turning[:, [1, 0, 2]]
+    assert gyro_gravity_problem(t, acc, swapped) is not None
 
 
 def test_the_gravity_check_of_gyro_units_judges_recordings_under_10_hz() -> None:

@@ -10,10 +10,11 @@ docs/model.md, "The IMUs' twist").
 The start counts as still over the longest run of whole blocks of
 :data:`BLOCK_S` s from the first sample in which, for every IMU, the gyro's rates
 scatter by at most :data:`GYRO_STD` and keep the first block's mean to within
-:data:`GYRO_DRIFT`, the specific force's magnitude scatters by at most
-:data:`ACCEL_STD` and its direction stays within :data:`TURN_DEG` of the first
-block's; the last such block is left out (the motion may begin inside it), and what
-is left must span :data:`MIN_S`.
+:data:`GYRO_DRIFT`, and the direction of its specific force (the measurements give
+the direction alone) stays within :data:`TURN_DEG` of the first block's; the last
+such block is left out (the motion may begin inside it), and what is left must span
+:data:`MIN_S`. A steady turn about the vertical moves no accelerometer and reads as a
+bias (``estimate --no-still-start``).
 """
 
 from __future__ import annotations
@@ -39,9 +40,7 @@ BLOCK_SAMPLES = 5
 GYRO_STD = 0.02
 #: ... and its mean stays within this of the first block's (rad/s, per axis) ...
 GYRO_DRIFT = 0.01
-#: ... the specific force's magnitude scatters by at most this (m/s^2) ...
-ACCEL_STD = 0.2
-#: ... and its direction stays within this of the first block's (deg).
+#: ... and its specific force's direction stays within this of the first block's (deg).
 TURN_DEG = 1.0
 #: The still start used spans at least this (s), after the last still block is left
 #: out, and is looked for in the first :data:`MAX_S` s.
@@ -93,9 +92,9 @@ def find_still_start(
 ) -> StillStart | None:
     """The still start (module docstring) of the measurements ``z`` (n, nz; columns
     ``names``, raw IMUs as ``fx_k, fy_k, fz_k, wx_k, wy_k, wz_k``, without ``_k`` for one
-    IMU: m/s^2 and rad/s) at
-    the times ``t`` (n,) s, of ``n_imus`` IMUs; None where there is none (or an IMU has
-    no gyro)."""
+    IMU: the specific force's direction, or the force itself, and the rates in rad/s)
+    at the times ``t`` (n,) s, of ``n_imus`` IMUs; None where there is none (or an IMU
+    has no gyro)."""
     found = [_imu_columns(names, k, n_imus) for k in range(1, n_imus + 1)]
     columns = [c for c in found if c is not None]
     if not n_imus or len(columns) < n_imus or len(t) == 0:
@@ -143,8 +142,6 @@ def _still(
     for the first block itself)."""
     force, rates = rows[:, cols[0]], rows[:, cols[1]]
     if float(rates.std(axis=0).max()) > GYRO_STD:
-        return False
-    if float(np.linalg.norm(force, axis=1).std()) > ACCEL_STD:
         return False
     if first is None:
         return True

@@ -76,7 +76,6 @@ if TYPE_CHECKING:
     from continuum_mhe.estimators.twist_evidence import TwistEvidence
     from continuum_mhe.io.background import WriteBehind
     from continuum_mhe.io.estimate_sink import EstimateSink
-    from continuum_mhe.io.inputs import EstimateInput
     from continuum_mhe.model.formulations import Formulation
 
 #: Samples read, estimated and written as one block (the compiled policy steps a block in
@@ -435,14 +434,26 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
     return 0
 
 
-def _recording_for_a_choice(args: argparse.Namespace, base: Formulation) -> EstimateInput | None:
-    """The whole input as ``load_input`` reads it for ``base``, for a choice made before
-    the estimate (:func:`still_start_biases`, :func:`choose_imu_twist`), where it is a
-    recording (a file, or a ROS 2 bag's folder; not a pipe) of a robot with IMUs and
-    without a mechanics model; else None, and None where it cannot be read: the
-    estimate's own reading then says why, in the command line's words, with the
-    warnings it holds."""
-    from continuum_mhe.io.inputs import load_input
+@dataclass(frozen=True)
+class _Readings:
+    """A recording's measurements read for a choice before the estimate: ``t`` (n,) s,
+    ``z`` (n, nz), for ``formulation``."""
+
+    t: np.ndarray
+    z: np.ndarray
+    formulation: Formulation
+
+
+def _recording_for_a_choice(
+    args: argparse.Namespace, base: Formulation, seconds: float | None = None
+) -> _Readings | None:
+    """The input's measurements for ``base`` (its first ``seconds`` s, or the whole of it
+    for None), for a choice made before the estimate (:func:`still_start_biases`,
+    :func:`choose_imu_twist`), where it is a recording (a file, or a ROS 2 bag's folder;
+    not a pipe) of a robot with IMUs and without a mechanics model; else None, and None
+    where it cannot be read: the estimate's own reading then says why, in the command
+    line's words, with the warnings it holds."""
+    from continuum_mhe.io.inputs import open_input
     from continuum_mhe.io.robot_logs import is_robot_log
 
     source = Path(args.measurements)
@@ -453,12 +464,23 @@ def _recording_for_a_choice(args: argparse.Namespace, base: Formulation) -> Esti
         or not base.robot.imus
     ):
         return None
+    times: list[np.ndarray] = []
+    values: list[np.ndarray] = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            return load_input(source, input_options(args), base)
+            with open_input(source, input_options(args), base, args.robot) as stream:
+                for t, z in stream.blocks:
+                    times.append(t)
+                    values.append(z)
+                    if seconds is not None and len(t) and t[-1] - times[0][0] >= seconds:
+                        break  # a block at a time: the rest is not read
+                formulation = stream.formulation
         except UserError:
             return None
+    if not times:
+        return _Readings(np.zeros(0), np.zeros((0, formulation.nz)), formulation)
+    return _Readings(np.concatenate(times), np.concatenate(values), formulation)
 
 
 def still_start_biases(
@@ -469,13 +491,16 @@ def still_start_biases(
     file does not calibrate every IMU's gyro bias, and the recording starts still
     (:func:`~continuum_mhe.calibration.still_start.find_still_start`): the still start,
     and ``base`` with its robot's uncalibrated IMUs given the still start's gyro biases;
-    else ``(None, base)``. The recording is read once more for it (its warnings said by
-    the estimate's own reading)."""
+    else ``(None, base)``. Its first seconds are read once more for it (its warnings said by
+    the estimate's own reading). ``--no-still-start`` (``live``'s record) takes none."""
+    from continuum_mhe.calibration.still_start import MAX_S as STILL_START_MAX_S
     from continuum_mhe.calibration.still_start import find_still_start, with_still_start_biases
     from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
 
     robot = base.robot
-    data = None if gyro_biases_calibrated(robot) else _recording_for_a_choice(args, base)
+    if getattr(args, "still_start", None) is False or gyro_biases_calibrated(robot):
+        return None, base
+    data = _recording_for_a_choice(args, base, STILL_START_MAX_S)
     f = None if data is None else data.formulation
     if data is None or not isinstance(f, DirectFormulation):
         return None, base
@@ -553,9 +578,10 @@ def uncalibrated_twist_hint(args: argparse.Namespace, base: Formulation) -> str 
         f"{100 * evidence.share:.0f} % of {evidence.samples} readings better, median "
         f"log-density {evidence.median:+.3g} per reading): calibrate the gyro biases with "
         f"the robot straight and still (continuum-mhe calibrate --from REST.csv --robot "
-        f"{robot} --write-robot CAL.toml) and estimate with --robot CAL.toml, which weighs "
-        "the twist on the readings; uncalibrated, --imu-twist takes a gyro's bias about its "
-        "z axis for a twist (docs/model.md)"
+        f"{robot} --write-robot CAL.toml) and estimate with --robot CAL.toml, or record the "
+        "robot still for a second or more before it moves (estimate takes the biases from "
+        "that start): either lets the readings weigh the twist; uncalibrated, --imu-twist "
+        "takes a gyro's bias about its z axis for a twist (docs/model.md)"
     )
 
 

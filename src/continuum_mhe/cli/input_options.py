@@ -113,6 +113,18 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         "the EKF and UKF (restarts, largest errors over 200 mm: docs/estimators.md)",
     )
     g.add_argument(
+        "--still-start",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="for --imu-model direct: take each gyro bias the robot file does not give from "
+        "the recording's first seconds where the robot is still there (a second or more; "
+        "the summary says so), which lets estimate weigh --imu-twist as for a calibrated "
+        "robot file. Default: estimate does; live does not (it estimates from its first "
+        "sample) and records --no-still-start, so that estimate --config replays it. A "
+        "steady turn about the vertical reads as a bias: --no-still-start where the robot "
+        "starts so",
+    )
+    g.add_argument(
         "--imu-twist",
         action=argparse.BooleanOptionalAction,
         default=None,

@@ -78,6 +78,14 @@ def run(args: argparse.Namespace) -> int:
     # estimate --config EST.csv replays the session with them
     if getattr(args, "imu_twist", None) is None:
         args.imu_twist = False
+    # nor gyro biases from a still start (estimate's), which it cannot wait for
+    if getattr(args, "still_start", None):
+        raise InputError(
+            "--still-start: live estimates from its first sample, without waiting for a "
+            "still start; calibrate the gyro biases at rest (calibrate --port ... "
+            "--write-robot) and give that robot file"
+        )
+    args.still_start = False
     # the options checked and the IMU model decided as estimate does (io.inputs)
     line = serial_input(
         settings.port, settings.fmt, input_options(args), formulation_from_args(args)
