@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import notes_and_rows, simulated
+from cli_helpers import figures_drawn_small, notes_and_rows, simulated
 from numpy.testing import assert_allclose
 
 from continuum_mhe import (
@@ -1029,7 +1029,9 @@ def test_evaluate_says_when_the_truths_sections_are_the_robot_files_in_another_o
     assert "its rows fit" not in capsys.readouterr().err
 
 
-def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(tmp_path, capsys) -> None:
+def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(
+    tmp_path, capsys, monkeypatch
+) -> None:
     """As ``evaluate`` says it: a truth made for sections twice as long, drawn beside the
     estimate's backbone; the right truth gives no such line."""
     long_robot = tmp_path / "long.toml"
@@ -1045,6 +1047,7 @@ def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(tmp_path, capsys)
     est = tmp_path / "e.csv"
     assert main(["estimate", str(meas), "--robot", "two-section", "--method", "ekf",
                  "-o", str(est)]) == 0  # fmt: skip
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     for command in (["plot", str(est), "-o", str(tmp_path / "p.png")],
                     ["view", str(est), "--save", str(tmp_path / "v.rrd")]):  # fmt: skip
         capsys.readouterr()
@@ -1273,7 +1276,7 @@ def test_evaluate_of_a_truth_that_ends_early_says_so_after_skip_start(
 
 
 def test_plot_of_a_paper_formulation_estimate_draws_the_recorded_robot(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The paper formulation's x, y, z are states of their own, off the end of the arc
     of its bend: plot takes the robot its options line records (0.2 m), as evaluate and
@@ -1291,6 +1294,7 @@ def test_plot_of_a_paper_formulation_estimate_draws_the_recorded_robot(
                      *extra]) == 0  # fmt: skip
         err = capsys.readouterr().err
         assert "warning" not in err, (extra, err)
+    figures_drawn_small(monkeypatch)  # the rest: what plot says, not what it draws
     # a robot file of another length: its states give no lengths, its options line does
     robot.write_text(robot.read_text().replace("length = 0.2", "length = 0.3"))
     assert main(["plot", str(est), "-o", str(fig), "--overwrite", "--robot", str(robot)]) == 0
@@ -1300,7 +1304,7 @@ def test_plot_of_a_paper_formulation_estimate_draws_the_recorded_robot(
 
 
 def test_plot_warns_of_a_robot_file_of_another_mounting(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """plot --robot with the estimate's sections but the other mounting draws the robot
     turned over: a warning, as evaluate and view give; the same file with the estimate's
@@ -1309,6 +1313,7 @@ def test_plot_warns_of_a_robot_file_of_another_mounting(
     assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas)]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
     fig = tmp_path / "f.png"
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     for mounting, warned in (("z-down", True), ("z-up", False)):
         robot = tmp_path / f"{mounting}.toml"
         robot.write_text(
