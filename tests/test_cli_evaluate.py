@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import write_file
+from cli_helpers import figures_drawn_small, write_file
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -1034,7 +1034,9 @@ def test_a_refusal_after_a_note_is_its_one_line_alone(mocap_run, capsys, tmp_pat
     )
     late = _capture(truth, tmp_path / "late.csv", 10.0, t0=100.0)
     fig = tmp_path / "fig.png"
-    assert main(["plot", str(est), "--robot", str(other), "-o", str(fig)]) == 0
+    with pytest.MonkeyPatch.context() as m:  # what plot says, not what it draws
+        figures_drawn_small(m)
+        assert main(["plot", str(est), "--robot", str(other), "-o", str(fig)]) == 0
     assert "misses its section ends" in capsys.readouterr().err
     argv = ["plot", str(est), "--robot", str(other), "--truth", str(late), "-o", str(fig)]
     assert main([*argv, "--overwrite"]) == 2
