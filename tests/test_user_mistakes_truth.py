@@ -734,10 +734,13 @@ def test_plot_refuses_positions_in_mm_without_a_robot(paper3d_pair, tmp_path, ca
     assert err.endswith("positions in mm? give x, y, z in m\n")
 
 
-def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(paper3d_pair, tmp_path, capsys) -> None:
+def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(
+    paper3d_pair, tmp_path, capsys, monkeypatch
+) -> None:
     """A truth 0.5 s late: evaluate, plot and view each say it (plot and view do not draw
     the offset as an error of the estimate without a word), naming the --truth-shift that
     compares them (each command's own)."""
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     e, late = str(paper3d_pair["e"]), str(paper3d_pair["t_late"])
     said = "the truth fits the estimate best +0.5 s later"
     assert main(["evaluate", e, late]) == 0
@@ -926,7 +929,9 @@ def test_evaluate_plot_and_view_refuse_a_truth_of_two_rows_alike(paper3d_pair, t
     assert said in capsys.readouterr().err
 
 
-def test_evaluate_warns_of_a_truth_whose_x_and_y_are_swapped(paper3d_pair, tmp_path, capsys):
+def test_evaluate_warns_of_a_truth_whose_x_and_y_are_swapped(
+    paper3d_pair, tmp_path, capsys, monkeypatch
+):
     """A truth with x and y swapped (scored 129 mm beside a theta RMSE of 1.15 deg) is not
     scored without a word: its tip points far from where its own angles put it, said in
     a warning; the right truth, and the shipped rods' and tendon robots' truths, say
@@ -934,6 +939,7 @@ def test_evaluate_warns_of_a_truth_whose_x_and_y_are_swapped(paper3d_pair, tmp_p
     from continuum_mhe.io.position_units import tip_direction_problem
     from continuum_mhe.io.state_tables import read_state_table
 
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     lines = paper3d_pair["t"].read_text().splitlines()
     header = next(ln for ln in lines if not ln.startswith("#")).split(",")
     ix, iy = header.index("x"), header.index("y")
@@ -1102,12 +1108,13 @@ def _tip_truth_turned(
 
 
 def test_evaluate_and_plot_warn_of_a_truth_in_a_y_up_motion_capture_frame(
-    paper3d_pair, tmp_path, capsys
+    paper3d_pair, tmp_path, capsys, monkeypatch
 ) -> None:
     """A motion capture's tip positions in its y-up frame (x, z, -y of the robot's base
     frame), hundreds of mm off as given, are warned of: the truth turned about the base
     fits far better, and the warning names where its axes lie; the same tip positions in
     the base frame, and turned by 10 degrees only, say nothing."""
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     e = str(paper3d_pair["e"])
     y_up = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # base frame -> y-up frame
     cases = {"yup": y_up, "base": np.eye(3)}
