@@ -1059,7 +1059,7 @@ def test_the_truth_may_follow_an_option(mocap_run, capsys) -> None:
 
 
 def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
-    mocap_run, tmp_path, capsys
+    mocap_run, tmp_path, capsys, monkeypatch
 ) -> None:
     """A capture with 0.5 s of rows missing: the truth plot compares at the estimate's
     times holds a NaN row there (the error curve breaks, not a straight line across),
@@ -1083,6 +1083,7 @@ def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
     assert np.array_equal(at.t[~missing], e.t[i_est])
     late = _capture(truth, tmp_path / "late.csv", 120.0, offset=0.04)
     fig = str(tmp_path / "f.png")
+    figures_drawn_small(monkeypatch)  # what plot says of the shift, not what it draws
     assert main(["plot", str(est), "--truth", str(late), "-o", fig]) == 0
     assert "clocks offset" in capsys.readouterr().err
     assert main(["plot", str(est), "--truth", str(late), "--truth-shift", "0.04", "-o", fig,
