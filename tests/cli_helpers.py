@@ -64,3 +64,21 @@ def calibrated_spatial_tendon(tmp_path: Path, capsys, *options: str) -> tuple[Pa
     truth = ROD2 / "spatial-tendon_truth.csv"
     assert main(["evaluate", str(est), str(truth), "--robot", str(cal), "--json"]) == 0
     return cal, est, json.loads(capsys.readouterr().out)
+
+
+def figures_drawn_small(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """``plotting.save`` (``plot``'s, the demo's) writes a one-inch empty figure in each
+    figure's stead, the figure made in full first (its notes and warnings said) and
+    closed: for tests of what ``plot`` says and which files it writes, not of what its
+    figures show (rendering a figure is about half of a plot's time)."""
+    from matplotlib.figure import Figure
+
+    from continuum_mhe.evaluation import plotting
+
+    real_save = plotting.save
+
+    def save(fig, path, *args, **kw):  # type: ignore[no-untyped-def]
+        plotting.close(fig)
+        return real_save(Figure(figsize=(1, 1)), path, *args, **kw)
+
+    monkeypatch.setattr(plotting, "save", save)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import write_file
+from cli_helpers import figures_drawn_small, write_file
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -1034,7 +1034,9 @@ def test_a_refusal_after_a_note_is_its_one_line_alone(mocap_run, capsys, tmp_pat
     )
     late = _capture(truth, tmp_path / "late.csv", 10.0, t0=100.0)
     fig = tmp_path / "fig.png"
-    assert main(["plot", str(est), "--robot", str(other), "-o", str(fig)]) == 0
+    with pytest.MonkeyPatch.context() as m:  # what plot says, not what it draws
+        figures_drawn_small(m)
+        assert main(["plot", str(est), "--robot", str(other), "-o", str(fig)]) == 0
     assert "misses its section ends" in capsys.readouterr().err
     argv = ["plot", str(est), "--robot", str(other), "--truth", str(late), "-o", str(fig)]
     assert main([*argv, "--overwrite"]) == 2
@@ -1057,7 +1059,7 @@ def test_the_truth_may_follow_an_option(mocap_run, capsys) -> None:
 
 
 def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
-    mocap_run, tmp_path, capsys
+    mocap_run, tmp_path, capsys, monkeypatch
 ) -> None:
     """A capture with 0.5 s of rows missing: the truth plot compares at the estimate's
     times holds a NaN row there (the error curve breaks, not a straight line across),
@@ -1081,6 +1083,7 @@ def test_plot_draws_a_truths_missing_rows_as_a_gap_and_takes_its_shift(
     assert np.array_equal(at.t[~missing], e.t[i_est])
     late = _capture(truth, tmp_path / "late.csv", 120.0, offset=0.04)
     fig = str(tmp_path / "f.png")
+    figures_drawn_small(monkeypatch)  # what plot says of the shift, not what it draws
     assert main(["plot", str(est), "--truth", str(late), "-o", fig]) == 0
     assert "clocks offset" in capsys.readouterr().err
     assert main(["plot", str(est), "--truth", str(late), "--truth-shift", "0.04", "-o", fig,

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import good_rows, meas_csv, write_file
+from cli_helpers import figures_drawn_small, good_rows, meas_csv, write_file
 
 from continuum_mhe.cli import main
 
@@ -143,10 +143,13 @@ def short_demo(monkeypatch):
     monkeypatch.setattr(demo, "simulate_robot", short)
 
 
-def test_a_demo_s_estimates_are_evaluated_on_its_robot(tmp_path, capsys, short_demo) -> None:
+def test_a_demo_s_estimates_are_evaluated_on_its_robot(
+    tmp_path, capsys, monkeypatch, short_demo
+) -> None:
     """The demo's estimate files record their method and --robot, as estimate's do:
     evaluate of a two-section demo's file against its truth takes the two-section robot
     without --robot (not the default 0.2 m section, refused)."""
+    figures_drawn_small(monkeypatch)  # its estimate files, not its figures
     out = tmp_path / "d"
     assert main(["demo", "--robot", "two-section", "--out", str(out)]) == 0
     assert (
@@ -160,10 +163,11 @@ def test_a_demo_s_estimates_are_evaluated_on_its_robot(tmp_path, capsys, short_d
 
 
 def test_a_demo_of_one_section_with_its_imu_midway_runs_paper3d(
-    tmp_path, capsys, short_demo
+    tmp_path, capsys, monkeypatch, short_demo
 ) -> None:
     """A one-section robot whose IMU is not at the tip gets the one-section scenario
     (paper3d), not refused as a robot of too few sections for the spatial one."""
+    figures_drawn_small(monkeypatch)  # its scenario and estimates, not its figures
     robot = tmp_path / "mid.toml"
     robot.write_text("[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\nat = 0.5\n")
     out = tmp_path / "d"
@@ -295,6 +299,7 @@ def test_a_second_demo_in_its_own_folder_replaces_its_files(tmp_path, monkeypatc
     from continuum_mhe.cli.demo import DEFAULT_OUT
 
     monkeypatch.chdir(tmp_path)
+    figures_drawn_small(monkeypatch)  # which files it replaces, not what they show
     assert main(["demo"]) == 0
     for name in ("truth.csv", "estimates_mhe.csv"):
         (tmp_path / DEFAULT_OUT / name).write_text("old\n")

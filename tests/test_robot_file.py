@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import figures_drawn_small
 
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
@@ -91,6 +92,7 @@ def test_the_order_warning_is_given_once_by_the_readers_of_an_estimate(
     """evaluate and plot given ``--robot r.toml`` of an estimate whose options line names
     the same file by its full path say the robot file's warning once: the recorded
     file, read only to compare it with the given one, adds no second warning."""
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     monkeypatch.chdir(tmp_path)
     assert main(["simulate", "spatial", "--robot", "two-section", "--duration", "1",
                  "-o", "m.csv", "--truth", "t.csv"]) == 0  # fmt: skip

@@ -15,6 +15,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from cli_helpers import figures_drawn_small
 from tendon_helpers import (
     BACKBONE,
     DATA,
@@ -499,12 +500,16 @@ def force29_estimate(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, st
 
 
 def test_plot_checks_a_tip_truth_against_the_robot_it_draws_on(
-    force29_estimate: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    force29_estimate: tuple[Path, str],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """``plot`` without ``--robot`` draws a tendon estimate on the robot its options line
     names (0.4 m here), and checks a truth of tip positions alone against that robot (on
     the default 0.2 m robot the shipped truth reads as "the truth of another robot")."""
     est, _ = force29_estimate
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     truth = read_state_table(DATA / "force-29_truth.csv")
     tip = tmp_path / "tip.csv"
     write_table(tip, ["t", "x", "y", "z"],
@@ -1215,7 +1220,7 @@ def test_simulate_rest_of_a_tendon_robot_is_its_straight_readings_for_calibrate(
 
 
 def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A row's tip force beyond what the rod holds (a force in mN read as N) has no
     equilibrium to draw: where no row drawn has one, one line naming the file and the
@@ -1273,6 +1278,7 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
     est.write_text("".join(lines))
     argv = ["plot", str(est), "--robot", robot, "--inputs", str(tensions), "-o", str(fig)]
     said = r"^1 of the backbones drawn joined through their section ends: .* the row at t = 0.02 s"
+    figures_drawn_small(monkeypatch)  # the warning of the figure's making, not its drawing
     with pytest.warns(UserWarning, match=said):
         assert main(argv) == 0
     assert fig.stat().st_size > 0
@@ -1580,7 +1586,9 @@ def test_a_recording_with_some_of_the_tension_columns_names_the_missing_ones(
     assert not out.exists()
 
 
-def test_plot_says_when_the_models_backbone_misses_the_estimated_tip(tmp_path: Path) -> None:
+def test_plot_says_when_the_models_backbone_misses_the_estimated_tip(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The figure's backbone is the mechanics model re-solved at each row's tip force and
     the tensions of --inputs (the file holds no state): with the tensions the estimate
     was made with it ends at the estimated tip (no warning); with tensions of another
@@ -1601,6 +1609,7 @@ def test_plot_says_when_the_models_backbone_misses_the_estimated_tip(tmp_path: P
         assert main([*argv, "--inputs", str(tensions)]) == 0
     other = tmp_path / "other.csv"
     write_table(other, ["t", "tension_1"], [[0.0, 4.0], [0.1, 6.0]])
+    figures_drawn_small(monkeypatch)  # the warning of the figure's making, not its drawing
     with pytest.warns(FigureWarning, match=r"backbone at the estimate's tip force .* ends up to"):
         assert main([*argv, "--inputs", str(other), "--overwrite"]) == 0
     assert fig.exists()
@@ -2001,8 +2010,9 @@ def test_the_tension_gain_finds_tensions_given_too_large_and_says_so(
     from continuum_mhe.viewer.geometry import TendonShapes
 
     plot = ["plot", str(tmp_path / "s.csv"), "--robot", "tendon-two-section"]
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), pytest.MonkeyPatch.context() as m:
         warnings.simplefilter("error", FigureWarning)
+        figures_drawn_small(m)  # the figure's making and its warning, not its drawing
         assert main([*plot, "--inputs", str(scaled), "-o", str(tmp_path / "s.png")]) == 0
     est = read_state_table(tmp_path / "s.csv")
     rows_drawn = np.arange(100, rows - 1, 50)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import figures_drawn_small
 from tendon_helpers import (
     BACKBONE,
     one_section_robot,
@@ -80,7 +81,7 @@ def _small_robot_estimate(tmp_path: Path) -> tuple[Path, Path, Path, Path]:
 
 
 def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``plot`` of a tendon robot's estimate: with ``--robot`` and ``--inputs`` the
     backbone from the mechanics model; without them those its options line names
@@ -92,6 +93,7 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     argv = ["plot", str(est), "--robot", str(robot), "--inputs", str(tensions), "-o", str(fig)]
     assert main(argv) == 0
     assert fig.stat().st_size > 0 and "note" not in capsys.readouterr().err
+    figures_drawn_small(monkeypatch)  # the rest: what plot says, not what it draws
     # without --inputs: the tensions the estimate's options line names, said in a note
     assert main(["plot", str(est), "-o", str(tmp_path / "recorded.png")]) == 0
     err = capsys.readouterr().err
@@ -148,7 +150,7 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
 
 
 def test_plot_and_view_draw_an_estimate_with_its_recordings_tension_columns(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """An estimate of a recording that carries its tensions beside its IMU's columns
     (no ``--inputs``): ``plot`` and ``view`` find them in the recording its first line
@@ -170,6 +172,7 @@ def test_plot_and_view_draw_an_estimate_with_its_recordings_tension_columns(
     assert "section ends" not in err
     assert main(["plot", str(est), "--inputs", str(rec), "-o", str(given)]) == 0
     assert found.read_bytes() == given.read_bytes()
+    figures_drawn_small(monkeypatch)  # the rest: what plot says, not what it draws
     saved = tmp_path / "found.rrd"
     assert main(["view", str(est), "--save", str(saved)]) == 0
     assert f"{rec.resolve()} (its first line)" in capsys.readouterr().err

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import notes_and_rows, simulated
+from cli_helpers import figures_drawn_small, notes_and_rows, simulated
 from numpy.testing import assert_allclose
 
 from continuum_mhe import (
@@ -734,10 +734,13 @@ def test_plot_refuses_positions_in_mm_without_a_robot(paper3d_pair, tmp_path, ca
     assert err.endswith("positions in mm? give x, y, z in m\n")
 
 
-def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(paper3d_pair, tmp_path, capsys) -> None:
+def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(
+    paper3d_pair, tmp_path, capsys, monkeypatch
+) -> None:
     """A truth 0.5 s late: evaluate, plot and view each say it (plot and view do not draw
     the offset as an error of the estimate without a word), naming the --truth-shift that
     compares them (each command's own)."""
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     e, late = str(paper3d_pair["e"]), str(paper3d_pair["t_late"])
     said = "the truth fits the estimate best +0.5 s later"
     assert main(["evaluate", e, late]) == 0
@@ -926,7 +929,9 @@ def test_evaluate_plot_and_view_refuse_a_truth_of_two_rows_alike(paper3d_pair, t
     assert said in capsys.readouterr().err
 
 
-def test_evaluate_warns_of_a_truth_whose_x_and_y_are_swapped(paper3d_pair, tmp_path, capsys):
+def test_evaluate_warns_of_a_truth_whose_x_and_y_are_swapped(
+    paper3d_pair, tmp_path, capsys, monkeypatch
+):
     """A truth with x and y swapped (scored 129 mm beside a theta RMSE of 1.15 deg) is not
     scored without a word: its tip points far from where its own angles put it, said in
     a warning; the right truth, and the shipped rods' and tendon robots' truths, say
@@ -934,6 +939,7 @@ def test_evaluate_warns_of_a_truth_whose_x_and_y_are_swapped(paper3d_pair, tmp_p
     from continuum_mhe.io.position_units import tip_direction_problem
     from continuum_mhe.io.state_tables import read_state_table
 
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     lines = paper3d_pair["t"].read_text().splitlines()
     header = next(ln for ln in lines if not ln.startswith("#")).split(",")
     ix, iy = header.index("x"), header.index("y")
@@ -1029,7 +1035,9 @@ def test_evaluate_says_when_the_truths_sections_are_the_robot_files_in_another_o
     assert "its rows fit" not in capsys.readouterr().err
 
 
-def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(tmp_path, capsys) -> None:
+def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(
+    tmp_path, capsys, monkeypatch
+) -> None:
     """As ``evaluate`` says it: a truth made for sections twice as long, drawn beside the
     estimate's backbone; the right truth gives no such line."""
     long_robot = tmp_path / "long.toml"
@@ -1045,6 +1053,7 @@ def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(tmp_path, capsys)
     est = tmp_path / "e.csv"
     assert main(["estimate", str(meas), "--robot", "two-section", "--method", "ekf",
                  "-o", str(est)]) == 0  # fmt: skip
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     for command in (["plot", str(est), "-o", str(tmp_path / "p.png")],
                     ["view", str(est), "--save", str(tmp_path / "v.rrd")]):  # fmt: skip
         capsys.readouterr()
@@ -1099,12 +1108,13 @@ def _tip_truth_turned(
 
 
 def test_evaluate_and_plot_warn_of_a_truth_in_a_y_up_motion_capture_frame(
-    paper3d_pair, tmp_path, capsys
+    paper3d_pair, tmp_path, capsys, monkeypatch
 ) -> None:
     """A motion capture's tip positions in its y-up frame (x, z, -y of the robot's base
     frame), hundreds of mm off as given, are warned of: the truth turned about the base
     fits far better, and the warning names where its axes lie; the same tip positions in
     the base frame, and turned by 10 degrees only, say nothing."""
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     e = str(paper3d_pair["e"])
     y_up = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # base frame -> y-up frame
     cases = {"yup": y_up, "base": np.eye(3)}
@@ -1273,7 +1283,7 @@ def test_evaluate_of_a_truth_that_ends_early_says_so_after_skip_start(
 
 
 def test_plot_of_a_paper_formulation_estimate_draws_the_recorded_robot(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The paper formulation's x, y, z are states of their own, off the end of the arc
     of its bend: plot takes the robot its options line records (0.2 m), as evaluate and
@@ -1291,6 +1301,7 @@ def test_plot_of_a_paper_formulation_estimate_draws_the_recorded_robot(
                      *extra]) == 0  # fmt: skip
         err = capsys.readouterr().err
         assert "warning" not in err, (extra, err)
+    figures_drawn_small(monkeypatch)  # the rest: what plot says, not what it draws
     # a robot file of another length: its states give no lengths, its options line does
     robot.write_text(robot.read_text().replace("length = 0.2", "length = 0.3"))
     assert main(["plot", str(est), "-o", str(fig), "--overwrite", "--robot", str(robot)]) == 0
@@ -1300,7 +1311,7 @@ def test_plot_of_a_paper_formulation_estimate_draws_the_recorded_robot(
 
 
 def test_plot_warns_of_a_robot_file_of_another_mounting(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """plot --robot with the estimate's sections but the other mounting draws the robot
     turned over: a warning, as evaluate and view give; the same file with the estimate's
@@ -1309,6 +1320,7 @@ def test_plot_warns_of_a_robot_file_of_another_mounting(
     assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas)]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
     fig = tmp_path / "f.png"
+    figures_drawn_small(monkeypatch)  # what plot says, not what it draws
     for mounting, warned in (("z-down", True), ("z-up", False)):
         robot = tmp_path / f"{mounting}.toml"
         robot.write_text(
