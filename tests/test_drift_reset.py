@@ -62,9 +62,9 @@ def _tip_errors(f: object, series: object) -> tuple[np.ndarray, np.ndarray]:
 def test_a_passing_fault_keeps_the_rest_of_the_recording(tmp_path: Path, fault: str) -> None:
     """``force-29`` (raw, EKF): the tip IMU repeating one reading from 2 to 3 s, or
     tension_1 0.05 N too high from 1 to 1.2 s. Without the drift reset the estimate
-    stays off to the end (over 50 mm on average after 4 s: 256 and 123 mm); with it,
+    stays off to the end (over 50 mm on average after 4 s: 255 and 80 mm); with it,
     it restarts from the last ok estimate's IMU errors and is within 10 mm on average
-    after 4 s (5.1 and 1.2 mm), no ok row more than 4 standard deviations off."""
+    after 4 s (2.4 and 1.6 mm), no ok row more than 4 standard deviations off."""
     f, t, z = _recording(DATA / "force-29_tensions.csv")
     if fault == "frozen-tip-imu":
         imu = [i for i, n in enumerate(f.measurement_names) if n.endswith("_2")]  # type: ignore[attr-defined]
