@@ -3,6 +3,7 @@ files written with ``rosbags`` (ROS 1 and ROS 2 type stores)."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -43,3 +44,22 @@ def imu_msg(
         linear_acceleration=vec(x=acc[0], y=acc[1], z=acc[2]),
         linear_acceleration_covariance=np.array([-1.0] + [0.0] * 8) if no_accel else cov,
     )
+
+
+def write_ros2_bag_of_csv(csv: Path, bag: Path) -> list[str]:
+    """The raw CSV recording ``csv`` of two IMUs (``t`` then ``ax..gz`` of each) as a ROS 2
+    bag folder ``bag``, one ``sensor_msgs/msg/Imu`` topic per IMU at ``T0_NS`` plus each
+    time; returns the ``--topic`` options that read it in the CSV's IMU order."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    raw = np.loadtxt(csv, delimiter=",", skiprows=1)
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(bag, version=9) as w:
+        topics = [w.add_connection(f"/imu{k}", IMU, typestore=store) for k in (1, 2)]
+        for row in raw:
+            ns = T0_NS + round(row[0] * 1e9)
+            for k, conn in enumerate(topics):
+                acc, gyr = row[1 + 6 * k : 4 + 6 * k], row[4 + 6 * k : 7 + 6 * k]
+                w.write(conn, ns, store.serialize_cdr(imu_msg(store, ns, acc, gyr), IMU))
+    return ["--topic", "/imu1", "--topic", "/imu2"]

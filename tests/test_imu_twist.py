@@ -383,28 +383,18 @@ def test_estimate_chooses_the_twist_for_a_ros2_bag_folder_as_for_its_csv(tmp_pat
     """A ROS 2 bag is a folder: ``estimate`` weighs the twist on it as on the same
     readings in a CSV file (the calibrated ``spatial`` rod's first 200 samples, one
     ``sensor_msgs/msg/Imu`` topic per IMU), with the same choice and evidence."""
-    from robot_log_helpers import IMU, T0_NS, imu_msg
-    from rosbags.rosbag2 import Writer
-    from rosbags.typesys import Stores, get_typestore
+    from robot_log_helpers import write_ros2_bag_of_csv
 
     cal = _calibrated(tmp_path, "spatial")
     lines = (ROD / "spatial_raw.csv").read_text().splitlines()[:201]
     csv = tmp_path / "spatial200.csv"
     csv.write_text("\n".join(lines) + "\n")
-    raw = np.loadtxt(csv, delimiter=",", skiprows=1)
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    bag = tmp_path / "spatial_bag"
-    with Writer(bag, version=9) as w:
-        topics = [w.add_connection(f"/imu{k}", IMU, typestore=store) for k in (1, 2)]
-        for row in raw:
-            ns = T0_NS + round(row[0] * 1e9)
-            for k, conn in enumerate(topics):
-                acc, gyr = row[1 + 6 * k : 4 + 6 * k], row[4 + 6 * k : 7 + 6 * k]
-                w.write(conn, ns, store.serialize_cdr(imu_msg(store, ns, acc, gyr), IMU))
+    bag = tmp_path / "bag"
+    topics = write_ros2_bag_of_csv(csv, bag)
     said = {}
     for name, source, extra in (
         ("csv", csv, []),
-        ("bag", bag, ["--topic", "/imu1", "--topic", "/imu2"]),
+        ("bag", bag, topics),
     ):
         out = tmp_path / f"{name}.csv"
         capsys.readouterr()

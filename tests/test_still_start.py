@@ -246,28 +246,18 @@ def test_a_ros2_bag_that_starts_still_gives_the_csvs_biases(tmp_path, capsys) ->
     """A ROS 2 bag (a folder; one ``sensor_msgs/msg/Imu`` topic per IMU) of the
     ``spatial`` rod's readings after 2 s of its rest takes the same gyro biases from its
     still start as the same readings in a CSV file, and says so alike."""
-    from robot_log_helpers import IMU, T0_NS, imu_msg
-    from rosbags.rosbag2 import Writer
-    from rosbags.typesys import Stores, get_typestore
+    from robot_log_helpers import write_ros2_bag_of_csv
 
     run, _ = _rest_then_run(tmp_path, "spatial")
     lines = run.read_text().splitlines()[:251]  # the rest and 3 s of motion
     csv = tmp_path / "short.csv"
     csv.write_text("\n".join(lines) + "\n")
-    raw = np.loadtxt(csv, delimiter=",", skiprows=1)
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    bag = tmp_path / "short_bag"
-    with Writer(bag, version=9) as w:
-        topics = [w.add_connection(f"/imu{k}", IMU, typestore=store) for k in (1, 2)]
-        for row in raw:
-            ns = T0_NS + round(row[0] * 1e9)
-            for k, conn in enumerate(topics):
-                acc, gyr = row[1 + 6 * k : 4 + 6 * k], row[4 + 6 * k : 7 + 6 * k]
-                w.write(conn, ns, store.serialize_cdr(imu_msg(store, ns, acc, gyr), IMU))
+    bag = tmp_path / "bag"
+    topics = write_ros2_bag_of_csv(csv, bag)
     said = {}
     for name, source, extra in (
         ("csv", csv, []),
-        ("bag", bag, ["--topic", "/imu1", "--topic", "/imu2"]),
+        ("bag", bag, topics),
     ):
         capsys.readouterr()
         assert main(["estimate", str(source), "--robot", "two-section", "--method", "ekf",
