@@ -128,6 +128,7 @@ def find_still_start(
 
 
 def _direction(force: FloatArray) -> FloatArray:
+    """The unit vector along the mean of the rows of ``force`` (m, 3)."""
     mean = force.mean(axis=0)
     return mean / max(float(np.linalg.norm(mean)), 1e-300)
 
