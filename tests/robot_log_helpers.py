@@ -63,3 +63,13 @@ def write_ros2_bag_of_csv(csv: Path, bag: Path) -> list[str]:
                 acc, gyr = row[1 + 6 * k : 4 + 6 * k], row[4 + 6 * k : 7 + 6 * k]
                 w.write(conn, ns, store.serialize_cdr(imu_msg(store, ns, acc, gyr), IMU))
     return ["--topic", "/imu1", "--topic", "/imu2"]
+
+
+def csv_and_ros2_bag(lines: list[str], folder: Path) -> list[tuple[str, Path, list[str]]]:
+    """The raw CSV ``lines`` of two IMUs (a header, then rows) written to ``folder`` as a
+    CSV file and as a ROS 2 bag folder (:func:`write_ros2_bag_of_csv`): ``(name, source,
+    options)`` of each, the options being those that read it in the CSV's IMU order."""
+    csv = folder / "readings.csv"
+    csv.write_text("\n".join(lines) + "\n")
+    bag = folder / "bag"
+    return [("csv", csv, []), ("bag", bag, write_ros2_bag_of_csv(csv, bag))]

@@ -383,19 +383,12 @@ def test_estimate_chooses_the_twist_for_a_ros2_bag_folder_as_for_its_csv(tmp_pat
     """A ROS 2 bag is a folder: ``estimate`` weighs the twist on it as on the same
     readings in a CSV file (the calibrated ``spatial`` rod's first 200 samples, one
     ``sensor_msgs/msg/Imu`` topic per IMU), with the same choice and evidence."""
-    from robot_log_helpers import write_ros2_bag_of_csv
+    from robot_log_helpers import csv_and_ros2_bag
 
     cal = _calibrated(tmp_path, "spatial")
     lines = (ROD / "spatial_raw.csv").read_text().splitlines()[:201]
-    csv = tmp_path / "spatial200.csv"
-    csv.write_text("\n".join(lines) + "\n")
-    bag = tmp_path / "bag"
-    topics = write_ros2_bag_of_csv(csv, bag)
     said = {}
-    for name, source, extra in (
-        ("csv", csv, []),
-        ("bag", bag, topics),
-    ):
+    for name, source, extra in csv_and_ros2_bag(lines, tmp_path):
         out = tmp_path / f"{name}.csv"
         capsys.readouterr()
         assert main(["estimate", str(source), "--robot", str(cal), "-o", str(out), *extra]) == 0

@@ -246,19 +246,12 @@ def test_a_ros2_bag_that_starts_still_gives_the_csvs_biases(tmp_path, capsys) ->
     """A ROS 2 bag (a folder; one ``sensor_msgs/msg/Imu`` topic per IMU) of the
     ``spatial`` rod's readings after 2 s of its rest takes the same gyro biases from its
     still start as the same readings in a CSV file, and says so alike."""
-    from robot_log_helpers import write_ros2_bag_of_csv
+    from robot_log_helpers import csv_and_ros2_bag
 
     run, _ = _rest_then_run(tmp_path, "spatial")
     lines = run.read_text().splitlines()[:251]  # the rest and 3 s of motion
-    csv = tmp_path / "short.csv"
-    csv.write_text("\n".join(lines) + "\n")
-    bag = tmp_path / "bag"
-    topics = write_ros2_bag_of_csv(csv, bag)
     said = {}
-    for name, source, extra in (
-        ("csv", csv, []),
-        ("bag", bag, topics),
-    ):
+    for name, source, extra in csv_and_ros2_bag(lines, tmp_path):
         capsys.readouterr()
         assert main(["estimate", str(source), "--robot", "two-section", "--method", "ekf",
                      "-o", str(tmp_path / f"{name}.csv"), *extra]) == 0  # fmt: skip
