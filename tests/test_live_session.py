@@ -1600,15 +1600,18 @@ def test_live_skips_readings_at_a_declared_gyro_range_and_names_them() -> None:
 ROD2 = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
 
 
-def _two_section_ekf_summary(lines: list[str]) -> str:
-    """The summary of a live session of the EKF of the ``two-section`` robot's two raw
-    IMUs on ``lines`` (the line protocol's), each handled 1 ms after the last."""
+def _two_section_ekf_session(
+    lines: list[str], robot: str = "two-section", imu_twist: bool = False
+) -> LiveSession:
+    """A live session of the EKF of ``robot``'s two raw IMUs (a robot file's name or
+    path) that has handled ``lines`` (the line protocol's), each 1 ms after the last,
+    and finished."""
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import serial_input
     from continuum_mhe.io.robot_file import read_robot
 
-    base = make_formulation("bend", read_robot("two-section"), NoiseSettings())
-    serial = serial_input("/dev/ttyIMU", "raw", InputOptions(), base)
+    base = make_formulation("bend", read_robot(robot), NoiseSettings())
+    serial = serial_input("/dev/ttyIMU", "raw", InputOptions(imu_twist=imu_twist), base)
     s = LiveSession(
         LiveSettings(port="/dev/ttyIMU", fmt="raw"),
         make_estimator("ekf", serial.formulation),
@@ -1618,7 +1621,62 @@ def _two_section_ekf_summary(lines: list[str]) -> str:
     )
     _handle(s, lines)
     s.finish()
-    return s.summary()
+    return s
+
+
+def _two_section_ekf_summary(lines: list[str]) -> str:
+    """The summary of :func:`_two_section_ekf_session` of the ``two-section`` robot."""
+    return _two_section_ekf_session(lines).summary()
+
+
+def _rod_lines(name: str) -> list[str]:
+    """The shipped rod recording ``name``'s raw rows as the line protocol's (t in ms)."""
+    lines = []
+    for row in (ROD2 / f"{name}_raw.csv").read_text().splitlines()[1:]:
+        t, rest = row.split(",", 1)
+        lines.append(f"{round(float(t) * 1000)},{rest}")
+    return lines
+
+
+def test_live_says_where_the_readings_show_the_imus_twisting(tmp_path: Path) -> None:
+    """Live keeps the IMUs' constant-curvature frames, and weighs their twist alongside
+    on the readings it estimates: the shipped ``spatial`` rod (the tip IMU twists up to
+    122 degrees) gets a warning that names --imu-twist, with the evidence that
+    ``estimate`` of the same readings weighs (the filters stepped in blocks, to 1e-9);
+    uncalibrated, it names the calibration first. The planar S (no twist) and a session
+    given --imu-twist get none."""
+    from continuum_mhe.cli.entry import main
+    from continuum_mhe.estimators.twist_evidence import twist_evidence
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.robot_file import read_robot
+
+    said = "the readings show the IMUs turning about the backbone"
+    calibrated = {}
+    for name in ("spatial", "planar-s"):
+        calibrated[name] = str(tmp_path / f"{name}_cal.toml")
+        assert main(["calibrate", "--from", str(ROD2 / f"{name}_rest.csv"), "--robot",
+                     "two-section", "--write-robot", calibrated[name]]) == 0  # fmt: skip
+    s = _two_section_ekf_session(_rod_lines("spatial"), calibrated["spatial"])
+    summary, streamed = s.summary(), s.twist_evidence.evidence()
+    robot = make_formulation("bend", read_robot(calibrated["spatial"]))
+    data = load_input(ROD2 / "spatial_raw.csv", InputOptions(), robot)
+    weighed = twist_evidence(data.formulation, data.t, data.z)
+    assert streamed is not None and streamed.samples == weighed.samples == 600
+    assert streamed.share == weighed.share > 0.9
+    assert streamed.median == pytest.approx(weighed.median, rel=1e-9) and weighed.median > 100
+    assert f"warning: {said}" in summary and "live --imu-twist follows it" in summary
+    assert f"96 % of 600 readings better, median log-density {weighed.median:+.3g}" in summary
+    assert "calibrate the gyro biases" not in summary
+    uncalibrated = _two_section_ekf_session(_rod_lines("spatial")).summary()
+    assert f"{said}" in uncalibrated and "are inconsistent" in uncalibrated
+    assert "calibrate the gyro biases with the robot straight and still" in uncalibrated
+    planar = _two_section_ekf_session(_rod_lines("planar-s"), calibrated["planar-s"])
+    evidence = planar.twist_evidence.evidence()
+    assert evidence is not None and evidence.samples == 600 and not evidence.twists
+    assert said not in planar.summary()
+    given = _two_section_ekf_session(_rod_lines("spatial"), calibrated["spatial"], imu_twist=True)
+    assert given.twist_evidence.evidence() is None and said not in given.summary()
 
 
 def test_live_names_a_forward_clock_jump_that_restarts_the_estimate() -> None:
@@ -1660,3 +1718,25 @@ def test_live_warns_of_readings_that_restart_the_estimator_as_estimate_does() ->
     # what to check is said once, in the warning on inconsistent estimates it points to
     assert "(what to check: the warning on inconsistent estimates, which follows)" in summaries[1]
     assert summaries[1].count("check the robot file against the robot (the IMUs' order") == 1
+
+
+def test_the_live_twist_warning_follows_estimate_s_rules() -> None:
+    """As ``estimate`` chooses and hints: a calibrated robot's session is told whenever
+    the readings favour the twist; an uncalibrated one only where its estimates were
+    mostly inconsistent (the twist model would take a gyro bias about z for a twist);
+    no warning on fewer readings than a choice needs, or where the frames predicted
+    better."""
+    from continuum_mhe.estimators.twist_evidence import MIN_SAMPLES, TwistEvidence
+    from continuum_mhe.live.twist_hint import twist_hint
+
+    favours = TwistEvidence(12.5, 0.8, MIN_SAMPLES)
+    calibrated = twist_hint(favours, calibrated=True, inconsistent=False)
+    assert calibrated is not None and "80 % of 100 readings better" in calibrated
+    assert "live --imu-twist follows it" in calibrated and "calibrate" not in calibrated
+    assert twist_hint(favours, calibrated=False, inconsistent=False) is None
+    uncalibrated = twist_hint(favours, calibrated=False, inconsistent=True)
+    assert uncalibrated is not None and "continuum-mhe calibrate --port PORT" in uncalibrated
+    for weak in (TwistEvidence(12.5, 0.8, MIN_SAMPLES - 1), TwistEvidence(-0.1, 0.4, 600)):
+        for cal, inc in ((True, True), (False, True)):
+            assert twist_hint(weak, calibrated=cal, inconsistent=inc) is None
+    assert twist_hint(None, calibrated=True, inconsistent=True) is None

@@ -15,21 +15,25 @@ median sample better (docs/model-studies.md, "The IMUs' twist, measured").
 from __future__ import annotations
 
 import math
+from array import array
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-import continuum_mhe._core as _core
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
 from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
+from continuum_mhe.model.formulations import Formulation
 
 #: The fewest samples whose readings both filters predicted (a log-density each) for a
 #: choice: 2 s at 50 Hz.
 MIN_SAMPLES = 100
+#: The samples of a stream stepped together (:class:`StreamedTwistEvidence`): about a
+#: second at 50 Hz, so that the filters' steps cost one call a block.
+STREAM_BLOCK = 64
 
 
 @dataclass(frozen=True)
@@ -83,26 +87,103 @@ def twist_evidence(frames: DirectFormulation, t: ArrayLike, z: ArrayLike) -> Twi
         raise UserError("twist_evidence needs the gyro biases estimated")
     t_arr = np.ascontiguousarray(t, dtype=float)
     z_arr = np.ascontiguousarray(z, dtype=float)
-    runs = []  # each model's compiled steps, built here (CasADi builds on one thread)
-    for formulation in (frames, twisted_formulation(frames)):
-        stepped = CompiledExtendedKalmanInference(formulation).policy_inference()
-        if stepped is None:  # pragma: no cover - the compiled EKF's own infer has them
-            raise TypeError("the compiled EKF has no compiled steps")
-        masks = np.ascontiguousarray(formulation.measurement_masks(z_arr))
-        runs.append((stepped, masks, np.full(len(t_arr), math.nan)))
+    pair = _FilterPair(frames)
+    return _evidence(pair.differences(t_arr, z_arr))
 
-    def step(run: tuple[_core.KalmanInference, FloatArray, FloatArray]) -> FloatArray:
-        stepped, masks, ll = run
-        stepped.log_likelihoods(t_arr, z_arr, masks, ll)  # without the GIL
-        return ll
 
-    # the two filters side by side: the twist model's on a worker, the frames' on this
-    # thread, where a signal's handler (Ctrl-C) can end it
-    with ThreadPoolExecutor(1, thread_name_prefix="twist-evidence") as pool:
-        twisted = pool.submit(step, runs[1])
-        densities = [step(runs[0]), twisted.result()]
-    diff = densities[1] - densities[0]
+def weighs_the_twist(formulation: Formulation) -> bool:
+    """Whether :func:`twist_evidence` weighs ``formulation``'s readings: raw IMUs read by
+    the direct model of a robot without a mechanics model, its gyro biases estimated,
+    without the IMUs' twist or their own acceleration (as ``estimate`` weighs them)."""
+    return (
+        isinstance(formulation, DirectFormulation)
+        and formulation.estimate_gyro_bias
+        and not formulation.imu_twist
+        and not formulation.own_acceleration
+        and not formulation.robot.has_mechanics
+    )
+
+
+class _FilterPair:
+    """The compiled EKFs of ``frames`` and of its twisted formulation
+    (:func:`twisted_formulation`), stepped side by side over the same readings."""
+
+    def __init__(self, frames: DirectFormulation) -> None:
+        self.formulations = (frames, twisted_formulation(frames))
+        self.stepped = []  # each model's compiled steps, built here (CasADi builds on one thread)
+        for formulation in self.formulations:
+            stepped = CompiledExtendedKalmanInference(formulation).policy_inference()
+            if stepped is None:  # pragma: no cover - the compiled EKF's own infer has them
+                raise TypeError("the compiled EKF has no compiled steps")
+            self.stepped.append(stepped)
+
+    def differences(self, t: FloatArray, z: FloatArray) -> FloatArray:
+        """Each sample's innovation log-density under the twist model less the frames'
+        (NaN where either has none), both filters stepped on from where the last call
+        left them over the readings ``z`` (n, nz) at ``t`` (n,) s (C-contiguous)."""
+
+        def step(k: int) -> FloatArray:
+            ll = np.full(len(t), math.nan)
+            masks = np.ascontiguousarray(self.formulations[k].measurement_masks(z))
+            self.stepped[k].log_likelihoods(t, z, masks, ll)  # without the GIL
+            return ll
+
+        # the two filters side by side: the twist model's on a worker, the frames' on
+        # this thread, where a signal's handler (Ctrl-C) can end it
+        with ThreadPoolExecutor(1, thread_name_prefix="twist-evidence") as pool:
+            twisted = pool.submit(step, 1)
+            frames = step(0)
+            return twisted.result() - frames
+
+
+def _evidence(diff: FloatArray) -> TwistEvidence:
+    """The evidence of the per-sample log-density differences ``diff`` (NaN: none)."""
     diff = diff[np.isfinite(diff)]
     if not len(diff):
         return TwistEvidence(math.nan, math.nan, 0)
     return TwistEvidence(float(np.median(diff)), float(np.mean(diff > 0.0)), len(diff))
+
+
+class StreamedTwistEvidence:
+    """:func:`twist_evidence` of a stream of readings, sample by sample (:meth:`add`),
+    for ``live``, which estimates with the constant-curvature frames: the same filters
+    over the same readings give the evidence that ``estimate`` of the session's recording
+    weighs (the filters step in blocks of :data:`STREAM_BLOCK` samples, and once more for
+    what is left when :meth:`evidence` is asked). Active where
+    :func:`weighs_the_twist`; the two filters are built here, before the stream starts."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        self.active = weighs_the_twist(formulation)
+        self._pair = (
+            _FilterPair(formulation)
+            if self.active and isinstance(formulation, DirectFormulation)
+            else None
+        )
+        self._t: list[float] = []
+        self._z: list[FloatArray] = []
+        self._diff = array("d")  # each stepped sample's difference (NaN: none)
+
+    def add(self, t: float, z: ArrayLike) -> None:
+        """The reading ``z`` (nz,) at ``t`` s, in the order of the stream."""
+        if not self.active:
+            return
+        self._t.append(float(t))
+        self._z.append(np.asarray(z, dtype=float))
+        if len(self._t) >= STREAM_BLOCK:
+            self._step()
+
+    def _step(self) -> None:
+        if not self._t or self._pair is None:
+            return
+        t = np.ascontiguousarray(self._t)
+        z = np.ascontiguousarray(np.vstack(self._z))
+        self._t.clear()
+        self._z.clear()
+        self._diff.extend(self._pair.differences(t, z).tolist())
+
+    def evidence(self) -> TwistEvidence | None:
+        """The evidence of every reading added so far; None where not active."""
+        if not self.active:
+            return None
+        self._step()
+        return _evidence(np.frombuffer(self._diff, dtype=float))

@@ -33,6 +33,7 @@ from continuum_mhe.estimators.run_notices import (
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
+from continuum_mhe.estimators.twist_evidence import StreamedTwistEvidence
 from continuum_mhe.io.csv_files import DEGREES_LIKE_SHARE
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row, format_number
 from continuum_mhe.io.input_options import MountingError
@@ -51,7 +52,9 @@ from continuum_mhe.io.tensions import (
     tension_scale_problem,
 )
 from continuum_mhe.live.counts import DeviceMessages, LatencyHistogram, LiveCounts
+from continuum_mhe.live.twist_hint import twist_hint
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
+from continuum_mhe.model.direct import gyro_biases_calibrated
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.stream.clock import DeviceClock, MicrosecondsCheck
 from continuum_mhe.stream.protocol import (
@@ -278,6 +281,9 @@ class LiveSession:
         self.gains = TensionGainFromOne(self.formulation)
         #: a tendon robot's twist estimated from tilt IMUs, for the summary's warning
         self.twist = TwistWithTiltImus(self.formulation)
+        #: raw IMUs on the constant-curvature frames: the readings' evidence for the
+        #: IMUs' twist, weighed alongside for the summary's warning
+        self.twist_evidence = StreamedTwistEvidence(self.formulation)
         #: a tendon robot's tip force against its tensions, and its bends past a
         #: section's theta_max, for the summary's warnings (as estimate's)
         self.force = ForceBeyondTensions(self.formulation)
@@ -1078,6 +1084,7 @@ class LiveSession:
         estimate restarts the estimator and flags the sample ``no-estimate``."""
         start = time.perf_counter()
         freezes = len(self.estimator.diagnostics.first_freezes)
+        self.twist_evidence.add(t, z)
         try:
             est = self.estimator.step(Measurement(t, z))
             self._say_freezes(freezes)
@@ -1314,6 +1321,12 @@ class LiveSession:
             msg += "; warning: " + load_note
         if inconsistent_note is not None:
             msg += "; warning: " + inconsistent_note
+        if hint := twist_hint(
+            self.twist_evidence.evidence(),
+            gyro_biases_calibrated(self.formulation.robot),
+            inconsistent_note is not None,
+        ):
+            msg += "; warning: " + hint
         if self.record is not None and c.first_restart_t is not None:
             msg += (
                 f"; live restarted the estimator {c.restarts} time(s), first at "
