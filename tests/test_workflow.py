@@ -507,6 +507,7 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
     est_png.write_bytes((tmp_path / "e.csv").read_bytes())
     robot_json.write_bytes(robot.read_bytes())
     cases = [
+        (["estimate", str(meas), "-o", str(meas)], meas, "the recording"),
         (["estimate", str(tendon / "force-29_raw.csv"), "--robot", "tendon-two-section",
           "--inputs", str(tensions), "-o", str(link)], tensions, "the tensions file --inputs"),
         (["estimate", str(rod / "spatial_tilt.csv"), "--robot", str(robot), "-o", str(robot)],
