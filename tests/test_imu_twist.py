@@ -423,12 +423,16 @@ def test_estimate_chooses_the_twist_for_a_calibrated_twisting_rod(tmp_path, caps
         assert ("std_imu_twist_2" in text) is not bool(extra)
     assert means[False] < 10e-3 < 50e-3 < means[True], means
     assert "the IMUs' twist estimated (--imu-twist: the twist model predicted" in said[False]
+    # the median is the twist model's gain over the frames, signed, not a log-density
+    assert re.search(r"median log-density gain \+\S+ nats per reading", said[False]), said
     assert "twist" not in said[True]  # given: nothing weighed
     planar = _calibrated(tmp_path, "planar-s")
     out = tmp_path / "planar.csv"
     assert main(["estimate", str(ROD / "planar-s_raw.csv"), "--robot", str(planar),
                  "-o", str(out)]) == 0  # fmt: skip
-    assert "the IMUs' twist not estimated" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the IMUs' twist not estimated" in err
+    assert re.search(r"median log-density gain -\S+ nats per reading", err), err
     assert "imu-twist = false" in out.read_text() and "std_imu_twist" not in out.read_text()
     out.unlink()
     assert main(["estimate", str(ROD / "spatial_raw.csv"), "--robot", "two-section",

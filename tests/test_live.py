@@ -232,6 +232,29 @@ def test_live_refuses_to_replace_an_output_without_overwrite(
         assert not other.exists()
 
 
+def test_live_refuses_an_output_naming_its_input_without_asking_for_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``-o`` or ``--record`` naming the tensions file ``--inputs``: one line saying it is
+    an input of the command, with or without ``--overwrite`` (not a request for
+    ``--overwrite``, which would be refused next), before the port is opened."""
+    from continuum_mhe.cli import main
+
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/tendon/force-29_tensions.csv"
+    tensions = tmp_path / "ten.csv"
+    tensions.write_bytes(shipped.read_bytes())
+    base = ["live", "--port", str(tmp_path / "none"), "--robot", "tendon-two-section"]
+    for option in ("-o", "--record"):
+        for extra in ([], ["--overwrite"]):
+            capsys.readouterr()
+            argv = [*base, "--inputs", str(tensions), option, str(tensions), *extra]
+            assert main(argv) == 2, argv
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1, err
+            assert "refusing to overwrite the tensions file --inputs" in err, err
+            assert tensions.read_bytes() == shipped.read_bytes()
+
+
 def _two_imu_stream(t0_ms: int, n: int, dt_ms: int = 10) -> list[str]:
     """Raw lines of the two-section robot (s-curve motion), one IMU per section."""
     from continuum_mhe.io.robot_file import read_robot

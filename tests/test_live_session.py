@@ -1666,7 +1666,10 @@ def test_live_says_where_the_readings_show_the_imus_twisting(tmp_path: Path) -> 
     assert streamed.share == weighed.share > 0.9
     assert streamed.median == pytest.approx(weighed.median, rel=1e-9) and weighed.median > 100
     assert f"warning: {said}" in summary and "live --imu-twist follows it" in summary
-    assert f"96 % of 600 readings better, median log-density {weighed.median:+.3g}" in summary
+    assert (
+        f"96 % of 600 readings better, median log-density gain {weighed.median:+.3g} nats"
+        in summary
+    )
     assert "calibrate the gyro biases" not in summary
     uncalibrated = _two_section_ekf_session(_rod_lines("spatial")).summary()
     assert f"{said}" in uncalibrated and "are inconsistent" in uncalibrated

@@ -488,7 +488,8 @@ def test_an_existing_output_is_refused_without_overwrite(tmp_path: Path, capsys,
 
 def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys) -> None:
     """``-o`` (or ``--write-robot``) naming one of the command's own input files, by any
-    path (a link too), with ``--overwrite``: one line naming it, exit 2, the file kept."""
+    path (a link too), with ``--overwrite`` or without: one line naming it, exit 2, the
+    file kept."""
     tendon, rod = DATA / "tendon", DATA / "rod2"
     tensions, robot, rest = tmp_path / "ten.csv", tmp_path / "rob.toml", tmp_path / "rest.csv"
     tensions.write_bytes((tendon / "force-29_tensions.csv").read_bytes())
@@ -507,6 +508,7 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
     est_png.write_bytes((tmp_path / "e.csv").read_bytes())
     robot_json.write_bytes(robot.read_bytes())
     cases = [
+        (["estimate", str(meas), "-o", str(meas)], meas, "the recording"),
         (["estimate", str(tendon / "force-29_raw.csv"), "--robot", "tendon-two-section",
           "--inputs", str(tensions), "-o", str(link)], tensions, "the tensions file --inputs"),
         (["estimate", str(rod / "spatial_tilt.csv"), "--robot", str(robot), "-o", str(robot)],
@@ -525,11 +527,12 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
     ]  # fmt: skip
     for argv, kept, what in cases:
         before = kept.read_bytes()
-        capsys.readouterr()
-        assert main([*argv, "--overwrite"]) == 2, argv
-        err = capsys.readouterr().err
-        assert err.count("\n") == 1 and f"refusing to overwrite {what}" in err, err
-        assert kept.read_bytes() == before
+        for extra in ([], ["--overwrite"]):  # without it, not a request for it
+            capsys.readouterr()
+            assert main([*argv, *extra]) == 2, argv
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and f"refusing to overwrite {what}" in err, err
+            assert kept.read_bytes() == before
     # an estimate given as its own options file is read first: a re-run replaces it
     est = tmp_path / "est.csv"
     first = ["estimate", str(rod / "spatial_tilt.csv"), "--robot", "two-section"]

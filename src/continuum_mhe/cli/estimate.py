@@ -576,12 +576,12 @@ def uncalibrated_twist_hint(args: argparse.Namespace, base: Formulation) -> str 
         f"{args.measurements}: the readings show the IMUs turning about the backbone, which "
         "the constant-curvature frames do not follow (a model of each IMU's twist predicted "
         f"{100 * evidence.share:.0f} % of {evidence.samples} readings better, median "
-        f"log-density {evidence.median:+.3g} per reading): calibrate the gyro biases with "
-        f"the robot straight and still (continuum-mhe calibrate --from REST.csv --robot "
-        f"{robot} --write-robot CAL.toml) and estimate with --robot CAL.toml, or record the "
-        "robot still for a second or more before it moves (estimate takes the biases from "
-        "that start): either lets the readings weigh the twist; uncalibrated, --imu-twist "
-        "takes a gyro's bias about its z axis for a twist (docs/model.md)"
+        f"log-density gain {evidence.median:+.3g} nats per reading): calibrate the gyro "
+        "biases with the robot straight and still (continuum-mhe calibrate --from REST.csv "
+        f"--robot {robot} --write-robot CAL.toml) and estimate with --robot CAL.toml, or "
+        "record the robot still for a second or more before it moves (estimate takes the "
+        "biases from that start): either lets the readings weigh the twist; uncalibrated, "
+        "--imu-twist takes a gyro's bias about its z axis for a twist (docs/model.md)"
     )
 
 
@@ -596,7 +596,7 @@ def twist_clause(evidence: TwistEvidence) -> str:
         )
     weighed = (
         f"the twist model predicted {100 * evidence.share:.0f} % of {evidence.samples} "
-        f"readings better, median log-density {evidence.median:+.3g} per reading"
+        f"readings better, median log-density gain {evidence.median:+.3g} nats per reading"
     )
     if evidence.twists:
         return (

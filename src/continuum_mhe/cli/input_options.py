@@ -217,11 +217,12 @@ def _reads_robot_log(args: argparse.Namespace) -> bool:
 
 
 def input_files(args: argparse.Namespace) -> list[tuple[str, str | None]]:
-    """The files besides the recording that ``estimate`` and ``live`` read, as
+    """The files that ``estimate`` and ``live`` read (``estimate``'s recording too), as
     :func:`continuum_mhe.io.output_files.refuse_inputs` takes them: an output must not
     replace one. (Not ``--config``: an estimate CSV given as its own options file is
     read before the new one replaces it, a re-run.)"""
     return [
+        ("the recording", getattr(args, "measurements", None)),
         ("the tensions file --inputs", getattr(args, "inputs", None)),
         ("the robot file --robot", getattr(args, "robot", None)),
     ]

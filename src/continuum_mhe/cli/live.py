@@ -96,13 +96,13 @@ def run(args: argparse.Namespace) -> int:
     # the MHE's window: an options file's MHE options apply where the MHE runs
     mhe = mhe_settings_from_args(args)
     mhe_settings = mhe if method == "mhe" else None
+    for target in (args.output, args.record):  # before --overwrite is asked for
+        if target:
+            refuse_inputs(target, input_files(args))
     out_path = check_target(args.output, args.overwrite, "-o") if args.output else None
     rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
     if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):
         raise InputError(f"{out_path}: -o and --record name the same file")
-    for target in (args.output, args.record):
-        if target:
-            refuse_inputs(target, input_files(args))
     view_sink = None
     if args.view is None:
         refuse_unused_view_options(args, None)

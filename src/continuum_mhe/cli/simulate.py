@@ -50,10 +50,10 @@ def run(args: argparse.Namespace) -> int:
             f"--duration {args.duration:g} / --dt {args.dt:g} is {n:.3g} samples; at most "
             f"{MAX_SIMULATED_SAMPLES:,} (write longer recordings in parts)"
         )
-    check_output_target(args.output, args.overwrite)  # both before writing either
-    for target in (args.output, args.truth):
+    for target in (args.output, args.truth):  # before --overwrite is asked for
         if target:
             refuse_inputs(target, [("the robot file --robot", getattr(args, "robot", None))])
+    check_output_target(args.output, args.overwrite)  # both before writing either
     for flag, target in (("-o", args.output), ("--truth", args.truth)):
         suffix = Path(target).suffix if target else ""
         if suffix.lower() not in CSV_SUFFIXES:  # a name another reader would misread

@@ -19,8 +19,8 @@ def twist_hint(evidence: TwistEvidence | None, calibrated: bool, inconsistent: b
         return None
     weighed = (
         f"a model of each IMU's twist predicted {100 * evidence.share:.0f} % of "
-        f"{evidence.samples} readings better, median log-density {evidence.median:+.3g} per "
-        "reading"
+        f"{evidence.samples} readings better, median log-density gain {evidence.median:+.3g} "
+        "nats per reading"
     )
     said = (
         "the readings show the IMUs turning about the backbone, which the "
