@@ -497,6 +497,28 @@ def test_an_uncalibrated_twisting_rod_is_told_to_calibrate_first(tmp_path, capsy
     assert " are inconsistent: " in err and "turning about the backbone" not in err
 
 
+def test_the_calibration_hint_of_a_length_run_names_its_length(tmp_path, capsys) -> None:
+    """A one-section run given by ``--length`` (no robot file) whose tip IMU turns about
+    the backbone (a known twist of up to 2 rad applied to a PCC robot's raw readings): the
+    hint names the calibration for that robot, ``--length 0.2``, not a robot file the
+    user does not have."""
+    robot = Robot.single(0.2)
+    rec = simulate_robot("paper3d", robot, duration=8.0, seed=2)
+    values, _ = raw_readings(rec, robot, RawNoise(gyro_bias_std=0.0), seed=2)
+    psi = 1.0 * (1 - np.cos(0.8 * rec.t))
+    acc = np.array([_rz(p).T @ a for p, a in zip(psi, values[:, :3])])
+    gyr = np.array([_rz(p).T @ g for p, g in zip(psi, values[:, 3:6])])
+    gyr[:, 2] += np.gradient(psi, rec.t)
+    path = tmp_path / "one_raw.csv"
+    rows = np.column_stack([rec.t, acc, gyr])
+    np.savetxt(path, rows, delimiter=",", header="t,ax,ay,az,gx,gy,gz", comments="", fmt="%.9g")
+    capsys.readouterr()
+    assert main(["estimate", str(path), "--length", "0.2", "-o", str(tmp_path / "e.csv")]) == 0
+    (hint,) = [ln for ln in capsys.readouterr().err.splitlines() if "turning about" in ln]
+    assert "(continuum-mhe calibrate --from REST.csv --length 0.2 --write-robot CAL.toml)" in hint
+    assert "ROBOT.toml" not in hint
+
+
 def test_a_calibrated_robot_files_refusal_is_in_the_command_lines_words(tmp_path, capsys) -> None:
     """The readings weighed for the twist before the estimate are read again by the
     estimate, which says what is wrong with them: a calibrated robot file that says

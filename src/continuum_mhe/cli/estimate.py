@@ -571,14 +571,20 @@ def uncalibrated_twist_hint(args: argparse.Namespace, base: Formulation) -> str 
     evidence = _twist_evidence(args, base)
     if evidence is None or not evidence.twists:
         return None
-    robot = args.robot or "ROBOT.toml"
+    # the robot as this run gave it: a robot file, or --length's one section
+    length = getattr(args, "length", None)
+    robot = (
+        f"--robot {args.robot}" if args.robot
+        else f"--length {length:g}" if length is not None
+        else "--robot ROBOT.toml"
+    )  # fmt: skip
     return (
         f"{args.measurements}: the readings show the IMUs turning about the backbone, which "
         "the constant-curvature frames do not follow (a model of each IMU's twist predicted "
         f"{100 * evidence.share:.0f} % of {evidence.samples} readings better, median "
         f"log-density gain {evidence.median:+.3g} nats per reading): calibrate the gyro "
         "biases with the robot straight and still (continuum-mhe calibrate --from REST.csv "
-        f"--robot {robot} --write-robot CAL.toml) and estimate with --robot CAL.toml, or "
+        f"{robot} --write-robot CAL.toml) and estimate with --robot CAL.toml, or "
         "record the robot still for a second or more before it moves (estimate takes the "
         "biases from that start): either lets the readings weigh the twist; uncalibrated, "
         "--imu-twist takes a gyro's bias about its z axis for a twist (docs/model.md)"
