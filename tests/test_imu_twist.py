@@ -332,6 +332,30 @@ def test_the_readings_evidence_tells_a_twisting_rod_from_one_that_does_not(tmp_p
     assert -10.0 < planar.median < 0.0 and planar.share < 0.05
 
 
+@pytest.mark.parametrize("block", [1, 7, 64, 1000])
+def test_the_streamed_evidence_is_the_recordings_whatever_its_blocks(tmp_path, block) -> None:
+    """Live's evidence, its filters stepped a block at a time as samples arrive, is bit
+    for bit the recording's (both filters run over it at once) for any block size: the
+    shipped ``spatial`` rod, calibrated. A formulation it does not weigh (the twist
+    given) is not active and has none."""
+    from continuum_mhe.estimators import twist_evidence as te
+
+    robot = read_robot(str(_calibrated(tmp_path, "spatial")))
+    data = load_input(ROD / "spatial_raw.csv", InputOptions(), make_formulation("bend", robot))
+    whole = te.twist_evidence(data.formulation, data.t, data.z)
+    old, te.STREAM_BLOCK = te.STREAM_BLOCK, block
+    try:
+        streamed = te.StreamedTwistEvidence(data.formulation)
+        for ti, zi in zip(data.t, data.z):
+            streamed.add(ti, zi)
+        assert streamed.evidence() == whole and whole.samples == 600
+    finally:
+        te.STREAM_BLOCK = old
+    given = te.StreamedTwistEvidence(te.twisted_formulation(data.formulation))
+    given.add(0.0, data.z[0])
+    assert not given.active and given.evidence() is None
+
+
 def test_the_evidence_s_compiled_run_is_the_filter_stepped_sample_by_sample(tmp_path) -> None:
     """``KalmanInference.log_likelihoods`` (the evidence's filters, each over the whole
     recording in one compiled call) gives each sample's innovation log-density as the
