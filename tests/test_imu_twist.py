@@ -465,6 +465,37 @@ def test_estimate_chooses_the_twist_for_a_calibrated_twisting_rod(tmp_path, caps
     assert "std_imu_twist" not in out.read_text()
 
 
+def test_a_yaw_the_robot_file_lacks_reads_as_a_twist_and_the_summary_says_so(
+    tmp_path, capsys
+) -> None:
+    """The ``spatial-tendon`` rod hardly twists: calibrated, the frames are kept. With
+    IMU 2's yaw 30 degrees off in the robot file the readings favour the twist model,
+    which takes the yaw up, and the summary's twist clause says that a yaw the file does
+    not give reads as a twist, naming calibrate --bend."""
+    cal = _calibrated(tmp_path, "spatial-tendon")
+    text = cal.read_text()
+    head, imu1, imu2 = text.split("[[imu]]")
+    yaw = re.search(r"mount_rpy = \[([^\]]*)\]", imu2)
+    assert yaw is not None
+    roll, pitch, _ = (float(v) for v in yaw[1].split(","))
+    turned = tmp_path / "yaw.toml"
+    turned.write_text(
+        "[[imu]]".join([head, imu1, imu2.replace(yaw[0], f"mount_rpy = [{roll}, {pitch}, 30.0]")])
+    )
+    said = {}
+    for robot in (cal, turned):
+        capsys.readouterr()
+        assert main(["estimate", str(ROD / "spatial-tendon_raw.csv"), "--robot", str(robot),
+                     "-o", str(tmp_path / f"{robot.stem}.csv")]) == 0  # fmt: skip
+        said[robot] = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "the IMUs' twist not estimated" in said[cal] and "calibrate --bend" not in said[cal]
+    assert "the IMUs' twist estimated (--imu-twist: the twist model predicted 9" in said[turned]
+    assert (
+        "a board's yaw about the backbone that the robot file does not give reads as a "
+        "twist too: where the robot does not twist, measure the yaw, calibrate --bend)"
+    ) in said[turned]
+
+
 def test_an_uncalibrated_twisting_rod_is_told_to_calibrate_first(tmp_path, capsys) -> None:
     """An uncalibrated robot file gets no twist chosen for it (its gyro biases, estimated,
     would read as twists), but where the readings do not fit and show the IMUs turning

@@ -607,7 +607,9 @@ def twist_clause(evidence: TwistEvidence) -> str:
     if evidence.twists:
         return (
             f"the IMUs' twist estimated (--imu-twist: {weighed}; --no-imu-twist keeps the "
-            "constant-curvature frames)"
+            "constant-curvature frames; a board's yaw about the backbone that the robot "
+            "file does not give reads as a twist too: where the robot does not twist, "
+            "measure the yaw, calibrate --bend)"
         )
     return f"the IMUs' twist not estimated ({weighed}; --imu-twist asks for it)"
 
