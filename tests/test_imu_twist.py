@@ -356,6 +356,34 @@ def test_the_streamed_evidence_is_the_recordings_whatever_its_blocks(tmp_path, b
     assert not given.active and given.evidence() is None
 
 
+def test_the_streamed_evidence_ends_on_its_filters_failure_and_not_the_stream(
+    tmp_path, monkeypatch
+) -> None:
+    """Live's twist evidence is a hint: an exception of its filters ends it (no evidence,
+    nothing raised into the stream), while an interrupt inside them is raised."""
+    from continuum_mhe.estimators import twist_evidence as te
+
+    robot = read_robot(str(_calibrated(tmp_path, "spatial")))
+    data = load_input(ROD / "spatial_raw.csv", InputOptions(), make_formulation("bend", robot))
+    for raised, escapes in ((RuntimeError("singular"), False), (KeyboardInterrupt(), True)):
+        streamed = te.StreamedTwistEvidence(data.formulation)
+
+        def fail(*_: object, exc: BaseException = raised) -> np.ndarray:
+            raise exc
+
+        monkeypatch.setattr(streamed._pair, "differences", fail)
+        added = 0
+        try:
+            for ti, zi in zip(data.t[:200], data.z[:200]):
+                streamed.add(ti, zi)
+                added += 1
+        except KeyboardInterrupt:
+            assert escapes and added == te.STREAM_BLOCK - 1
+            continue
+        assert not escapes and added == 200
+        assert not streamed.active and streamed.evidence() is None
+
+
 def test_the_evidence_s_compiled_run_is_the_filter_stepped_sample_by_sample(tmp_path) -> None:
     """``KalmanInference.log_likelihoods`` (the evidence's filters, each over the whole
     recording in one compiled call) gives each sample's innovation log-density as the

@@ -27,6 +27,7 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
 from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.signals import interrupt_in_chain
 
 #: The fewest samples whose readings both filters predicted (a log-density each) for a
 #: choice: 2 s at 50 Hz.
@@ -150,7 +151,9 @@ class StreamedTwistEvidence:
     over the same readings give the evidence that ``estimate`` of the session's recording
     weighs (the filters step in blocks of :data:`STREAM_BLOCK` samples, and once more for
     what is left when :meth:`evidence` is asked). Active where
-    :func:`weighs_the_twist`; the two filters are built here, before the stream starts."""
+    :func:`weighs_the_twist`; the two filters are built here, before the stream starts.
+    An exception of the filters (not an interrupt) ends it: :meth:`evidence` is None
+    from then on."""
 
     def __init__(self, formulation: Formulation) -> None:
         self.active = weighs_the_twist(formulation)
@@ -179,7 +182,14 @@ class StreamedTwistEvidence:
         z = np.ascontiguousarray(np.vstack(self._z))
         self._t.clear()
         self._z.clear()
-        self._diff.extend(self._pair.differences(t, z).tolist())
+        try:
+            diff = self._pair.differences(t, z)
+        except Exception as exc:  # a hint: its filters failing end it, not the stream
+            if (interrupt := interrupt_in_chain(exc)) is not None:
+                raise interrupt from exc
+            self.active, self._pair = False, None
+            return
+        self._diff.extend(diff.tolist())
 
     def evidence(self) -> TwistEvidence | None:
         """The evidence of every reading added so far; None where not active."""
