@@ -15,9 +15,11 @@ median sample better (docs/model-studies.md, "The IMUs' twist, measured").
 from __future__ import annotations
 
 import math
+import threading
 from array import array
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from queue import SimpleQueue
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -27,7 +29,6 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
 from continuum_mhe.model.direct import DirectFormulation, gyro_biases_calibrated
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.signals import interrupt_in_chain
 
 #: The fewest samples whose readings both filters predicted (a log-density each) for a
 #: choice: 2 s at 50 Hz.
@@ -118,10 +119,11 @@ class _FilterPair:
                 raise TypeError("the compiled EKF has no compiled steps")
             self.stepped.append(stepped)
 
-    def differences(self, t: FloatArray, z: FloatArray) -> FloatArray:
+    def differences(self, t: FloatArray, z: FloatArray, side_by_side: bool = True) -> FloatArray:
         """Each sample's innovation log-density under the twist model less the frames'
         (NaN where either has none), both filters stepped on from where the last call
-        left them over the readings ``z`` (n, nz) at ``t`` (n,) s (C-contiguous)."""
+        left them over the readings ``z`` (n, nz) at ``t`` (n,) s (C-contiguous);
+        ``side_by_side``: the twist model's on a second thread."""
 
         def step(k: int) -> FloatArray:
             ll = np.full(len(t), math.nan)
@@ -129,8 +131,9 @@ class _FilterPair:
             self.stepped[k].log_likelihoods(t, z, masks, ll)  # without the GIL
             return ll
 
-        # the two filters side by side: the twist model's on a worker, the frames' on
-        # this thread, where a signal's handler (Ctrl-C) can end it
+        if not side_by_side:
+            return step(1) - step(0)
+        # the frames' on this thread, where a signal's handler (Ctrl-C) can end it
         with ThreadPoolExecutor(1, thread_name_prefix="twist-evidence") as pool:
             twisted = pool.submit(step, 1)
             frames = step(0)
@@ -149,11 +152,12 @@ class StreamedTwistEvidence:
     """:func:`twist_evidence` of a stream of readings, sample by sample (:meth:`add`),
     for ``live``, which estimates with the constant-curvature frames: the same filters
     over the same readings give the evidence that ``estimate`` of the session's recording
-    weighs (the filters step in blocks of :data:`STREAM_BLOCK` samples, and once more for
-    what is left when :meth:`evidence` is asked). Active where
-    :func:`weighs_the_twist`; the two filters are built here, before the stream starts.
-    An exception of the filters (not an interrupt) ends it: :meth:`evidence` is None
-    from then on."""
+    weighs. The readings are passed in blocks of :data:`STREAM_BLOCK` samples to a thread
+    of their own that steps the two filters (their compiled steps without the GIL), so
+    that the stream's estimates do not wait for them; :meth:`evidence` passes what is
+    left and waits for the thread. Active where :func:`weighs_the_twist`; the two filters
+    are built here, before the stream starts. An exception of the filters ends it:
+    :meth:`evidence` is None from then on."""
 
     def __init__(self, formulation: Formulation) -> None:
         self.active = weighs_the_twist(formulation)
@@ -164,6 +168,8 @@ class StreamedTwistEvidence:
         )
         self._t: list[float] = []
         self._z: list[FloatArray] = []
+        self._blocks: SimpleQueue[tuple[FloatArray, FloatArray] | None] = SimpleQueue()
+        self._worker: threading.Thread | None = None
         self._diff = array("d")  # each stepped sample's difference (NaN: none)
 
     def add(self, t: float, z: ArrayLike) -> None:
@@ -173,27 +179,44 @@ class StreamedTwistEvidence:
         self._t.append(float(t))
         self._z.append(np.asarray(z, dtype=float))
         if len(self._t) >= STREAM_BLOCK:
-            self._step()
+            self._pass_block()
 
-    def _step(self) -> None:
-        if not self._t or self._pair is None:
+    def _pass_block(self) -> None:
+        """The readings added since the last block, to the worker (started where none
+        runs)."""
+        if not self._t:
             return
-        t = np.ascontiguousarray(self._t)
-        z = np.ascontiguousarray(np.vstack(self._z))
+        block = (np.ascontiguousarray(self._t), np.ascontiguousarray(np.vstack(self._z)))
         self._t.clear()
         self._z.clear()
-        try:
-            diff = self._pair.differences(t, z)
-        except Exception as exc:  # a hint: its filters failing end it, not the stream
-            if (interrupt := interrupt_in_chain(exc)) is not None:
-                raise interrupt from exc
-            self.active, self._pair = False, None
-            return
-        self._diff.extend(diff.tolist())
+        if self._worker is None:
+            self._worker = threading.Thread(
+                target=self._step_blocks, name="twist-evidence", daemon=True
+            )
+            self._worker.start()
+        self._blocks.put(block)
+
+    def _step_blocks(self) -> None:
+        """The worker: each block's differences, until the end (None)."""
+        while (block := self._blocks.get()) is not None:
+            if self._pair is None:
+                continue
+            try:
+                diff = self._pair.differences(*block, side_by_side=False)
+            except Exception:  # a hint: its filters failing end it, not the stream
+                self.active, self._pair = False, None
+                continue
+            self._diff.extend(diff.tolist())
 
     def evidence(self) -> TwistEvidence | None:
-        """The evidence of every reading added so far; None where not active."""
+        """The evidence of every reading added so far (once the worker has stepped them);
+        None where not active."""
+        if self.active:
+            self._pass_block()
+        if self._worker is not None:
+            self._blocks.put(None)
+            self._worker.join()
+            self._worker = None
         if not self.active:
             return None
-        self._step()
         return _evidence(np.frombuffer(self._diff, dtype=float))
