@@ -77,6 +77,23 @@ def test_continue_run_checks_its_arrays_as_run_does() -> None:
     np.testing.assert_array_equal(batch.output, est.run(rec.t, rec.z).output)
 
 
+def test_a_transposed_z_is_named_as_transposed() -> None:
+    """A recording's z given as (nz, n), the readings of each column a row, is refused
+    by ``run`` and ``continue_run`` in one UserError that shows z's shape and says it
+    looks transposed, and the estimator steps on as it was."""
+    rec = simulate("paper3d", duration=1.0)
+    est = make_estimator("ekf", make_formulation("bend"))
+    for call in (est.run, est.continue_run):
+        with pytest.raises(UserError, match=r"z's shape \(2, 21\).*transposed\? \(z.T"):
+            call(rec.t, rec.z.T)
+    with pytest.raises(UserError, match=r"z's shape \(21, 2\)") as refused:
+        est.run(rec.t[:10], rec.z)  # lengths that differ otherwise: no transposition named
+    assert "transposed" not in str(refused.value)
+    est.reset()
+    batch = est.continue_run(rec.t, rec.z)
+    np.testing.assert_array_equal(batch.output, est.run(rec.t, rec.z).output)
+
+
 @pytest.mark.parametrize(
     ("block", "starts", "match"),
     [

@@ -910,7 +910,13 @@ class Estimator(Generic[InferenceT]):
         if t.ndim != 1 or z.ndim != 2:
             raise UserError(f"t must be (n,) and z (n, {nz}); got shapes {t.shape} and {z.shape}")
         if len(t) != len(z):
-            raise UserError(f"t has {len(t)} samples but z has {len(z)}")
+            transposed = (
+                f": z is ({nz}, n), transposed? (z.T gives rows)" if z.shape == (nz, len(t)) else ""
+            )
+            raise UserError(
+                f"t has {len(t)} samples but z has {len(z)} (z's shape {z.shape}, a row of "
+                f"{nz} readings a sample expected){transposed}"
+            )
         if z.shape[1] != nz:
             raise UserError(
                 f"z must have shape (n, {nz}) for the {self.formulation.name} formulation "

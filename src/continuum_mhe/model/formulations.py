@@ -250,6 +250,9 @@ class Formulation:
     # --- sizes and descriptions -----------------------------------------------------
     @property
     def state_names(self) -> tuple[str, ...]:
+        """The names of the state vector's entries, in order (``bend``'s ``a_1, b_1, ...,
+        a_1_dot, ...``; ``direct``'s gyro biases ``bgx_1, ...`` after them); an estimate's
+        ``state`` and ``covariance`` follow this order."""
         raise NotImplementedError
 
     @property
@@ -274,6 +277,9 @@ class Formulation:
 
     @cached_property
     def measurement_names(self) -> tuple[str, ...]:
+        """The names of ``z``'s columns, in order (``roll_1, pitch_1, ...`` for tilt IMUs,
+        ``roll, pitch`` for one; ``fx_1, ..., wz_1, ...`` for raw ones): the blocks'
+        names one after the other."""
         return tuple(n for b in self.measurement_blocks for n in b.names)
 
     @cached_property
@@ -283,6 +289,7 @@ class Formulation:
 
     @cached_property
     def ny(self) -> int:
+        """Number of outputs (the columns of an estimate's ``output``)."""
         return len(self.outputs)
 
     @cached_property

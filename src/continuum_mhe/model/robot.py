@@ -176,8 +176,9 @@ class ImuPlacement:
         mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X, mapping
             sensor-frame vectors into the local backbone frame: applied to raw readings
             on their way in (``continuum_mhe.io.raw_measurements``, ``load_input``); an
-            estimator takes its readings in the disks' frames, and warns, when it is
-            built, where no such conversion took them.
+            estimator takes its readings in the disks' frames, and warns (a
+            :class:`RobotWarning`) at the first samples handed to it where no such
+            conversion took them.
         gyro_bias: the gyro's bias at rest ``(gx, gy, gz)``, rad/s, sensor frame
             (subtracted from raw gyro readings).
         accel_range: the accelerometer's full scale, m/s^2 (19.61 for +-2 g), or None
