@@ -254,7 +254,7 @@ def test_a_tensions_file_that_does_not_cover_the_stream_stops_it_before_writing(
     with pytest.raises(InputError) as err:
         _live(serial, runs.estimator, imus_only[:6], record)
     assert str(err.value) == (
-        f"{short} line 2: the tensions cover t = 1 to 1 s, but a sample of /dev/ttyTEN is at "
+        f"{short}: line 2: the tensions cover t = 1 to 1 s, but a sample of /dev/ttyTEN is at "
         "t = 0 s "
         "(the device clock): the tensions must cover the stream"
     )

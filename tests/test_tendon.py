@@ -1847,6 +1847,13 @@ def test_a_tip_force_beyond_every_tension_is_said() -> None:
     small = ForceBeyondTensions(f)
     small.add(*block(0.01, 0.04))
     assert small.notice() is None  # under 0.05 N
+    slack = ForceBeyondTensions(f)  # every tension 0 N: no unit or order to blame
+    slack.add(*block(0.0, 0.31))
+    assert slack.notice() == (
+        "the estimated tip force reached 0.31 N with every tendon tension given 0 N "
+        "(slack all along, or not logged?): a load that large, or a push along a nearly "
+        "straight backbone, which the IMUs barely see (a still robot)"
+    )
 
 
 def test_a_sample_without_a_tension_is_a_dropout_as_a_whole() -> None:

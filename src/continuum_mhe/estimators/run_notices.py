@@ -265,7 +265,8 @@ class ForceBeyondTensions:
     """The largest tip force a tendon robot's estimates reach against the largest
     tendon tension of its inputs, counted block by block (:meth:`add`) for one line at
     the end (:meth:`notice`): a tip force beyond every tension is a large load, or
-    tensions given in another unit (kgf for N) that the force makes up for."""
+    tensions given in another unit (kgf for N) that the force makes up for; with every
+    tension 0 N, a load or a push along the backbone alone."""
 
     def __init__(self, formulation: Formulation) -> None:
         names = [o.name for o in formulation.outputs]
@@ -293,6 +294,13 @@ class ForceBeyondTensions:
         the largest tension (and over :data:`FORCE_NOTICE_MIN` N); None otherwise."""
         if not self.force > max(FORCE_TENSION_RATIO * self.tension, FORCE_NOTICE_MIN):
             return None
+        if self.tension == 0.0:  # no unit or order of a tension can explain it
+            return (
+                f"the estimated tip force reached {self.force:.3g} N with every tendon "
+                "tension given 0 N (slack all along, or not logged?): a load that large, "
+                "or a push along a nearly straight backbone, which the IMUs barely see "
+                "(a still robot)"
+            )
         return (
             f"the estimated tip force reached {self.force:.3g} N, beyond the largest tendon "
             f"tension given ({self.tension:.3g} N): a load that large, or tensions in "

@@ -589,10 +589,10 @@ class Tensions:
                 "# t0_ns line)"
             )
         end = 0 if t < self.t[0] else len(self.t) - 1  # the row the sample lies beyond
-        line = "" if self.lines is None else f" line {self.lines[end]}"
+        line = "" if self.lines is None else f" line {self.lines[end]}:"
         clock, what = (" (the device clock)", "stream") if stream else ("", "recording")
         return (
-            f"{self.name}{line}: the tensions cover t = {time_text(self.t[0])} to "
+            f"{self.name}:{line} the tensions cover t = {time_text(self.t[0])} to "
             f"{time_text(self.t[-1])} s{epoch}, but a sample{of} is at t = "
             f"{time_text(t)} s{clock}: the tensions must cover the {what}"
         )
