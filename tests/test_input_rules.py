@@ -754,6 +754,9 @@ def test_step_and_continue_run_say_when_t_looks_like_milliseconds() -> None:
         "run: t advances by a median of 50 s per sample; t mu",
         "continue_run: t advances by a median of 50 s per sam",
     ]
+    # each says what milliseconds read as seconds do: every step a gap that restarts
+    gap = "(milliseconds? every step longer than the gap reset restarts the estimate)"
+    assert all(u.endswith(gap) for u in units), units
     assert all(w.filename == __file__ for w in seen if issubclass(w.category, UnitWarning))
 
 

@@ -362,10 +362,17 @@ def test_robot_file_round_trip(tmp_path: Path) -> None:
     [
         ("[[section]]\n[[imu]]\nsection = 1\n", "section 1: missing key 'length'"),
         ("[[section]]\nlength = -0.1\n[[imu]]\nsection = 1\n", "section 1: length: section"),
-        ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 2\n", "imu 1: section must be"),
+        (
+            "[[section]]\nlength = 0.1\n[[imu]]\nsection = 2\n",
+            "imu 1: section must be 1, the robot's only section, got 2",
+        ),
+        (
+            "[[section]]\nlength = 0.1\n[[section]]\nlength = 0.1\n[[imu]]\nsection = 3\n",
+            "imu 1: section must be a whole section number from 1 to 2, got 3",
+        ),
         (
             "[[section]]\nlength = 0.1\n[[imu]]\nsection = 1.0\n",
-            "imu 1: section must be a whole section number from 1 to 1, got 1.0 (write 1, "
+            "imu 1: section must be 1, the robot's only section, got 1.0 (write 1, "
             "without a decimal point)",
         ),
         ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\nat = 1.5\n", "imu 1: at must lie"),

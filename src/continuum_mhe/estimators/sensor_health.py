@@ -780,8 +780,11 @@ class Estimator(Generic[InferenceT]):
         t, z = self._samples(t, z)
         self._say_mount_not_applied()
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
-            "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
-        )
+            "run", "t advances", t,
+            "t must be in seconds (milliseconds? every step longer than the gap reset "
+            "restarts the estimate)",
+            "t must be in seconds",
+        )  # fmt: skip
         too_fast = too_fast_problem("run", t)
         if too_fast is not None:
             raise ReadingUnitsError(too_fast)

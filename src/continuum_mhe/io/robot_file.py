@@ -176,6 +176,11 @@ def _not_whole(value: object) -> str:
     return ""
 
 
+def _section_numbers(n: int) -> str:
+    """What a ``section`` key of a robot of ``n`` sections may be, for its refusal."""
+    return "1, the robot's only section" if n == 1 else f"a whole section number from 1 to {n}"
+
+
 def _number(path: Path, where: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise InputError(f"{path}: {where}: expected a finite number, got {_shown(value)}")
@@ -257,8 +262,8 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         sec = table["section"]
         if isinstance(sec, bool) or not isinstance(sec, int) or not 1 <= sec <= len(sections):
             raise InputError(
-                f"{path}: {where}: section must be a whole section number from 1 to "
-                f"{len(sections)}, got {_shown(sec)}{_not_whole(sec)}"
+                f"{path}: {where}: section must be {_section_numbers(len(sections))}, got "
+                f"{_shown(sec)}{_not_whole(sec)}"
             )
         at = _number(path, f"{where}: at", table.get("at", 1.0))
         if "disk" in table:
@@ -399,8 +404,8 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
         sec = table["section"]
         if isinstance(sec, bool) or not isinstance(sec, int) or not 1 <= sec <= n_sections:
             raise InputError(
-                f"{path}: {where}: section must be a whole section number from 1 to "
-                f"{n_sections}, got {_shown(sec)}{_not_whole(sec)}"
+                f"{path}: {where}: section must be {_section_numbers(n_sections)}, got "
+                f"{_shown(sec)}{_not_whole(sec)}"
             )
         angle = _number(path, f"{where}: angle", table["angle"])
         if not abs(angle) <= 360:
