@@ -1305,7 +1305,7 @@ def test_plot_and_view_refuse_tensions_in_millinewtons_as_estimate_does(
         assert main(argv) == 2, command
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and f"{mn}: line " in err[0], (command, err)
-        assert "would bend section 1 through" in err[0] and "(mN?)" in err[0]
+        assert "would bend section 1 through" in err[0] and "(mN or grams?)" in err[0]
         assert not out.exists()
         argv = [command, str(est), "--robot", robot, "--inputs", str(tensions), flag, str(out)]
         assert main(argv) == 0 and out.exists(), command
@@ -1480,7 +1480,7 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
     line = mn.read_text().splitlines()[int(said.group(1)) - 1]  # the row it names
     assert float(line.split(",")[0]) == pytest.approx(float(said.group(2)))
     assert "would bend section 1 through" in err[0] and not out.exists()
-    assert "N m^2): tensions in N (mN?), or the robot file's [backbone] too soft" in err[0]
+    assert "N m^2): tensions in N (mN or grams?), or the robot file's [backbone] too soft" in err[0]
     # tensions a tendon carries in N, with a modulus given in MPa: the backbone first
     shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
     mpa = tmp_path / "mpa.toml"
@@ -1493,7 +1493,7 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
     assert len(err) == 1 and "would bend section" in err[0] and not out.exists()
     assert (
         "N m^2): the robot file's [backbone] too soft (youngs_modulus 540000 Pa: MPa? 540000 "
-        "MPa is 5.4e+11 Pa; radius 0.0007 m), or tensions in N (mN?)?"
+        "MPa is 5.4e+11 Pa; radius 0.0007 m), or tensions in N (mN or grams?)?"
     ) in err[0]
     # a modulus ten times too low, in Pa: no unit is the mistake
     ten = tmp_path / "ten.toml"

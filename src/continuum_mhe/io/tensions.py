@@ -213,7 +213,7 @@ def tension_scale_problem(
         f"Pa{': ' + unit if unit else ''}; radius {bb.radius:g} m)"
     )
     # tensions a tendon can carry in N point at the backbone first
-    causes = [soft, "tensions in N (mN?)"]
+    causes = [soft, "tensions in N (mN or grams?)"]
     if float(np.nanmax(rows)) > PLAUSIBLE_TENSION_N:
         causes.reverse()
     line = "" if lines is None else f"line {lines[i]}: "
