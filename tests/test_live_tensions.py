@@ -277,7 +277,7 @@ def test_tensions_in_mn_on_the_line_stop_the_session_in_one_line(runs: Runs) -> 
     with pytest.raises(
         InputError,
         match=r"^/dev/ttyTEN: the tensions on the line: at t = 0.16 s .* "
-        r"would bend section 1 through .* full turns .*mN\?",
+        r"would bend section 1 through .* full turns .*\(mN or grams\?\)",
     ):
         _live(serial, runs.estimator, in_mn)
 

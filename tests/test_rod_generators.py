@@ -450,8 +450,9 @@ options:
                         the motion (default: unloaded)
   --duration DURATION   s, 0.02 (the IMUs' sample time) to 600; the shipped recordings' is 8
                         (default: 8.0)
-  --robot ROBOT         a robot file (or shipped name) of two sections with an IMU at each end
-                        (default: tendon-two-section)
+  --robot ROBOT         a robot file (or shipped name) with a [backbone], tendons and disks,
+                        standing on its base, its IMUs on disks or section ends (default: tendon-
+                        two-section)
   --name NAME           the files' prefix, the scenario's name if not given
   --route {continuous,disks}
                         the tendons' path: continuous along the backbone at their radius, or
@@ -604,7 +605,7 @@ def test_the_tendon_truth_of_a_straight_robot_has_phi_0_and_no_minus_zero(
     dirs = np.broadcast_to(np.eye(3), (n, 2, 3, 3)).copy()
     z = np.zeros((n, 2, 3))
     sec = SectionTrajectory(t, nodes, dirs, z, z.copy(), np.zeros(n), (40, 80))
-    traj = TendonTrajectory(sec, dirs, np.zeros((n, 6)), np.zeros((n, 3)))
+    traj = TendonTrajectory(sec, dirs, (40, 80), np.zeros((n, 6)), np.zeros((n, 3)))
     robot = read_robot("tendon-two-section")
     write_tendon_recording(tmp_path, "s", robot, "unloaded", 0.08, trajectory=traj)
     truth = read_state_table(tmp_path / "s_truth.csv")
@@ -636,7 +637,7 @@ def test_a_tendon_recording_comes_with_a_rest_recording_of_its_imus(tmp_path: Pa
     dirs = np.broadcast_to(np.eye(3), (n, 2, 3, 3)).copy()
     z = np.zeros((n, 2, 3))
     sec = SectionTrajectory(np.arange(n) * 0.02, nodes, dirs, z, z.copy(), np.zeros(n), (40, 80))
-    traj = TendonTrajectory(sec, dirs, np.zeros((n, 6)), np.zeros((n, 3)))
+    traj = TendonTrajectory(sec, dirs, (40, 80), np.zeros((n, 6)), np.zeros((n, 3)))
     quiet = replace(DEFAULT_IMU, accel_noise=0.0, gyro_noise=0.0)
     robot = read_robot("tendon-two-section")
     write_tendon_recording(tmp_path, "s", robot, "unloaded", 0.08, imu=quiet, seed=3,

@@ -1048,16 +1048,23 @@ def test_the_tip_force_and_tip_std_are_the_filters_own() -> None:
 def test_the_recording_generator_refuses_a_robot_it_does_not_write(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """The tendon-robot generator writes two sections with an IMU at each end: another
-    robot is one line and exit 2, nothing written (not the shipped robot's two-IMU files
-    and truth under a one-section robot's name, tendon-two-section in its info)."""
+    """The tendon-robot generator places each IMU on one of its rod's nodes (a disk or a
+    section's end): an IMU between two is one line and exit 2, nothing written; so is a
+    robot without tendons (no motion to drive)."""
     path = tmp_path / "one.toml"
-    path.write_text(TENDON_FILE)
     out = tmp_path / "out"
-    assert main(["rod", "tendon", "--robot", str(path), "-o", str(out)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "writes two-section robots with an IMU at each section's end" in err[0]
-    assert "not 1 section (0.2 m), IMUs at 1@0.5" in err[0] and not out.exists()
+    between = TENDON_FILE.replace("disk = 5", "at = 0.513")
+    no_tendons = TENDON_FILE.split("[[tendon]]")[0] + "[[imu]]\nsection = 1\n"
+    for text, said in (
+        (between, "IMU 1 at 0.513 of section 1 lies between the generator's rod nodes: "
+                  "place it on a disk (disk = d in the robot file) or at the section's end"),
+        (no_tendons, "the tendon-robot generator writes robots with a [backbone] and "
+                     "[[tendon]]s (as tendon-two-section), not 1 section"),
+    ):  # fmt: skip
+        path.write_text(text)
+        assert main(["rod", "tendon", "--robot", str(path), "-o", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and said in err[0] and not out.exists(), err
     # a hanging robot, and IMUs turned on their disks: refused too (not a standing
     # robot's readings under their names, which the same robot file would refuse)
     shipped = (DATA.parents[0] / "robots" / "tendon_two_section.toml").read_text()
@@ -1073,6 +1080,70 @@ def test_the_recording_generator_refuses_a_robot_it_does_not_write(
         assert main(["rod", "tendon", "--robot", str(path), "-o", str(out)]) == 2
         (line,) = capsys.readouterr().err.strip().splitlines()
         assert said in line and not out.exists(), line
+
+
+ONE_SECTION_TWO_IMUS = """
+mounting = "z-up"
+[backbone]
+youngs_modulus = 54e9
+shear_modulus = 20.77e9
+radius = 0.0007
+density = 6450
+[[section]]
+length = 0.2
+disks = 10
+[[tendon]]
+section = 1
+angle = 0
+radius = 0.01
+[[tendon]]
+section = 1
+angle = 120
+radius = 0.01
+[[tendon]]
+section = 1
+angle = 240
+radius = 0.01
+[[imu]]
+section = 1
+disk = 5
+[[imu]]
+section = 1
+"""
+
+
+def test_the_generator_writes_a_robot_of_one_section_with_an_imu_inside_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A robot of one section with IMUs at disk 5 and at its end (not the shipped
+    robot's two sections): its recording has both IMUs' columns and one section's truth,
+    and the estimators' model (a shooting, with the recording's tensions) follows the
+    generator's discrete rod (an energy minimisation) to a fraction of a millimetre at
+    the tip; with the mid IMU placed at the end instead, the readings do not fit."""
+    robot = tmp_path / "one.toml"
+    robot.write_text(ONE_SECTION_TWO_IMUS)
+    rec = tmp_path / "rec"
+    assert main(["rod", "tendon", "--robot", str(robot), "--duration", "1",
+                 "-o", str(rec)]) == 0  # fmt: skip
+    raw = (rec / "unloaded_raw.csv").read_text().splitlines()[0]
+    assert raw == "t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,ay_2,az_2,gx_2,gy_2,gz_2"
+    truth = read_state_table(rec / "unloaded_truth.csv")
+    assert truth.names[:9] == ("x", "y", "z", "theta_1", "phi_1", "x_1", "y_1", "z_1", "psi_1")
+    assert "theta_2" not in truth.names and truth.column("theta_1").max() > 0.2
+    tip = np.column_stack([truth.column(c) for c in ("x", "y", "z")])
+    means = {}
+    for name, text in (("right", ONE_SECTION_TWO_IMUS),
+                       ("moved", ONE_SECTION_TWO_IMUS.replace("disk = 5\n", ""))):  # fmt: skip
+        robot.write_text(text)
+        out = tmp_path / f"{name}.csv"
+        tensions = str(rec / "unloaded_tensions.csv")
+        assert main(["estimate", str(rec / "unloaded_raw.csv"), "--robot", str(robot),
+                     "--inputs", tensions, "-o", str(out)]) == 0  # fmt: skip
+        est = read_state_table(out)
+        e = np.column_stack([est.column(c) for c in ("x", "y", "z")]) - tip
+        means[name] = float(np.mean(np.linalg.norm(e[est.t >= 0.5], axis=1)))
+    capsys.readouterr()
+    assert means["right"] < 0.5e-3 < 5e-3 < means["moved"], means
 
 
 def test_the_recording_generator_refuses_sections_without_disks_and_warns_in_one_line(
@@ -1445,7 +1516,8 @@ def test_tensions_in_millinewtons_given_as_arrays_are_refused_by_the_estimator()
     with pytest.raises(
         UserError,
         match=r"^the measurements' tensions: at t = [0-9.]+ s the tensions \(.*\) would bend "
-        r"section 1 through [0-9.]+ full turns .*: tensions in N \(mN\?\), or the robot "
+        r"section 1 through [0-9.]+ full turns .*: tensions in N \(mN or grams\?\), or the "
+        r"robot "
         r"file's \[backbone\] too soft",
     ):
         make_estimator("ekf", f).run(t, scaled)

@@ -268,7 +268,8 @@ def _tendon_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--robot",
         default="tendon-two-section",
-        help="a robot file (or shipped name) of two sections with an IMU at each end",
+        help="a robot file (or shipped name) with a [backbone], tendons and disks, "
+        "standing on its base, its IMUs on disks or section ends",
     )
     p.add_argument("--name", help="the files' prefix, the scenario's name if not given")
     p.add_argument(

@@ -242,9 +242,10 @@ class SectionRodSettings:
 @dataclass(frozen=True)
 class SectionTrajectory:
     """Rod states every ``record_dt``: times (n,), nodes (n, 3, k+1), the directors
-    (n, 2, 3, 3) of the elements ending each section, the velocities (n, 2, 3) of the
-    section-end nodes, the angular velocities (n, 2, 3) of those elements (their
-    frame), the total twist (n,) rad, and the section-end node indices."""
+    (n, m, 3, 3) of the m elements that carry an IMU (the two rods' those ending each
+    section), the velocities (n, m, 3) of the nodes that end them, the angular
+    velocities (n, m, 3) of those elements (their frame), the total twist (n,) rad, and
+    those nodes' indices."""
 
     t: FloatArray
     nodes: FloatArray
@@ -252,7 +253,7 @@ class SectionTrajectory:
     velocities: FloatArray
     omegas: FloatArray
     twist: FloatArray
-    end_nodes: tuple[int, int]
+    end_nodes: tuple[int, ...]
 
 
 def couples(scenario: str, t: float, s: SectionRodSettings) -> tuple[FloatArray, FloatArray]:
@@ -421,8 +422,9 @@ def imu_samples(
     misalignment_axes: tuple[int, ...] = (0, 1, 2),
     errors_like: int | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp]]:
-    """Both IMUs every ``imu.sample_dt``: times (n,), specific force (n, 2, 3) m/s^2,
-    gyro (n, 2, 3) rad/s (each in its own frame), and the trajectory indices.
+    """The IMUs every ``imu.sample_dt``, one at each element of ``traj.directors`` (two
+    for the rods' sections): times (n,), specific force (n, m, 3) m/s^2, gyro (n, m, 3)
+    rad/s (each in its own frame), and the trajectory indices.
 
     ``seed`` draws the IMUs' constant errors (misalignment, biases) and, unless
     ``noise_seed`` is given, their noise; with ``noise_seed`` the same constant errors
@@ -446,9 +448,10 @@ def imu_samples(
     idx = np.arange(0, len(traj.t), step)
     prev = np.maximum(idx - lag, 0)
     span = np.maximum((idx - prev) * dt_rec, dt_rec)
-    f = np.zeros((len(idx), 2, 3))
-    w = np.zeros((len(idx), 2, 3))
-    for k in range(2):
+    n_imus = traj.directors.shape[1]
+    f = np.zeros((len(idx), n_imus, 3))
+    w = np.zeros((len(idx), n_imus, 3))
+    for k in range(n_imus):
         acc = (traj.velocities[idx, k] - traj.velocities[prev, k]) / span[:, None]
         spec_base = acc - np.array([0.0, 0.0, -STANDARD_GRAVITY])
         keep = np.isin(np.arange(3), misalignment_axes)

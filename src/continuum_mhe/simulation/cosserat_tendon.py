@@ -1,9 +1,13 @@
 """Recordings of a tendon-driven robot that its estimator's model did not generate.
 
-The robot of ``tendon-two-section`` (docs/tendon.md): a nitinol-like rod (0.2 m +
-0.2 m, E = 54 GPa, G = 20.77 GPa, radius 0.7 mm, density 6450 kg/m^3, under gravity,
-base clamped, z up), three tendons per section at 10 mm (section 1's at 0, 120 and
-240 degrees, section 2's at 60, 180 and 300), an IMU at each section's end, 50 Hz.
+Any robot file with a ``[backbone]``, ``[[tendon]]``s and spacer disks, standing on its
+base (``z-up``), its IMUs on the discrete rod's nodes (a disk, or a section's end) in
+their disks' frames; by default the robot of ``tendon-two-section`` (docs/tendon.md): a
+nitinol-like rod (0.2 m + 0.2 m, E = 54 GPa, G = 20.77 GPa, radius 0.7 mm, density 6450
+kg/m^3, under gravity, base clamped, z up), three tendons per section at 10 mm (section
+1's at 0, 120 and 240 degrees, section 2's at 60, 180 and 300), an IMU at each
+section's end, 50 Hz. The motions' tensions are sized for that robot: the tip section's
+tendons pull as its section 2's, every other section's as its section 1's.
 
 The recordings are the quasi-static equilibria of a discrete rod whose energy is
 minimised (:func:`energy_equilibrium`, IPOPT, warm-started every 20 ms): inextensible,
@@ -89,7 +93,8 @@ PLANAR_S_PLANE = 0.4
 
 @dataclass(frozen=True)
 class TendonRodSettings:
-    """The simulated robot and its numerics.
+    """The simulated robot and its numerics. Each pair is (every section but the tip
+    section, the tip section): ``tendon-two-section``'s section 1 and 2.
 
     Attributes:
         tension: largest ``T_k`` per section, N (``unloaded``).
@@ -108,27 +113,45 @@ class TendonRodSettings:
     ramp: float = 3.0
 
 
+def _tip_role(k: int, n_sections: int) -> int:
+    """Which of a pair of :class:`TendonRodSettings` section ``k`` (0-based) of
+    ``n_sections`` takes: 1 for the tip section, 0 for every other."""
+    return 1 if k == n_sections - 1 else 0
+
+
+def _bending_direction(scenario: str, k: int, n_sections: int, t: float) -> float:
+    """Section ``k``'s bending direction (rad from the base x axis) at ``t``: the base
+    section's and the tip section's turn the opposite ways at different rates (every
+    section between them as the base section's, a radian further on per section)."""
+    if scenario.startswith("twist-"):
+        return _twist_plane(t)
+    role = _tip_role(k, n_sections)
+    if scenario == "static":
+        return (0.0, 1.0)[role]
+    if role == 1:
+        return -2 * math.pi * t / 7.0 + 1.0
+    return 2 * math.pi * t / 11.0 + float(k)
+
+
 def tension_profile(robot: Robot, scenario: str, t: float, s: TendonRodSettings) -> FloatArray:
     """The tendons' tensions at ``t`` (N, in the robot's tendon order)."""
     ramp = 0.5 * (1 - math.cos(math.pi * min(t / s.ramp, 1.0)))
     amp = s.tension if scenario == "unloaded" else s.loaded_tension
-    betas = (2 * math.pi * t / 11.0, -2 * math.pi * t / 7.0 + 1.0)
-    if scenario == "static":
-        betas = (0.0, 1.0)
     if scenario.startswith("twist-"):
         amp = s.twist_tension[scenario == "twist-29"]
-        betas = (_twist_plane(t),) * 2
+    n = robot.n_sections
     out = np.zeros(robot.n_tendons)
     if scenario == "planar-s":
         swing = math.sin(2 * math.pi * t / PLANAR_S_PERIOD)
         for i, td in enumerate(robot.tendons):
-            side = 1.0 if td.section == 0 else -1.0  # the second section bends back
+            side = -1.0 if td.section % 2 else 1.0  # each section bends back from the last
             bend = side * swing * math.cos(td.angle - PLANAR_S_PLANE)
-            out[i] = ramp * s.s_tension[td.section] * (1 + bend)
+            out[i] = ramp * s.s_tension[_tip_role(td.section, n)] * (1 + bend)
         return out
     for i, td in enumerate(robot.tendons):
         k = td.section
-        out[i] = ramp * amp[k] * (1 + math.cos(td.angle - betas[k]))
+        beta = _bending_direction(scenario, k, n, t)
+        out[i] = ramp * amp[_tip_role(k, n)] * (1 + math.cos(td.angle - beta))
     return out
 
 
@@ -156,25 +179,47 @@ def tip_force(scenario: str, t: float, s: TendonRodSettings) -> FloatArray:
 
 @dataclass(frozen=True)
 class TendonTrajectory:
-    """The rod every ``record_dt``: the section trajectory (for the IMUs), all
-    directors (n, 3, 3, k) and the tensions (n, m) and tip force (n, 3) applied."""
+    """The rod every ``record_dt``: the trajectory of its IMUs' elements (for the IMUs:
+    :func:`~continuum_mhe.simulation.cosserat_sections.imu_samples`), the directors of
+    the elements ending each section (n, k, 3, 3) and those ends' node indices, and the
+    tensions (n, m) and tip force (n, 3) applied."""
 
     sections: SectionTrajectory
     directors: FloatArray
+    end_nodes: tuple[int, ...]
     tensions: FloatArray
     force: FloatArray
 
 
+def imu_elements(robot: Robot, segments_per_disk: int) -> tuple[int, ...]:
+    """The discrete rod's element (0-based, from the base) whose end carries each IMU of
+    ``robot``, in its order: ``segments_per_disk`` elements between two disks. A
+    :class:`~continuum_mhe.errors.UserError` for an IMU between two of the rod's nodes
+    (the generator places each IMU on a node: a disk, or a section's end)."""
+    out = []
+    for k, imu in enumerate(robot.imus):
+        sec = robot.sections[imu.section]
+        along = imu.at * segments_per_disk * sec.disks
+        if abs(along - round(along)) > 1e-6 or round(along) < 1:
+            raise UserError(
+                f"IMU {k + 1} at {imu.at:g} of section {imu.section + 1} lies between the "
+                "generator's rod nodes: place it on a disk (disk = d in the robot file) or "
+                "at the section's end"
+            )
+        before = sum(segments_per_disk * s.disks for s in robot.sections[: imu.section])
+        out.append(before + int(round(along)) - 1)
+    return tuple(out)
+
+
 def check_generated_robot(robot: Robot) -> None:
     """A :class:`~continuum_mhe.errors.UserError` for a robot whose recordings this
-    generator does not write: it writes two sections with an IMU at each section's end
-    (its files' columns, its tendon drives per section), standing on its base (``z-up``),
-    each IMU in its disk's frame (no ``mount_rpy``)."""
-    ends = tuple((p.section, p.at) for p in robot.imus)
-    if robot.n_sections != 2 or ends != ((0, 1.0), (1, 1.0)) or not robot.tendons:
+    generator does not write: one without tendons or a backbone, one not standing on its
+    base (``z-up``), an IMU turned on its disk (a ``mount_rpy``) or between two disks
+    (:func:`imu_elements`), a section without spacer disks."""
+    if not robot.tendons or robot.backbone is None:
         raise UserError(
-            f"the tendon-robot generator writes two-section robots with an IMU at each "
-            f"section's end and tendons (as tendon-two-section), not {robot.describe()}"
+            f"the tendon-robot generator writes robots with a [backbone] and [[tendon]]s "
+            f"(as tendon-two-section), not {robot.describe()}"
         )
     if robot.mounting != "z-up":
         raise UserError(
@@ -198,6 +243,7 @@ def check_generated_robot(robot: Robot) -> None:
                 "tendon-two-section; the estimators' model takes the tendons as continuous "
                 "and does not need them)"
             )
+    imu_elements(robot, 1)  # each IMU on a disk or a section's end
 
 
 def record_times(duration: float, record_dt: float) -> FloatArray:
@@ -277,8 +323,8 @@ def write_tendon_recording(
     trajectory, already computed (the same motion with the errors of another seed);
     ``robot_name``: the robot as the info names it; ``route``: the tendons' path
     (:func:`_energy_solver`: ``"continuous"``, the estimators' model's, or ``"disks"``,
-    straight from disk to disk). A robot other than two sections
-    with an IMU at each end (:func:`check_generated_robot`) is a
+    straight from disk to disk). A robot it does not write
+    (:func:`check_generated_robot`) is a
     :class:`~continuum_mhe.errors.UserError`; an equilibrium not found, an
     :class:`EquilibriumError`. The folder ``out`` is made once the rod is simulated, in
     a folder that exists (checked first: :func:`~continuum_mhe.io.output_files.
@@ -323,24 +369,27 @@ def write_tendon_recording(
     Q = ca.SX.sym("Q", 3, 3)
     swing = ca.Function("swing", [Q], [ca.vertcat(*swing_twist_sym(Q))])
     truth = []
+    n_sections = robot.n_sections
     for j in idx:
         row: list[float] = list(sec.nodes[j, :, -1] - sec.nodes[j, :, 0])
         R_prev = np.eye(3)
-        for k in range(2):
-            R = sec.directors[j, k].T  # local-to-base
+        for k in range(n_sections):
+            R = traj.directors[j, k].T  # local-to-base
             th, ph, ps = np.asarray(swing(R_prev.T @ R), dtype=float).ravel()
             ph = straight_phi(th, ph)
-            p = sec.nodes[j, :, sec.end_nodes[k]] - sec.nodes[j, :, 0]
+            p = sec.nodes[j, :, traj.end_nodes[k]] - sec.nodes[j, :, 0]
             row += [th, ph, *p, ps]
             R_prev = R
         row += list(traj.force[j])
         truth.append(row)
     tr = np.column_stack([t, np.array(truth)])
-    write_table(out / f"{name}_truth.csv", truth_columns(2), (np.round(tr, 7) + 0.0).tolist())
-    psi = tr[:, [9, 15]]
+    columns = truth_columns(n_sections)
+    write_table(out / f"{name}_truth.csv", columns, (np.round(tr, 7) + 0.0).tolist())
+    theta_cols = [columns.index(f"theta_{k + 1}") for k in range(n_sections)]
+    psi = tr[:, [columns.index(f"psi_{k + 1}") for k in range(n_sections)]]
     # (theta is the swing of the section end's frame, at most 180 degrees: a bend past
     # 180 folds back below it, and is seen as it passes through 170 to 180 degrees)
-    for k, c in enumerate((4, 10)):
+    for k, c in enumerate(theta_cols):
         bend = math.degrees(float(tr[:, c].max()))
         if bend > WRAPPED_BEND_DEG:
             warnings.warn(
@@ -356,8 +405,8 @@ def write_tendon_recording(
         "scenario": scenario,
         "robot": robot_name,
         "samples": len(t),
-        "theta_max_deg": [float(np.degrees(tr[:, c].max())) for c in (4, 10)],
-        "twist_max_deg": [float(np.degrees(np.abs(psi[:, k]).max())) for k in range(2)],
+        "theta_max_deg": [float(np.degrees(tr[:, c].max())) for c in theta_cols],
+        "twist_max_deg": [float(np.degrees(np.abs(psi[:, k]).max())) for k in range(n_sections)],
         "force_max_n": float(np.linalg.norm(traj.force, axis=1).max()),
         "tension_max_n": float(traj.tensions.max()),
         "route": route,
@@ -495,10 +544,13 @@ def quasi_static_trajectory(
     disks = [sec.disks for sec in robot.sections]
     t = record_times(duration, record_dt)
     n_rec = len(t)
-    end_seg = (segments_per_disk * disks[0] - 1, segments_per_disk * sum(disks) - 1)
+    # the elements ending each section, and those whose end carries an IMU
+    end_seg = tuple(segments_per_disk * sum(disks[: k + 1]) - 1 for k in range(len(disks)))
+    imu_seg = imu_elements(robot, segments_per_disk)
     n_nodes = segments_per_disk * sum(disks) + 1
     nodes = np.zeros((n_rec, 3, n_nodes))
-    dirs = np.zeros((n_rec, 2, 3, 3))
+    dirs = np.zeros((n_rec, len(end_seg), 3, 3))
+    imu_dirs = np.zeros((n_rec, len(imu_seg), 3, 3))
     tensions = np.array([tension_profile(robot, scenario, float(tk), s) for tk in t])
     force = np.array([tip_force(scenario, float(tk), s) for tk in t])
     w = None
@@ -508,21 +560,23 @@ def quasi_static_trajectory(
         except EquilibriumError as exc:
             raise EquilibriumError(f"{exc} at t = {t[i]:.2f} s") from None
         nodes[i, :, 1:] = fr[9:]
-        for k, e in enumerate(end_seg):
-            dirs[i, k] = fr[:9, e].reshape(3, 3, order="F").T  # rows: the frame's axes
-    vel = np.gradient(nodes[:, :, [end_seg[0] + 1, end_seg[1] + 1]], t, axis=0).transpose(0, 2, 1)
-    omega = np.zeros((n_rec, 2, 3))
-    for k in range(2):
-        R = np.transpose(dirs[:, k], (0, 2, 1))
+        for into, segs in ((dirs, end_seg), (imu_dirs, imu_seg)):
+            for k, e in enumerate(segs):
+                into[i, k] = fr[:9, e].reshape(3, 3, order="F").T  # rows: the frame's axes
+    imu_nodes = tuple(e + 1 for e in imu_seg)
+    vel = np.gradient(nodes[:, :, list(imu_nodes)], t, axis=0).transpose(0, 2, 1)
+    omega = np.zeros((n_rec, len(imu_seg), 3))
+    for k in range(len(imu_seg)):
+        R = np.transpose(imu_dirs[:, k], (0, 2, 1))
         dR = np.gradient(R, t, axis=0)
         wh = np.einsum("nji,njk->nik", R, dR)
         omega[:, k] = 0.5 * np.stack(
             [wh[:, 2, 1] - wh[:, 1, 2], wh[:, 0, 2] - wh[:, 2, 0], wh[:, 1, 0] - wh[:, 0, 1]],
             axis=-1,
         )
-    ends = (end_seg[0] + 1, end_seg[1] + 1)
-    sections = SectionTrajectory(t, nodes, dirs, vel, omega, np.zeros(n_rec), ends)
-    return TendonTrajectory(sections, dirs, tensions, force)
+    sections = SectionTrajectory(t, nodes, imu_dirs, vel, omega, np.zeros(n_rec), imu_nodes)
+    ends = tuple(e + 1 for e in end_seg)
+    return TendonTrajectory(sections, dirs, ends, tensions, force)
 
 
 if __name__ == "__main__":  # the generator's command is the command line's
