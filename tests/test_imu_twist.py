@@ -356,6 +356,31 @@ def test_the_streamed_evidence_is_the_recordings_whatever_its_blocks(tmp_path, b
     assert not given.active and given.evidence() is None
 
 
+def test_the_streamed_evidence_survives_its_worker_going_idle(tmp_path, monkeypatch) -> None:
+    """Live's evidence thread ends after a pause in the stream and another starts with
+    the next block; blocks left behind by a worker that ended are stepped in their
+    order: the evidence is still bit for bit the recording's."""
+    import time
+
+    from continuum_mhe.estimators import twist_evidence as te
+
+    robot = read_robot(str(_calibrated(tmp_path, "spatial")))
+    data = load_input(ROD / "spatial_raw.csv", InputOptions(), make_formulation("bend", robot))
+    whole = te.twist_evidence(data.formulation, data.t, data.z)
+    monkeypatch.setattr(te, "STREAM_IDLE_S", 0.005)
+    streamed = te.StreamedTwistEvidence(data.formulation)
+    workers = []  # held, so that no two share an id
+    for k, (ti, zi) in enumerate(zip(data.t, data.z)):
+        streamed.add(ti, zi)
+        if k % 150 == 149:
+            workers.append(streamed._worker)
+            end = time.monotonic() + 60.0  # a hung worker fails the test, not the suite
+            while streamed._worker is not None and time.monotonic() < end:
+                time.sleep(0.01)  # the worker steps what it has, goes idle and ends
+            assert streamed._worker is None
+    assert len({id(w) for w in workers}) == 4 and streamed.evidence() == whole
+
+
 def test_the_streamed_evidence_ends_on_its_filters_failure_and_not_the_stream(
     tmp_path, monkeypatch
 ) -> None:

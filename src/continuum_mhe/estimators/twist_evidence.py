@@ -19,7 +19,7 @@ import threading
 from array import array
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
-from queue import SimpleQueue
+from queue import Empty, SimpleQueue
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -36,6 +36,8 @@ MIN_SAMPLES = 100
 #: The samples of a stream stepped together (:class:`StreamedTwistEvidence`): about a
 #: second at 50 Hz, so that the filters' steps cost one call a block.
 STREAM_BLOCK = 64
+#: A stream's worker ends after this many seconds without a block (s).
+STREAM_IDLE_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -170,6 +172,7 @@ class StreamedTwistEvidence:
         self._z: list[FloatArray] = []
         self._blocks: SimpleQueue[tuple[FloatArray, FloatArray] | None] = SimpleQueue()
         self._worker: threading.Thread | None = None
+        self._lock = threading.Lock()
         self._diff = array("d")  # each stepped sample's difference (NaN: none)
 
     def add(self, t: float, z: ArrayLike) -> None:
@@ -189,34 +192,55 @@ class StreamedTwistEvidence:
         block = (np.ascontiguousarray(self._t), np.ascontiguousarray(np.vstack(self._z)))
         self._t.clear()
         self._z.clear()
-        if self._worker is None:
-            self._worker = threading.Thread(
-                target=self._step_blocks, name="twist-evidence", daemon=True
-            )
-            self._worker.start()
-        self._blocks.put(block)
+        with self._lock:  # a worker ends only with the queue empty, under this lock
+            self._blocks.put(block)
+            if self._worker is None:
+                self._worker = threading.Thread(
+                    target=self._step_blocks, name="twist-evidence", daemon=True
+                )
+                self._worker.start()
 
     def _step_blocks(self) -> None:
-        """The worker: each block's differences, until the end (None)."""
-        while (block := self._blocks.get()) is not None:
-            if self._pair is None:
-                continue
+        """The worker: each block's differences, until the end (None), or until no block
+        has come for :data:`STREAM_IDLE_S` (a stream that stopped without asking for
+        the evidence; the next block starts another worker)."""
+        while True:
             try:
-                diff = self._pair.differences(*block, side_by_side=False)
-            except Exception:  # a hint: its filters failing end it, not the stream
-                self.active, self._pair = False, None
+                block = self._blocks.get(timeout=STREAM_IDLE_S)
+            except Empty:
+                with self._lock:
+                    if self._blocks.empty():
+                        self._worker = None
+                        return
                 continue
-            self._diff.extend(diff.tolist())
+            if block is None:
+                return
+            self._step(block)
+
+    def _step(self, block: tuple[FloatArray, FloatArray]) -> None:
+        """One block's differences, in order after the blocks before it."""
+        if self._pair is None:
+            return
+        try:
+            diff = self._pair.differences(*block, side_by_side=False)
+        except Exception:  # a hint: its filters failing end it, not the stream
+            self.active, self._pair = False, None
+            return
+        self._diff.extend(diff.tolist())
 
     def evidence(self) -> TwistEvidence | None:
         """The evidence of every reading added so far (once the worker has stepped them);
         None where not active."""
         if self.active:
             self._pass_block()
-        if self._worker is not None:
-            self._blocks.put(None)
-            self._worker.join()
-            self._worker = None
+        with self._lock:
+            worker = self._worker
+            if worker is not None:
+                self._blocks.put(None)
+        if worker is not None:
+            worker.join()
+            with self._lock:
+                self._worker = None
         if not self.active:
             return None
         return _evidence(np.frombuffer(self._diff, dtype=float))
