@@ -849,3 +849,42 @@ def test_the_live_plot_traces_the_estimated_tip_and_shows_a_robot_bent_below_its
     assert LivePlot((0.2,), (1.5,)).ax.get_zlim()[0] == 0.0
     assert LivePlot((0.1, 0.1, 0.1), (1.0, 1.0, 1.0)).ax.get_zlim()[0] == pytest.approx(-0.3)
     matplotlib.pyplot.close("all")
+
+
+def test_live_weighs_the_imus_twist_only_where_neither_twist_option_is_given(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """As ``estimate``, which weighs the twist only where neither ``--imu-twist`` nor
+    ``--no-imu-twist`` is given: live of the shipped ``spatial`` rod (its tip IMU twists
+    up to 122 degrees), calibrated, warns that the readings show the twist, and is
+    silent with ``--no-imu-twist``, the constant-curvature frames asked for."""
+    import continuum_mhe.cli.live as live_cli
+    from continuum_mhe.cli import main
+    from continuum_mhe.live.session import LiveSession
+
+    rod = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
+    cal = tmp_path / "cal.toml"
+    assert main(["calibrate", "--from", str(rod / "spatial_rest.csv"), "--robot",
+                 "two-section", "--write-robot", str(cal)]) == 0  # fmt: skip
+    lines = []
+    for row in (rod / "spatial_raw.csv").read_text().splitlines()[1:]:
+        t, rest = row.split(",", 1)
+        lines.append(f"{round(float(t) * 1000)},{rest}".encode())
+
+    def run_live(settings: object, session: LiveSession, *rest: object) -> int:
+        now = time.monotonic()
+        for i, line in enumerate(lines):
+            session.handle_line(line, now + 0.001 * i)
+        session.finish()
+        print(session.summary(), file=sys.stderr)
+        return 0
+
+    monkeypatch.setattr(live_cli, "open_port", lambda port, baud: object())
+    monkeypatch.setattr(live_cli, "run_live", run_live)
+    said = "the readings show the IMUs turning about the backbone"
+    base = ["live", "--port", "/dev/ttyIMU", "--robot", str(cal), "--method", "ekf"]
+    capsys.readouterr()
+    assert main(base) == 0
+    assert said in capsys.readouterr().err
+    assert main([*base, "--no-imu-twist"]) == 0
+    assert said not in capsys.readouterr().err

@@ -72,6 +72,9 @@ def run(args: argparse.Namespace) -> int:
         duration=args.duration,
         status_every=args.status_every,
         retry_max_s=args.retry_max,
+        # the twist weighed for the summary's warning where estimate would weigh it:
+        # neither --imu-twist nor --no-imu-twist given
+        weigh_twist=getattr(args, "imu_twist", None) is None,
     )
     # the IMUs' constant-curvature frames unless --imu-twist is given: a stream gives no
     # recording to weigh the twist on first, as estimate does; recorded so, so that

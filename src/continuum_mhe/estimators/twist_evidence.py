@@ -158,11 +158,11 @@ class StreamedTwistEvidence:
     of their own that steps the two filters (their compiled steps without the GIL), so
     that the stream's estimates do not wait for them; :meth:`evidence` passes what is
     left and waits for the thread. Active where :func:`weighs_the_twist`; the two filters
-    are built here, before the stream starts. An exception of the filters ends it:
-    :meth:`evidence` is None from then on."""
+    are built here, before the stream starts; not where ``weigh`` is False. An exception
+    of the filters ends it: :meth:`evidence` is None from then on."""
 
-    def __init__(self, formulation: Formulation) -> None:
-        self.active = weighs_the_twist(formulation)
+    def __init__(self, formulation: Formulation, weigh: bool = True) -> None:
+        self.active = weigh and weighs_the_twist(formulation)
         self._pair = (
             _FilterPair(formulation)
             if self.active and isinstance(formulation, DirectFormulation)

@@ -131,6 +131,10 @@ class LiveSettings:
             so did one that jumps back by less to under half its last time, where the
             next line follows it (:data:`~continuum_mhe.stream.clock.HELD_BACK_S`).
         repeat_every_s: a device message that repeats is shown at most this often, s.
+        weigh_twist: weigh the IMUs' twist on the readings for the summary's warning
+            (:class:`~continuum_mhe.estimators.twist_evidence.StreamedTwistEvidence`);
+            off where ``--imu-twist`` or ``--no-imu-twist`` was given, as ``estimate``
+            weighs it only where neither was.
 
     After a gap longer than the estimator's ``recovery.gap_reset`` (``--gap-reset``) the
     estimator itself restarts from the next sample (status ``reset``), as in
@@ -147,6 +151,7 @@ class LiveSettings:
     retry_max_s: float = 5.0
     restart_jump_s: float = 1.0
     repeat_every_s: float = 5.0
+    weigh_twist: bool = True
 
     def __post_init__(self) -> None:
         if self.fmt not in LINE_FORMATS:
@@ -283,7 +288,7 @@ class LiveSession:
         self.twist = TwistWithTiltImus(self.formulation)
         #: raw IMUs on the constant-curvature frames: the readings' evidence for the
         #: IMUs' twist, weighed alongside for the summary's warning
-        self.twist_evidence = StreamedTwistEvidence(self.formulation)
+        self.twist_evidence = StreamedTwistEvidence(self.formulation, settings.weigh_twist)
         #: a tendon robot's tip force against its tensions, and its bends past a
         #: section's theta_max, for the summary's warnings (as estimate's)
         self.force = ForceBeyondTensions(self.formulation)
