@@ -597,12 +597,24 @@ def test_an_uncalibrated_twisting_rod_is_told_to_calibrate_first(tmp_path, capsy
     assert " are inconsistent: " in err and "turning about the backbone" not in err
 
 
-def test_the_calibration_hint_of_a_length_run_names_its_length(tmp_path, capsys) -> None:
+@pytest.mark.parametrize(
+    ("mounting", "options", "named"),
+    [
+        ("z-up", [], "--length 0.2"),
+        ("z-down", ["--mounting", "z-down", "--theta-max", "2.5"],
+         "--length 0.2 --theta-max 2.5 --mounting z-down"),
+    ],
+)  # fmt: skip
+def test_the_calibration_hint_of_a_length_run_names_its_length(
+    tmp_path, capsys, mounting, options, named
+) -> None:
     """A one-section run given by ``--length`` (no robot file) whose tip IMU turns about
     the backbone (a known twist of up to 2 rad applied to a PCC robot's raw readings): the
-    hint names the calibration for that robot, ``--length 0.2``, not a robot file the
-    user does not have."""
-    robot = Robot.single(0.2)
+    hint names the calibration for that robot, its length, and its bound and mounting
+    where given, not a robot file the user does not have."""
+    from dataclasses import replace
+
+    robot = replace(Robot.single(0.2), mounting=mounting)
     rec = simulate_robot("paper3d", robot, duration=8.0, seed=2)
     values, _ = raw_readings(rec, robot, RawNoise(gyro_bias_std=0.0), seed=2)
     psi = 1.0 * (1 - np.cos(0.8 * rec.t))
@@ -613,9 +625,10 @@ def test_the_calibration_hint_of_a_length_run_names_its_length(tmp_path, capsys)
     rows = np.column_stack([rec.t, acc, gyr])
     np.savetxt(path, rows, delimiter=",", header="t,ax,ay,az,gx,gy,gz", comments="", fmt="%.9g")
     capsys.readouterr()
-    assert main(["estimate", str(path), "--length", "0.2", "-o", str(tmp_path / "e.csv")]) == 0
+    argv = ["estimate", str(path), "--length", "0.2", *options, "-o", str(tmp_path / "e.csv")]
+    assert main(argv) == 0
     (hint,) = [ln for ln in capsys.readouterr().err.splitlines() if "turning about" in ln]
-    assert "(continuum-mhe calibrate --from REST.csv --length 0.2 --write-robot CAL.toml)" in hint
+    assert f"(continuum-mhe calibrate --from REST.csv {named} --write-robot CAL.toml)" in hint
     assert "ROBOT.toml" not in hint
 
 

@@ -44,7 +44,7 @@ from continuum_mhe.cli.model_options import (
     check_noise_options_apply,
     formulation_from_args,
 )
-from continuum_mhe.cli.options import add_overwrite_option
+from continuum_mhe.cli.options import add_overwrite_option, given_options
 from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.cli.recovery_options import add_recovery_options, recovery_settings_from_args
 from continuum_mhe.errors import InputError, TimeUnitError, UserError, time_text
@@ -571,13 +571,17 @@ def uncalibrated_twist_hint(args: argparse.Namespace, base: Formulation) -> str 
     evidence = _twist_evidence(args, base)
     if evidence is None or not evidence.twists:
         return None
-    # the robot as this run gave it: a robot file, or --length's one section
-    length = getattr(args, "length", None)
-    robot = (
-        f"--robot {args.robot}" if args.robot
-        else f"--length {length:g}" if length is not None
-        else "--robot ROBOT.toml"
-    )  # fmt: skip
+    # the robot as this run gave it: a robot file, or the one section of --length (its
+    # --theta-max where given, its --mounting where hanging)
+    if args.robot:
+        robot = f"--robot {args.robot}"
+    else:
+        parts = [f"--length {args.length:g}"]
+        if "theta_max" in given_options(args):
+            parts.append(f"--theta-max {args.theta_max:g}")
+        if getattr(args, "mounting", "z-up") == "z-down":
+            parts.append("--mounting z-down")
+        robot = " ".join(parts)
     return (
         f"{args.measurements}: the readings show the IMUs turning about the backbone, which "
         "the constant-curvature frames do not follow (a model of each IMU's twist predicted "

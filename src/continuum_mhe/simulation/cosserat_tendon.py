@@ -122,7 +122,9 @@ def _tip_role(k: int, n_sections: int) -> int:
 def _bending_direction(scenario: str, k: int, n_sections: int, t: float) -> float:
     """Section ``k``'s bending direction (rad from the base x axis) at ``t``: the base
     section's and the tip section's turn the opposite ways at different rates (every
-    section between them as the base section's, a radian further on per section)."""
+    section between them as the base section's, a radian further on per section); on
+    ``static`` the tip section's is 1 rad, every other's 0; on the twisting motions
+    every section's is the turning plane's."""
     if scenario.startswith("twist-"):
         return _twist_plane(t)
     role = _tip_role(k, n_sections)
