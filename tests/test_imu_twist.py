@@ -333,24 +333,25 @@ def test_the_readings_evidence_tells_a_twisting_rod_from_one_that_does_not(tmp_p
 
 
 @pytest.mark.parametrize("block", [1, 7, 64, 1000])
-def test_the_streamed_evidence_is_the_recordings_whatever_its_blocks(tmp_path, block) -> None:
+def test_the_streamed_evidence_is_the_recordings_whatever_its_blocks(
+    tmp_path, monkeypatch, block
+) -> None:
     """Live's evidence, its filters stepped a block at a time as samples arrive, is bit
     for bit the recording's (both filters run over it at once) for any block size: the
-    shipped ``spatial`` rod, calibrated. A formulation it does not weigh (the twist
-    given) is not active and has none."""
+    shipped ``spatial`` rod, calibrated (every block waiting allowed: the samples come
+    faster than a stream's). A formulation it does not weigh (the twist given) is not
+    active and has none."""
     from continuum_mhe.estimators import twist_evidence as te
 
     robot = read_robot(str(_calibrated(tmp_path, "spatial")))
     data = load_input(ROD / "spatial_raw.csv", InputOptions(), make_formulation("bend", robot))
     whole = te.twist_evidence(data.formulation, data.t, data.z)
-    old, te.STREAM_BLOCK = te.STREAM_BLOCK, block
-    try:
-        streamed = te.StreamedTwistEvidence(data.formulation)
-        for ti, zi in zip(data.t, data.z):
-            streamed.add(ti, zi)
-        assert streamed.evidence() == whole and whole.samples == 600
-    finally:
-        te.STREAM_BLOCK = old
+    monkeypatch.setattr(te, "STREAM_BLOCK", block)
+    monkeypatch.setattr(te, "STREAM_BACKLOG", len(data.t) + 1)
+    streamed = te.StreamedTwistEvidence(data.formulation)
+    for ti, zi in zip(data.t, data.z):
+        streamed.add(ti, zi)
+    assert streamed.evidence() == whole and whole.samples == 600
     given = te.StreamedTwistEvidence(te.twisted_formulation(data.formulation))
     given.add(0.0, data.z[0])
     assert not given.active and given.evidence() is None
@@ -379,6 +380,31 @@ def test_the_streamed_evidence_survives_its_worker_going_idle(tmp_path, monkeypa
                 time.sleep(0.01)  # the worker steps what it has, goes idle and ends
             assert streamed._worker is None
     assert len({id(w) for w in workers}) == 4 and streamed.evidence() == whole
+
+
+def test_the_streamed_evidence_ends_where_its_filters_fall_behind(tmp_path, monkeypatch) -> None:
+    """Filters that cannot keep up with the stream (here each block takes 50 ms) end
+    the evidence once STREAM_BACKLOG blocks wait, instead of holding a backlog that the
+    summary would wait for: no evidence, and the stream's adds return at once."""
+    import time
+
+    from continuum_mhe.estimators import twist_evidence as te
+
+    robot = read_robot(str(_calibrated(tmp_path, "spatial")))
+    data = load_input(ROD / "spatial_raw.csv", InputOptions(), make_formulation("bend", robot))
+    monkeypatch.setattr(te, "STREAM_BLOCK", 4)
+    monkeypatch.setattr(te, "STREAM_BACKLOG", 3)
+    streamed = te.StreamedTwistEvidence(data.formulation)
+    stepped = streamed._pair.differences
+
+    def slow(*args: object, **kwargs: object) -> np.ndarray:
+        time.sleep(0.05)
+        return stepped(*args, **kwargs)
+
+    monkeypatch.setattr(streamed._pair, "differences", slow)
+    for ti, zi in zip(data.t[:200], data.z[:200]):
+        streamed.add(ti, zi)
+    assert not streamed.active and streamed.evidence() is None
 
 
 def test_the_streamed_evidence_ends_on_its_filters_failure_and_not_the_stream(

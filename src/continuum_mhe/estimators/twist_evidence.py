@@ -38,6 +38,9 @@ MIN_SAMPLES = 100
 STREAM_BLOCK = 64
 #: A stream's worker ends after this many seconds without a block (s).
 STREAM_IDLE_S = 5.0
+#: The blocks a stream's worker may have waiting: where its filters fall further behind
+#: (about half a minute of a 500 Hz stream), the evidence ends (:meth:`evidence` None).
+STREAM_BACKLOG = 256
 
 
 @dataclass(frozen=True)
@@ -159,7 +162,8 @@ class StreamedTwistEvidence:
     that the stream's estimates do not wait for them; :meth:`evidence` passes what is
     left and waits for the thread. Active where :func:`weighs_the_twist`; the two filters
     are built here, before the stream starts; not where ``weigh`` is False. An exception
-    of the filters ends it: :meth:`evidence` is None from then on."""
+    of the filters, or filters :data:`STREAM_BACKLOG` blocks behind the stream, end it:
+    :meth:`evidence` is None from then on."""
 
     def __init__(self, formulation: Formulation, weigh: bool = True) -> None:
         self.active = weigh and weighs_the_twist(formulation)
@@ -192,6 +196,9 @@ class StreamedTwistEvidence:
         block = (np.ascontiguousarray(self._t), np.ascontiguousarray(np.vstack(self._z)))
         self._t.clear()
         self._z.clear()
+        if self._blocks.qsize() >= STREAM_BACKLOG:  # the filters cannot keep up: a hint,
+            self.active, self._pair = False, None  # it ends rather than hold the stream
+            return
         with self._lock:  # a worker ends only with the queue empty, under this lock
             self._blocks.put(block)
             if self._worker is None:
