@@ -129,15 +129,19 @@ def test_a_status_line_after_a_silence_says_its_estimate_is_that_old() -> None:
 def test_the_first_garbled_line_is_said_with_its_port_place_and_beginning() -> None:
     """The notice of the first garbled line named neither the port, nor where, nor
     what came: it names them (a line not in ASCII by its bytes, a long one cut), and a
-    tilt in degrees names the field, its value and the unit."""
+    tilt in degrees names the field, its value and the unit. A line not in ASCII names
+    the likely cause, another baud rate: such bytes can end lines too seldom for the run
+    of garbage to stop the session, which then goes on with its first notice alone."""
     s, said = _session()
     now = time.monotonic()
     s.handle_line(b"0,0.1,0.1", now)  # the first line after the open: kept
     s.handle_line(b"\xff\xfe10,0.1,0.1", now)
     assert [m for m in said if "garbled" in m] == [
-        "garbled line skipped: not ASCII (x, line 2: b'\\xff\\xfe10,0.1,0.1'; said for the "
-        "first only; all are counted)"
+        "garbled line skipped: not ASCII (the device sending at another baud rate than "
+        "--baud?) (x, line 2: b'\\xff\\xfe10,0.1,0.1'; said for the first only; all are "
+        "counted)"
     ]
+    assert s.counts.reasons == {"not ASCII": 1}  # the summary counts them by the cause
     s, said = _session()
     s.handle_line(b"0,0.1,0.1", now)
     s.handle_line(b"20,45.0,0.1," + b"9" * 60, now)

@@ -613,7 +613,8 @@ def twist_clause(evidence: TwistEvidence) -> str:
             f"the IMUs' twist estimated (--imu-twist: {weighed}; --no-imu-twist keeps the "
             "constant-curvature frames; a board's yaw about the backbone that the robot "
             "file does not give reads as a twist too: where the robot does not twist, "
-            "measure the yaw, calibrate --bend)"
+            "measure the yaw, calibrate --bend; and so do IMUs in another order than the "
+            "robot file's: the columns', or a log's --topic order)"
         )
     return f"the IMUs' twist not estimated ({weighed}; --imu-twist asks for it)"
 

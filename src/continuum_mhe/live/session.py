@@ -100,6 +100,11 @@ SILENT_S = 1.0
 #: The characters of the first garbled line that its notice shows.
 SHOWN_CHARS = 48
 
+#: The cause of a line that is not ASCII, with its likely fix: bytes read at another
+#: baud rate than the device sends at are mostly not ASCII, and they can end lines too
+#: seldom for the run of garbage to stop the session.
+NOT_ASCII = "not ASCII (the device sending at another baud rate than --baud?)"
+
 
 #: The device clock is held against the host's arrival times once this many seconds
 #: of arrival have passed since the first sample of a run of the clock (and
@@ -563,7 +568,7 @@ class LiveSession:
         try:
             text = raw.decode("ascii")
         except UnicodeDecodeError:
-            self._bad("not ASCII", arrival, shown=repr(bytes(raw[:SHOWN_CHARS])))
+            self._bad(NOT_ASCII, arrival, shown=repr(bytes(raw[:SHOWN_CHARS])), kind="not ASCII")
             return None
         try:
             sample = parse_line(
