@@ -594,6 +594,45 @@ def test_imus_in_another_order_choose_the_twist_and_its_clause_names_the_order(
     ) in err.strip().splitlines()[-1]
 
 
+def test_an_estimates_twist_past_a_turn_is_read_as_a_twist_not_degrees(tmp_path, capsys) -> None:
+    """An IMU's twist is unwrapped: an estimate whose twist has turned past 2 pi (here the
+    shipped ``spatial`` rod's estimate with IMU 2's twist moved by a whole turn, the same
+    orientation) is read by ``evaluate`` as it is, with the same errors, not refused as
+    an angle in degrees; a bend beyond 2 pi still is."""
+    cal = _calibrated(tmp_path, "spatial")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(ROD / "spatial_raw.csv"), "--robot", str(cal), "--imu-twist",
+                 "-o", str(est)]) == 0  # fmt: skip
+    lines = est.read_text().splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("t,"))
+    names = lines[head].split(",")
+    col = names.index("imu_twist_2")
+
+    def moved(column: int, by: float) -> Path:
+        out = []
+        for k, ln in enumerate(lines):
+            cells = ln.split(",")
+            if k > head and cells[column]:
+                cells[column] = repr(float(cells[column]) + by)
+            out.append(",".join(cells))
+        path = tmp_path / f"moved{column}.csv"
+        path.write_text("\n".join(out) + "\n")
+        return path
+
+    turned = moved(col, 2 * math.pi)
+    truth = str(ROD / "spatial_truth.csv")
+    said = {}
+    for path in (est, turned):
+        capsys.readouterr()
+        assert main(["evaluate", str(path), truth, "--robot", str(cal)]) == 0
+        said[path] = [ln for ln in capsys.readouterr().out.splitlines() if "tip error" in ln]
+    assert said[est] == said[turned] and said[est]
+    bent = moved(names.index("theta_1"), 2 * math.pi)
+    assert main(["evaluate", str(bent), truth, "--robot", str(cal)]) == 2
+    err = capsys.readouterr().err
+    assert "theta_1=" in err and "beyond 2 pi: degrees?" in err, err
+
+
 def test_an_uncalibrated_twisting_rod_is_told_to_calibrate_first(tmp_path, capsys) -> None:
     """An uncalibrated robot file gets no twist chosen for it (its gyro biases, estimated,
     would read as twists), but where the readings do not fit and show the IMUs turning

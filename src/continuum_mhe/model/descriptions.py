@@ -273,14 +273,11 @@ ANGLE_LIMIT = 2.0 * math.pi + 1e-9
 
 def angle_beyond_a_turn(names: Sequence[str], values: FloatArray) -> tuple[int, str] | None:
     """The first row of the table ``values`` (n, len(names)) with an angle (a bend's
-    ``theta`` or ``phi``, a section end's twist ``psi``, an IMU's ``imu_twist``) beyond
-    :data:`ANGLE_LIMIT`, angles in degrees, and what to say of it (``theta=90 beyond 2
-    pi: degrees? ...``); else None."""
-    angles = [
-        j
-        for j, n in enumerate(names)
-        if n.partition("_")[0] in ("theta", "phi", "psi") or n.startswith("imu_twist")
-    ]
+    ``theta`` or ``phi``, a section end's twist ``psi``) beyond :data:`ANGLE_LIMIT`,
+    angles in degrees, and what to say of it (``theta=90 beyond 2 pi: degrees? ...``);
+    else None. An IMU's ``imu_twist`` is unwrapped (:func:`imu_twist_outputs`): a twist
+    past a turn is a twist, and not judged."""
+    angles = [j for j, n in enumerate(names) if n.partition("_")[0] in ("theta", "phi", "psi")]
     turned = np.argwhere(np.abs(values[:, angles]) > ANGLE_LIMIT)
     if not len(turned):
         return None
