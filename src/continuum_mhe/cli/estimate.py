@@ -541,19 +541,14 @@ def _twist_evidence(args: argparse.Namespace, base: Formulation) -> TwistEvidenc
     without a mechanics model, read by the direct model with its gyro biases estimated
     and without ``--own-acceleration``; else None. The recording is read once more for
     it (its warnings said by the estimate's own reading)."""
-    from continuum_mhe.estimators.twist_evidence import twist_evidence
+    from continuum_mhe.estimators.twist_evidence import twist_evidence, weighs_the_twist
     from continuum_mhe.model.direct import DirectFormulation
 
-    if getattr(args, "own_acceleration", False):
+    if getattr(args, "own_acceleration", False):  # not weighed: the file is not read
         return None
     data = _recording_for_a_choice(args, base)
     f = None if data is None else data.formulation
-    if (
-        data is None
-        or not isinstance(f, DirectFormulation)
-        or not f.estimate_gyro_bias
-        or f.imu_twist
-    ):
+    if data is None or not isinstance(f, DirectFormulation) or not weighs_the_twist(f):
         return None
     return twist_evidence(f, data.t, data.z)
 
@@ -585,8 +580,7 @@ def uncalibrated_twist_hint(args: argparse.Namespace, base: Formulation) -> str 
     return (
         f"{args.measurements}: the readings show the IMUs turning about the backbone, which "
         "the constant-curvature frames do not follow (a model of each IMU's twist predicted "
-        f"{100 * evidence.share:.0f} % of {evidence.samples} readings better, median "
-        f"log-density gain {evidence.median:+.3g} nats per reading): calibrate the gyro "
+        f"{evidence.said}): calibrate the gyro "
         "biases with the robot straight and still (continuum-mhe calibrate --from REST.csv "
         f"{robot} --write-robot CAL.toml) and estimate with --robot CAL.toml, or "
         "record the robot still for a second or more before it moves (estimate takes the "
@@ -604,10 +598,7 @@ def twist_clause(evidence: TwistEvidence) -> str:
             f"the IMUs' twist not estimated: {evidence.samples} readings to weigh it on, "
             f"fewer than {MIN_SAMPLES} (--imu-twist asks for it)"
         )
-    weighed = (
-        f"the twist model predicted {100 * evidence.share:.0f} % of {evidence.samples} "
-        f"readings better, median log-density gain {evidence.median:+.3g} nats per reading"
-    )
+    weighed = f"the twist model predicted {evidence.said}"
     if evidence.twists:
         return (
             f"the IMUs' twist estimated (--imu-twist: {weighed}; --no-imu-twist keeps the "

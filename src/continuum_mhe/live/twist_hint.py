@@ -17,14 +17,10 @@ def twist_hint(evidence: TwistEvidence | None, calibrated: bool, inconsistent: b
     ``estimate``'s own hint. None otherwise."""
     if evidence is None or not evidence.twists or not (calibrated or inconsistent):
         return None
-    weighed = (
-        f"a model of each IMU's twist predicted {100 * evidence.share:.0f} % of "
-        f"{evidence.samples} readings better, median log-density gain {evidence.median:+.3g} "
-        "nats per reading"
-    )
     said = (
         "the readings show the IMUs turning about the backbone, which the "
-        f"constant-curvature frames that live keeps do not follow ({weighed}): "
+        "constant-curvature frames that live keeps do not follow (a model of each IMU's "
+        f"twist predicted {evidence.said}): "
     )
     if calibrated:
         return said + (
