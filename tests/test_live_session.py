@@ -1387,6 +1387,29 @@ def test_tilt_in_degrees_of_several_imus_is_found_past_an_imus_dropout() -> None
     assert s.wrong_units is True
 
 
+@pytest.mark.parametrize(
+    ("line", "imus", "degrees"),
+    [
+        ("0,95.0,0.1", 1, True),  # a roll past pi
+        ("0,0.1,x", 1, False),  # not a number
+        ("0,95.0,0.1,x,0.1", 2, True),  # both IMUs bad: the first one's cause
+        ("0,x,0.1,95.0,0.1", 2, False),
+        ("0,1e9,0.1", 1, True),
+    ],
+)
+def test_a_garbled_lines_cause_says_whether_it_is_degrees(
+    line: str, imus: int, degrees: bool
+) -> None:
+    """The garbled line's cause carries whether it is a tilt angle beyond the radians'
+    range (what the degrees rules count), as a flag, not in its words alone."""
+    from continuum_mhe.stream.protocol import GarbledLine, parse_line
+
+    with pytest.raises(GarbledLine) as caught:
+        parse_line(line, "tilt", imus)
+    assert caught.value.degrees_for_radians is degrees
+    assert ("degrees given for radians?" in str(caught.value)) is degrees
+
+
 @pytest.mark.parametrize(("garbled", "wrong"), [(46, True), (5, False)])
 def test_a_stream_that_ends_in_tilt_degrees_is_found_without_the_stop(
     garbled: int, wrong: bool

@@ -37,6 +37,7 @@ _EXPORTS: dict[str, str] = {
     "calibrate_robot": "continuum_mhe.calibration.robot_calibration",
     "FieldError": "continuum_mhe.errors",
     "InputError": "continuum_mhe.errors",
+    "NotANumberError": "continuum_mhe.errors",
     "SampleTimeError": "continuum_mhe.errors",
     "TimeUnitError": "continuum_mhe.errors",
     "UnobservableShapeWarning": "continuum_mhe.errors",
@@ -49,6 +50,7 @@ _EXPORTS: dict[str, str] = {
     "MissingExtraError": "continuum_mhe.extras",
     "DropoutWarning": "continuum_mhe.io.csv_files",
     "UnitWarning": "continuum_mhe.io.csv_files",
+    "TimeStepWarning": "continuum_mhe.io.csv_files",
     "TopicClockWarning": "continuum_mhe.io.imu_topics",
     "TopicOrderWarning": "continuum_mhe.io.imu_topics",
     "MountingError": "continuum_mhe.io.input_options",
@@ -111,6 +113,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from continuum_mhe.errors import (
         FieldError,
         InputError,
+        NotANumberError,
         SampleTimeError,
         TimeUnitError,
         UnobservableShapeWarning,
@@ -134,7 +137,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from continuum_mhe.evaluation.estimate_tables import UnsolvedBackboneError
     from continuum_mhe.evaluation.metrics import Metrics, TruthCoverageWarning, compute_metrics
     from continuum_mhe.extras import MissingExtraError
-    from continuum_mhe.io.csv_files import DropoutWarning, UnitWarning
+    from continuum_mhe.io.csv_files import DropoutWarning, TimeStepWarning, UnitWarning
     from continuum_mhe.io.imu_topics import TopicClockWarning, TopicOrderWarning
     from continuum_mhe.io.input_options import MountingError, MountingWarning, OptionWarning
     from continuum_mhe.io.robot_file import RobotFileWarning

@@ -47,6 +47,15 @@ class TimeUnitError(InputError):
     unit, which any warning of the times' steps would only repeat."""
 
 
+class NotANumberError(InputError):
+    """A field of an input file that is not a number; ``problem``: the message without
+    the file and line that it begins with (``column C: 'x' is not a number``)."""
+
+    def __init__(self, name: str, line: int, problem: str) -> None:
+        super().__init__(f"{name}: line {line}: {problem}")
+        self.problem = problem
+
+
 class SampleTimeError(UserError):
     """A sample whose time is not later than the previous sample's: a sample that came
     late or twice (an online caller leaves it out and steps on: the estimator is as it

@@ -65,7 +65,7 @@ from continuum_mhe.estimators.run_notices import (
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
-from continuum_mhe.io.csv_files import TIME_STEP_WARNING, UnitWarning
+from continuum_mhe.io.csv_files import TimeStepWarning
 from continuum_mhe.io.input_options import robot_fix
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.progress import progress_bar
@@ -193,7 +193,7 @@ class _HeldTimeUnitWarnings:
             file: TextIO | None = None,
             line: str | None = None,
         ) -> None:
-            if issubclass(category, UnitWarning) and TIME_STEP_WARNING in str(message):
+            if issubclass(category, TimeStepWarning):
                 self.held.append(str(message))
                 return
             self._saved(message, category, filename, lineno, file, line)

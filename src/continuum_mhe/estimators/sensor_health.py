@@ -54,8 +54,8 @@ from continuum_mhe.estimators.reading_units import (
 )
 from continuum_mhe.io.csv_files import (
     DropoutWarning,
+    TimeStepWarning,
     TimeStepWatch,
-    UnitWarning,
     check_time_steps,
 )
 from continuum_mhe.io.input_options import (
@@ -1010,13 +1010,13 @@ class Estimator(Generic[InferenceT]):
             raise ReadingUnitsError(self._too_fast)
 
     def _warn_time_unit(self, t: FloatArray, what: str) -> None:
-        """A :class:`~continuum_mhe.io.csv_files.UnitWarning` (``what: ...``, the method
+        """A :class:`~continuum_mhe.io.csv_files.TimeStepWarning` (``what: ...``, the method
         called), once a recording, where the first sample times handed over step like
         milliseconds (as :meth:`run` warns of a whole recording)."""
         if not self._time_steps.done:
             problem = self._time_steps.see(t, what)
             if problem is not None:
-                warnings.warn(problem, UnitWarning, stacklevel=3)
+                warnings.warn(problem, TimeStepWarning, stacklevel=3)
 
     def _warn_step_problem(self, t: FloatArray, what: str) -> None:
         """An :class:`~continuum_mhe.io.input_options.OptionWarning` (``what: ...``, the

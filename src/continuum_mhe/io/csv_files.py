@@ -240,8 +240,6 @@ class ReadingCounts:
 
 #: ``t`` read in seconds whose median step exceeds this looks like milliseconds.
 MS_LIKE_STEP_S = 2.0
-#: The words every warning of :func:`check_time_steps` holds (after what advances).
-TIME_STEP_WARNING = "by a median of"
 #: Times whose median step is below this (s: over 10 kHz, faster than any IMU stream
 #: read here) are in a unit too small (microseconds stamped as nanoseconds).
 TOO_FAST_STEP_S = 1e-4
@@ -251,7 +249,7 @@ BURST_MEAN_STEPS = 10
 
 
 def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fix: str) -> None:
-    """Warn once (:class:`UnitWarning`) when times ``t`` (s, increasing) step like another
+    """Warn once (:class:`TimeStepWarning`) when times ``t`` (s, increasing) step like another
     unit: a median step over :data:`MS_LIKE_STEP_S` (milliseconds read as seconds) or
     under :data:`TOO_FAST_STEP_S`; ``name: what by a median of ... s per sample; fix``;
     or, a median step under :data:`TOO_FAST_STEP_S` but a mean step :data:`BURST_MEAN_STEPS`
@@ -265,11 +263,11 @@ def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fi
     elif 0 <= step < TOO_FAST_STEP_S and mean >= BURST_MEAN_STEPS * TOO_FAST_STEP_S:
         # most steps tiny, a usual rate on average: samples stamped in bursts
         warnings.warn(
-            f"{name}: {what} {TIME_STEP_WARNING} {step:g} s per sample but {mean:g} s on "
+            f"{name}: {what} by a median of {step:g} s per sample but {mean:g} s on "
             "average: the samples come stamped in bursts (a driver that stamps a batch of "
             "readings when it arrives?), and each is estimated at the time it is given: "
             "stamp each reading when it is taken",
-            UnitWarning,
+            TimeStepWarning,
             stacklevel=3,
         )
         return
@@ -278,8 +276,8 @@ def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fi
     else:
         return
     warnings.warn(
-        f"{name}: {what} {TIME_STEP_WARNING} {step:g} s per sample{rate}; {fix}",
-        UnitWarning,
+        f"{name}: {what} by a median of {step:g} s per sample{rate}; {fix}",
+        TimeStepWarning,
         stacklevel=3,
     )
 
@@ -350,6 +348,11 @@ def check_time_units(rows: TextRows, t: FloatArray) -> None:
 
 class UnitWarning(UserWarning):
     """A value whose unit looks wrong (milliseconds for seconds, mm for m...)."""
+
+
+class TimeStepWarning(UnitWarning):
+    """Sample times whose steps look like another unit's, or stamped in bursts
+    (:func:`check_time_steps`)."""
 
 
 #: The share of a block's rows whose angles are beyond the radian range above which the

@@ -17,7 +17,7 @@ from typing import IO
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import InputError, time_text
+from continuum_mhe.errors import InputError, NotANumberError, time_text
 from continuum_mhe.io.text_rows import (
     MAX_LINE_BYTES,
     TextRows,
@@ -371,8 +371,8 @@ class _SampleChecks:
                 continue
             try:
                 raw_t = parse_float(name, line, shown[0], row[idx[0]])
-            except InputError as exc:
-                bad(line, str(exc).split(": ", 2)[-1], dropped=True)
+            except NotANumberError as exc:
+                bad(line, exc.problem, dropped=True)
                 continue
             t = (raw_t + self.wraps * MILLIS_WRAP) * scale
             if not math.isfinite(t):
@@ -431,10 +431,10 @@ class _SampleChecks:
                     continue
                 try:
                     v = parse_float(name, line, col, row[j])
-                except InputError as exc:
+                except NotANumberError as exc:
                     empty = row[j] == ""  # a missing value, which --skip-bad leaves out
                     bad(line, f"column {col} is empty ({self.skip_hint})" if empty
-                        else str(exc).split(": ", 2)[-1])  # fmt: skip
+                        else exc.problem)  # fmt: skip
                     v = math.nan
                 else:
                     if not math.isfinite(v):

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, cast
 
-from continuum_mhe.errors import InputError, expect_type
+from continuum_mhe.errors import InputError, NotANumberError, expect_type
 
 #: Longest line accepted, bytes (a sample row is well under 1 kB; a comment line may be
 #: long, so the limit is generous: it stops a binary file, not a wide table).
@@ -624,7 +624,8 @@ def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
 
 
 def parse_float(name: str, line: int, column: str, text: str) -> float:
-    """``float(text)`` or a one-line error naming file, line and column."""
+    """``float(text)`` or a one-line :class:`NotANumberError` naming file, line and
+    column."""
     try:
         return to_float(text)
     except ValueError:
@@ -634,6 +635,6 @@ def parse_float(name: str, line: int, column: str, text: str) -> float:
             hint = " (a decimal comma? use a point, e.g. 0.5)"
         elif column in ("t", "t_ms") and text.strip().strip('"').lower() == column:
             hint = " (the header again: two files joined?)"
-        raise InputError(
-            f"{name}: line {line}: column {column}: {shown!r} is not a number{hint}"
+        raise NotANumberError(
+            name, line, f"column {column}: {shown!r} is not a number{hint}"
         ) from None

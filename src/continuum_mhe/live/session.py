@@ -58,7 +58,6 @@ from continuum_mhe.model.direct import gyro_biases_calibrated
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.stream.clock import DeviceClock, MicrosecondsCheck
 from continuum_mhe.stream.protocol import (
-    DEGREES_FOR_RADIANS,
     LINE_FORMATS,
     GarbledLine,
     LineFormat,
@@ -354,8 +353,9 @@ class LiveSession:
         #: was last armed (:meth:`_mark_units`)
         self._degree_lines = 0
         self._samples_at_mark = 0
-        #: the last garbled line's cause, text and arrival (s)
-        self._garbage_last: tuple[str, str, float] = ("", "", 0.0)
+        #: the last garbled line's cause, text and arrival (s), and whether its cause was
+        #: a tilt angle beyond the radians' range
+        self._garbage_last: tuple[str, str, float, bool] = ("", "", 0.0, False)
         #: the first sample of the device clock's run (its arrival and time, s), and the
         #: samples since, until the clock is held against the arrival times
         self._clock_checked = False
@@ -414,11 +414,13 @@ class LiveSession:
         text: str = "",
         shown: str | None = None,
         kind: str | None = None,
+        degrees: bool = False,
     ) -> None:
         """One garbled line (``reason``), ``text`` its characters (``shown``: how to show
         it where it has none, its bytes); the first is said with the port, its line
         number in the session and its beginning, the rest are counted by ``kind`` (the
-        cause without the line's values; ``reason`` where None)."""
+        cause without the line's values; ``reason`` where None); ``degrees``: its cause
+        is a tilt angle beyond the radians' range."""
         c = self.counts
         self._skipped += 1
         if self._joined:  # the port opened mid-line: the tail of a line, not a garbled one
@@ -438,7 +440,7 @@ class LiveSession:
                 f"{c.lines}: {repr(begin) if shown is None else shown}; said for the first "
                 "only; all are counted)"
             )
-        self._garbage(arrival, reason + self._hint(text), text)
+        self._garbage(arrival, reason + self._hint(text), text, degrees)
 
     def _continues(self, text: str) -> bool:
         """Whether the tilt angles of the line ``text`` follow on from the last valid
@@ -466,7 +468,7 @@ class LiveSession:
             return ""  # the device named the expected fields: a cut line
         return hint  # (a line of the IMUs' fields alone lacks the tensions either way)
 
-    def _garbage(self, arrival: float, why: str, text: str = "") -> None:
+    def _garbage(self, arrival: float, why: str, text: str = "", degrees: bool = False) -> None:
         """One more garbled line in the run of them since the last valid sample: a run
         over ``GARBAGE_STOP_S`` s of ``GARBAGE_STOP_LINES`` lines or more sets
         :attr:`fatal` with the cause of its last line (``text``), and the likely cause of
@@ -476,7 +478,7 @@ class LiveSession:
         if self._garbage_since is None:
             self._garbage_since = arrival
         self._garbage_lines += 1
-        self._garbage_last = (why, text, arrival)
+        self._garbage_last = (why, text, arrival, degrees)
         span = arrival - self._garbage_since
         if span >= GARBAGE_STOP_S and self._garbage_lines >= GARBAGE_STOP_LINES:
             self._stop_on_garbage()
@@ -487,7 +489,7 @@ class LiveSession:
         past the radians' range from the last valid sample, the samples since the start
         or a board reset were degrees read as radians (:attr:`wrong_units`: their
         estimates are not kept); a stream that turned to garbage keeps its estimates."""
-        why, text, arrival = self._garbage_last
+        why, text, arrival, degrees = self._garbage_last
         since = arrival if self._garbage_since is None else self._garbage_since
         span = arrival - since
         after = f" after {self.counts.samples} valid sample(s)" if self.counts.samples else ""
@@ -501,7 +503,7 @@ class LiveSession:
             f"({self._garbage_lines} lines; the last: {why}); check --format, --robot "
             "and --baud"
         )
-        if DEGREES_FOR_RADIANS in why and self._degrees_run:
+        if degrees and self._degrees_run:
             self.wrong_units = True
 
     def _stop_on_degrees(self, why: str) -> None:
@@ -576,9 +578,9 @@ class LiveSession:
             )
         except GarbledLine as exc:
             if self._garbage_since is None:  # the first garbled line of a run
-                self._degrees_run = DEGREES_FOR_RADIANS in str(exc) and self._continues(text)
-            self._bad(str(exc), arrival, text, kind=exc.kind)
-            if self._degrees_run and DEGREES_FOR_RADIANS in str(exc):
+                self._degrees_run = exc.degrees_for_radians and self._continues(text)
+            self._bad(str(exc), arrival, text, kind=exc.kind, degrees=exc.degrees_for_radians)
+            if self._degrees_run and exc.degrees_for_radians:
                 self._degree_lines += 1
                 self._stop_on_degrees(str(exc))
             return None

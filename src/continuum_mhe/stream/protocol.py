@@ -85,11 +85,15 @@ MAX_LINE_BYTES = 4096
 class GarbledLine(ValueError):
     """A line that is not a valid sample (the message says why); ``kind``: the cause
     without the line's own values, under which such lines are counted (the message
-    where None)."""
+    where None); ``degrees_for_radians``: a tilt angle beyond the radians' range (a
+    board sending degrees)."""
 
-    def __init__(self, message: str, kind: str | None = None) -> None:
+    def __init__(
+        self, message: str, kind: str | None = None, degrees_for_radians: bool = False
+    ) -> None:
         super().__init__(message)
         self.kind = kind if kind is not None else message
+        self.degrees_for_radians = degrees_for_radians
 
 
 @dataclass(frozen=True)
@@ -169,6 +173,7 @@ def _imu_values(
                 raise GarbledLine(
                     f"{name}{suffix} = {value:g}, beyond {bound}: {DEGREES_FOR_RADIANS}",
                     kind=f"{name}{suffix} beyond {bound}: {DEGREES_FOR_RADIANS}",
+                    degrees_for_radians=True,
                 )
     return v
 
@@ -213,6 +218,7 @@ def parse_line(
     values: list[float] = []
     problems: list[str] = []
     first_kind = ""  # the first problem's cause, without its values
+    first_degrees = False  # ... and whether it is a tilt angle beyond the radians' range
     for i in range(n_imus):
         try:
             limit = limits[i] if limits else DEFAULT_RAW_LIMITS
@@ -221,10 +227,12 @@ def parse_line(
             if n_imus == 1:
                 raise
             problems.append(f"IMU {i + 1}: {exc}")
-            first_kind = first_kind or f"IMU {i + 1}: {exc.kind}"
+            if not first_kind:
+                first_kind = f"IMU {i + 1}: {exc.kind}"
+                first_degrees = exc.degrees_for_radians
             values += [math.nan] * k
     if len(problems) == n_imus:
-        raise GarbledLine(problems[0], kind=first_kind)
+        raise GarbledLine(problems[0], kind=first_kind, degrees_for_radians=first_degrees)
     return Sample(t_ms, np.array(values), tuple(problems), tensions)
 
 
