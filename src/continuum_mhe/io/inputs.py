@@ -715,7 +715,7 @@ def _append_tensions(
     blocks = stream.blocks
     if tensions is not None:
         # a robot log's tensions on its clock (times since 1970, as the log's stamps):
-        # the log's t = 0 is IMU 1's first stamp, t0_ns
+        # the log's t = 0 is its first sample's stamp, t0_ns
         tensions, note = on_log_clock(tensions, stream.t0_ns)
         if note:
             stream.description.notes += (note,)
