@@ -108,7 +108,8 @@ def test_fill_outages_known_answers() -> None:
     """IMU 1 silent from 20 to 60 (period 10, tolerance 4): IMU 2's samples there fill
     the outage, thinned to IMU 1's rate where IMU 2 is faster, none closer than 0.75 of
     a period to a sample taken before; a third topic fills only where IMU 1 and IMU 2
-    leave an outage; no fill takes a partner from one of IMU 1's samples."""
+    leave an outage; no fill takes a partner from one of IMU 1's samples; a topic that
+    starts before IMU 1 fills the time before IMU 1's first sample."""
     ref = np.array([0, 10, 20, 60, 70], dtype=np.int64)
     assert list(fill_outages([ref, ref + 1], 10, 4)) == list(ref)  # no outage
     other = np.array([1, 11, 21, 31, 41, 51, 61], dtype=np.int64)
@@ -128,6 +129,17 @@ def test_fill_outages_known_answers() -> None:
     imu3 = np.array([2, 12, 22, 62, 72, 82, 92, 102, 112], dtype=np.int64)
     filled = fill_outages([ref, later[:6], imu3], 10, 4)
     assert list(filled) == [0, 10, 20, 60, 70, 82, 92, 102, 112]
+    # IMU 1 starts after IMU 2: IMU 2's samples before are taken, but not one nearer
+    # than 0.75 periods to IMU 1's first (IMU 2 sampling just ahead of IMU 1 adds none);
+    # IMU 3 starting earlier still fills before IMU 2's first
+    ref = np.array([0, 10, 20, 30], dtype=np.int64)
+    early = np.array([-29, -19, -9, 1, 11, 21, 31], dtype=np.int64)
+    assert list(fill_outages([ref, early], 10, 4)) == [-29, -19, -9, 0, 10, 20, 30]
+    assert list(fill_outages([ref, early + 4], 10, 4)) == [-25, -15, 0, 10, 20, 30]
+    assert list(fill_outages([ref, ref - 2], 10, 4)) == list(ref)
+    earlier = np.array([-48, -38, -28, -18, -8, 2, 12, 22, 32], dtype=np.int64)
+    filled = fill_outages([ref, early, earlier], 10, 4)
+    assert list(filled) == [-48, -38, -29, -19, -9, 0, 10, 20, 30]
     # IMU 1 at 300 pairs with IMU 2's 340 (tolerance 50, period 100); IMU 3's 376 is
     # nearer to it: no fill there, and every IMU 1 sample keeps its partners
     ref = np.array([0, 100, 200, 300, 1000, 1100], dtype=np.int64)
@@ -468,6 +480,58 @@ def test_estimate_from_topics_equals_the_paired_csv(
     assert len(a.t) == len(streams["timeline"])
     np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
+
+
+PLANAR_S = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2/planar-s_raw.csv"
+
+
+@pytest.mark.parametrize(
+    ("kind", "late"), [("mcap", (2, 0)), ("ros1", (2, 0)), ("ros2", (1, 0)), ("mcap", (0, 2))]
+)
+def test_a_topic_that_starts_later_leaves_t_on_the_recording_s_clock(
+    kind: str, late: tuple[int, int], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shipped planar-s rod's first second as a log, one topic per IMU stamped at
+    ``T0_NS`` plus the recording's ``t``, one topic's first messages missing (IMU 1
+    starting 40 or 20 ms after IMU 2, or IMU 2 after IMU 1): ``t = 0`` is the log's first
+    sample, whichever topic's, and the estimates equal those of the recording with that
+    IMU's fields empty in its first rows (its ``t``, the truth's clock: IMU 1's first
+    stamp put every estimate 40 ms off the truth's, silently); the line says where
+    ``t = 0`` is when IMU 1 starts later."""
+    lines = PLANAR_S.read_text().splitlines()[:52]
+    rows = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
+    stamps = T0_NS + np.round(rows[:, 0] * 1e9).astype(np.int64)
+    imus = [
+        {"stamps": stamps[d:], "acc": rows[d:, 1 + 6 * k : 4 + 6 * k],
+         "gyr": rows[d:, 4 + 6 * k : 7 + 6 * k]}
+        for k, d in enumerate(late)
+    ]  # fmt: skip
+    write, name = WRITERS[kind]
+    log = write(tmp_path / name, imus)
+    table = [lines[0]]
+    for i, line in enumerate(lines[1:]):
+        fields = line.split(",")
+        for k, d in enumerate(late):
+            if i < d:
+                fields[1 + 6 * k : 7 + 6 * k] = [""] * 6
+        table.append(",".join(fields))
+    csv_in = tmp_path / "late.csv"
+    csv_in.write_text("\n".join(table) + "\n")
+    robot = ["--robot", "two-section", "--method", "ekf"]
+    topics = ["--topic", TOPICS[0], "--topic", TOPICS[1]]
+    assert main(["estimate", str(log), "-o", str(tmp_path / "a.csv"), *robot, *topics]) == 0
+    err = capsys.readouterr().err
+    assert main(["estimate", str(csv_in), "-o", str(tmp_path / "b.csv"), *robot]) == 0
+    a = read_state_table(tmp_path / "a.csv", ())
+    b = read_state_table(tmp_path / "b.csv", ())
+    assert len(a.t) == len(b.t) == len(rows)
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
+    assert f"# t0_ns = {T0_NS}\n" in (tmp_path / "a.csv").read_text()
+    missing = ", ".join(f"{topic} {d}" for topic, d in zip(TOPICS, late) if d or topic != TOPICS[0])
+    assert f"without a partner (a dropout of that IMU): {missing}; " in err
+    starts = f"/imu1 starts {20 * late[0]} ms after /imu2: t = 0 at /imu2's first stamp"
+    assert (starts in err) == (late[0] > 0), err
 
 
 def test_an_outage_of_imu_1_is_estimated_from_the_other_imus(

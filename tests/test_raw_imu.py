@@ -30,7 +30,11 @@ from continuum_mhe.io.raw_imu import (
     read_raw_imu,
     read_raw_imus,
 )
-from continuum_mhe.io.raw_units import GYRO_MEDIAN_MAX, gyro_gravity_problem
+from continuum_mhe.io.raw_units import (
+    GYRO_MEDIAN_MAX,
+    gyro_gravity_problem,
+    gyro_motion_problem,
+)
 from continuum_mhe.io.state_tables import read_states
 from continuum_mhe.model.direct import (
     DEFAULT_GYRO_STD,
@@ -730,6 +734,30 @@ def test_the_gravity_check_of_gyro_units_passes_the_shipped_recordings() -> None
         for imu in table.imus:
             assert imu.gyr is not None
             assert gyro_gravity_problem(table.t, imu.acc, imu.gyr) is None, path
+
+
+def test_the_motion_check_of_gyro_units_tells_the_shipped_recordings_in_deg_s() -> None:
+    """The motion check (the gyro's turns against the accelerometer's in motion) takes
+    no shipped recording (rad/s) for deg/s; with their gyros in deg/s it finds every IMU
+    of every motion (the rods' raw and bend recordings, the tendon robot's), but the
+    tendon robot's planar-s IMU 2, which turns too little across gravity, and says
+    nothing of a rest (no turn)."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data"
+    files = sorted(data.glob("rod2/*.csv")) + sorted(data.glob("tendon/*.csv"))
+    files = [f for f in files if f.name.endswith(("_raw.csv", "_bend.csv", "_rest.csv"))]
+    assert len(files) == 10 + 4 + 4
+    found = []
+    for path in files:
+        table = read_raw_imus(path, 2)
+        for k, imu in enumerate(table.imus, start=1):
+            assert imu.gyr is not None
+            assert gyro_motion_problem(table.t, imu.acc, imu.gyr) is None, path
+            if gyro_motion_problem(table.t, imu.acc, np.degrees(imu.gyr)) is not None:
+                found.append(f"{path.parent.name}/{path.name} {k}")
+    moving = [
+        f"{f.parent.name}/{f.name} {k}" for f in files if "_rest" not in f.name for k in (1, 2)
+    ]
+    assert found == [m for m in moving if m != "tendon/planar-s_raw.csv 2"]
 
 
 def test_a_frozen_imu_is_not_taken_for_a_gyro_in_deg_s(

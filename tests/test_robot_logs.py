@@ -1356,7 +1356,7 @@ def test_a_logs_tensions_stamped_since_1970_are_taken_on_its_clock(
 ) -> None:
     """A tendon robot's log (its tip IMU alone) with tensions stamped on the log's own
     clock (seconds since 1970, as a tension topic exported beside the IMU's has them):
-    taken on the log's clock, t = 0 at IMU 1's first stamp, and said in a note; the
+    taken on the log's clock, t = 0 at the first sample's stamp, and said in a note; the
     samples equal those with the same tensions counted from that stamp (to the
     float64 resolution of times since 1970, 2.4e-7 s). The estimate's t0_ns is the
     log's, and ``plot`` and ``view`` take the tensions on that clock as well."""
@@ -1389,7 +1389,7 @@ def test_a_logs_tensions_stamped_since_1970_are_taken_on_its_clock(
     assert np.array_equal(epoch.t, counted.t)
     assert epoch.notes == (
         f"{files['epoch.csv']}: its times, since 1970, are taken on the log's clock: t = 0 "
-        "at IMU 1's first stamp, 1700000000.123456789 s",
+        "at the first sample's stamp, 1700000000.123456789 s",
     )
     assert not counted.notes
     # the command line: estimate with them, then plot and view the estimate with the

@@ -13,6 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
 from continuum_mhe.calibration.still_start import (
@@ -260,3 +261,68 @@ def test_a_ros2_bag_that_starts_still_gives_the_csvs_biases(tmp_path, capsys) ->
         assert found is not None, summary
         said[name] = found.group(0)
     assert said["csv"] == said["bag"]
+
+
+def _low_noise_gyro_from_rest(tmp_path: Path, still_s: float, deg_s: bool) -> list[str]:
+    """The shipped planar-s rod's readings by a gyro with a small bias and little noise:
+    its rest recording's first ``still_s`` s (repeated where longer), then its raw
+    recording, each gyro's rates less its mean at rest (the rod's bias), the noise at
+    rest a tenth, plus 0.001 rad/s; the rates in deg/s (``deg_s``) or rad/s. The CSV's
+    lines."""
+    rest = np.loadtxt(ROD / "planar-s_rest.csv", delimiter=",", skiprows=1)
+    raw = np.loadtxt(ROD / "planar-s_raw.csv", delimiter=",", skiprows=1)
+    header = (ROD / "planar-s_raw.csv").read_text().splitlines()[0]
+    gyro = [i for i, c in enumerate(header.split(",")) if c[:2] in ("gx", "gy", "gz")]
+    bias = rest[:, gyro].mean(axis=0)
+    n = round(still_s / 0.02)
+    still = rest[np.arange(n) % len(rest)]
+    still[:, 0] = 0.02 * np.arange(n)
+    still[:, gyro] = 0.1 * (still[:, gyro] - bias)
+    moving = raw.copy()
+    moving[:, 0] += 0.02 * n
+    moving[:, gyro] -= bias
+    rows = np.vstack([still, moving])
+    rows[:, gyro] += 0.001
+    if deg_s:
+        rows[:, gyro] = np.degrees(rows[:, gyro])
+    return [header, *(",".join(repr(float(v)) for v in r) for r in rows)]
+
+
+@pytest.mark.parametrize("still_s", [12.0, 90.0])
+def test_a_gyro_in_deg_s_that_starts_still_is_told_by_its_motion(
+    still_s: float, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording that starts still for 12 s (or 90 s: the first block of 4096 rows
+    still throughout), its gyros in deg/s with a bias of 0.057 deg/s and 0.01 deg/s of
+    noise: the median rate (0.13 read as rad/s) is below the deg/s bound and the still
+    stretches, read as rad/s, turn gravity by under 2 deg a half-second, so estimate
+    took a still start's biases of 0.057 "rad/s" and estimated the motion's rates 57
+    times too large, restarting on 31 % of the samples, no line naming the unit. The
+    motion tells: the accelerometers' gravity directions turn as the rates say in deg/s
+    (one line naming the file and deg/s, exit 2, nothing written), as a CSV and as a
+    ROS 2 bag; the same readings in rad/s are estimated."""
+    from robot_log_helpers import csv_and_ros2_bag
+
+    for deg_s in (True, False):
+        folder = tmp_path / ("deg" if deg_s else "rad")
+        folder.mkdir()
+        sources = csv_and_ros2_bag(_low_noise_gyro_from_rest(tmp_path, still_s, deg_s), folder)
+        for name, source, extra in sources[: 2 if still_s < 60 else 1]:
+            out = folder / f"{name}.est.csv"
+            args = ["estimate", str(source), "--robot", "two-section", "--method", "ekf"]
+            code = main([*args, "-o", str(out), *extra])
+            err = capsys.readouterr().err
+            if not deg_s:
+                assert code == 0 and "deg/s" not in err, err
+                assert "gyro biases from the still start" in err
+                continue
+            assert code == 2 and err.count("\n") == 1 and not out.exists(), err
+            imu = "IMU 1" if name == "csv" else "topic /imu1"
+            said = re.fullmatch(
+                rf"continuum-mhe: error: {re.escape(str(source))}: {imu}: over \d+ stretches "
+                r"of its motion the accelerometer's gravity direction turns as the gyro says "
+                r"only with the gyro in deg/s \(.*\): give rad/s \(gx, gy, gz times pi/180 = "
+                r"0\.0174533\)\n",
+                err,
+            )
+            assert said is not None, err

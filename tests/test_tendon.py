@@ -2734,7 +2734,7 @@ def test_tensions_on_a_clock_s_absolute_time_are_said_to_be() -> None:
     said = (
         r"abs\.csv: the tensions cover t = 1700000000 to 1700000010 s \(times since 1970, "
         r"a clock's own\? the recording's t counts from its start: a robot log's t = 0 is "
-        r"IMU 1's first stamp"
+        r"its first sample's stamp"
     )
     with pytest.raises(InputError, match=said):
         epoch.at(0.1, "rec.csv")

@@ -62,7 +62,8 @@ def direct_units_problem(
     where a median says it; one sample of a fast turn may exceed it) a gyro whose median
     rate says deg/s (:func:`~continuum_mhe.io.raw_units.gyro_units_problem`), or, given
     the samples' times ``t`` (n,) s, whose rates turn the specific force as deg/s would
-    (:func:`~continuum_mhe.io.raw_units.gyro_gravity_problem`: a gyro in deg/s at rest).
+    (:func:`~continuum_mhe.io.raw_units.gyro_gravity_problem`: a gyro in deg/s at rest or
+    in motion).
     Rows with a non-finite reading (dropouts) are left out."""
     for force_rows, gyro_rows, names in blocks:
         f, w = z[:, force_rows], z[:, gyro_rows]

@@ -11,18 +11,22 @@ sample within the tolerance that no pair took, between its neighbours' partners 
 IMUs about half a period out of phase, whose nearest samples are each other's
 neighbours'). Every sample of IMU 1 is a sample, at IMU 1's stamp; where IMU 1
 is silent between two of its samples, or after its last one, for more than one and a
-half of its median sample periods (an outage) while another topic goes on, that topic's
-samples there are samples too (:func:`fill_outages`), thinned to at least three
-quarters of IMU 1's period apart, IMU 1's reading missing. A sample without a partner
-in a topic has that IMU's reading missing (a dropout of that IMU, as a table's row with
-its fields empty). The default tolerance is half of IMU 1's median sample period (a pair
-is then always closer than the next sample); ``--pair-tolerance`` sets it in seconds.
+half of its median sample periods (an outage) while another topic goes on, or before its
+first one while another topic has begun, that topic's samples there are samples too
+(:func:`fill_outages`), thinned to at least three quarters of IMU 1's period apart, IMU
+1's reading missing. ``t`` counts from the first sample (IMU 1's, or that of a topic
+that began before it, which the line says), as a single topic's does. A sample without
+a partner in a topic has that IMU's reading missing (a dropout of that IMU, as a
+table's row with its fields empty). The default tolerance is half of IMU 1's median
+sample period (a pair is then always closer than the next sample);
+``--pair-tolerance`` sets it in seconds.
 The dropouts and the samples of the topics left without a partner are counted per
-topic and reported in one line, which says where a topic's stamps lie far from IMU 1's
-and many of its samples found no partner (IMUs sampling out of phase). A run in which many
-samples restarted the estimator gets one warning that the topics may be out of order
-(:func:`warn_topic_order`), and so do topics whose names number them in another order
-than the one given (:func:`warn_numbers_out_of_order`). Topics whose header stamps stand
+topic and reported in one line, which says where IMU 1 began after another topic, and
+where a topic's stamps lie far from IMU 1's and many of its samples found no partner
+(IMUs sampling out of phase). A run in which many samples restarted the estimator
+gets one warning that the topics may be out of order (:func:`warn_topic_order`), and
+so do topics whose names number them in another order than the one given
+(:func:`warn_numbers_out_of_order`). Topics whose header stamps stand
 apart from one another against the log's own times (:func:`warn_clocks_apart`) get one
 warning too: paired by stamp, their readings may be from different instants.
 """
@@ -61,14 +65,17 @@ class PairedImus:
             without a partner in a topic is NaN there (a dropout of that IMU; its
             ``numbers`` 0).
         t: (n,) s since ``t0_ns``: IMU 1's stamps, and other topics' stamps where IMU 1
-            had an outage (:func:`fill_outages`).
-        t0_ns: absolute time of IMU 1's first sample, ns.
+            had an outage or had not started (:func:`fill_outages`).
+        t0_ns: absolute time of the first sample, ns: IMU 1's first, or an earlier one
+            of a topic that started before IMU 1.
         tolerance_s: largest stamp difference accepted in a pair, s.
         read: samples read per topic (after skipping non-increasing stamps).
         partners: per topic, the samples with a partner in it (IMU 1: its own).
         skipped: descriptions of skipped messages, prefixed by their topic.
         offsets_s: per topic, the median distance of its stamps from the nearest of
             IMU 1's, s (IMU 1's: 0).
+        starts_s: per topic, its first stamp, s since ``t0_ns`` (negative for a sample
+            before the first one, too close to it to be one of its own).
     """
 
     logs: tuple[ImuLog, ...]
@@ -79,6 +86,7 @@ class PairedImus:
     partners: tuple[int, ...] = ()
     skipped: list[str] = field(default_factory=list)
     offsets_s: tuple[float, ...] = ()
+    starts_s: tuple[float, ...] = ()
 
     @property
     def unpaired(self) -> tuple[int, ...]:
@@ -104,7 +112,21 @@ class PairedImus:
         return (
             f"paired {len(self.t)} samples of {len(self.logs)} topics ({topics}) by "
             f"{' and '.join(clocks)} within {_duration(self.tolerance_s)}; without a "
-            f"partner (a dropout of that IMU): {missing}; unpaired: {left}" + self._phase_clause()
+            f"partner (a dropout of that IMU): {missing}; unpaired: {left}"
+            + self._late_start_clause()
+            + self._phase_clause()
+        )
+
+    def _late_start_clause(self) -> str:
+        """Where IMU 1 started after another topic, whose samples before IMU 1's first
+        are estimated (IMU 1 missing there): a clause saying where ``t = 0`` is."""
+        if not self.starts_s or self.starts_s[0] <= 0.0:
+            return ""
+        first = self.logs[1 + int(np.argmin(np.abs(self.starts_s[1:])))].topic  # at t = 0
+        return (
+            f"; {self.logs[0].topic} starts {_duration(self.starts_s[0])} after {first}: "
+            f"t = 0 at {first}'s first stamp, {self.logs[0].topic}'s reading missing before "
+            "its first"
         )
 
     def _phase_clause(self) -> str:
@@ -211,18 +233,24 @@ def fill_outages(stamps: Sequence[IntArray], period_ns: float, tolerance_ns: int
     """The samples' stamps (ns, increasing): IMU 1's (``stamps[0]``), and where those
     taken so far are silent for more than :data:`OUTAGE_PERIODS` of ``period_ns``
     between two of IMU 1's samples, or after the last one taken while the next topic
-    goes on for longer (IMU 1 stopped first), the stamps of the next topic there, topic
-    by topic in order (IMU 3's only where IMU 2 is silent too): each farther than
-    ``tolerance_ns`` and at least :data:`FILL_SPACING_PERIODS` periods from every stamp
-    taken before. A stamp taken that would take a sample of another topic away from the
-    IMU 1 sample it pairs with (mutual nearest, :func:`pair_stamps`) is left out. Before
-    IMU 1's first sample nothing is filled (the estimates' time starts there)."""
+    goes on for longer (IMU 1 stopped first), or before the first one taken while the
+    next topic has samples there (IMU 1 started later), the stamps of the next topic
+    there, topic by topic in order (IMU 3's only where IMU 2 is silent too): each
+    farther than ``tolerance_ns`` and at least :data:`FILL_SPACING_PERIODS` periods
+    from every stamp taken before. A stamp taken that would take a sample of another
+    topic away from the IMU 1 sample it pairs with (mutual nearest,
+    :func:`pair_stamps`) is left out. The estimates' time starts at the first stamp
+    returned."""
     ref = stamps[0]
     outage = OUTAGE_PERIODS * period_ns
-    last_other = max((int(o[-1]) for o in stamps[1:] if len(o)), default=-1)
-    if len(ref) < 2 or not ((np.diff(ref) > outage).any() or last_other - int(ref[-1]) > outage):
-        return ref
     apart = max(float(tolerance_ns), FILL_SPACING_PERIODS * period_ns)
+    last_other = max((int(o[-1]) for o in stamps[1:] if len(o)), default=-1)
+    first_other = min((int(o[0]) for o in stamps[1:] if len(o)), default=None)
+    if len(ref) < 2:
+        return ref
+    head = first_other is not None and int(ref[0]) - first_other >= apart
+    if not (head or (np.diff(ref) > outage).any() or last_other - int(ref[-1]) > outage):
+        return ref
     timeline = ref
     for other in stamps[1:]:
         gaps = [int(g) for g in np.flatnonzero(np.diff(timeline) > outage)]
@@ -230,6 +258,10 @@ def fill_outages(stamps: Sequence[IntArray], period_ns: float, tolerance_ns: int
         if len(other) and int(other[-1]) - end > outage:  # the tail: an open gap
             gaps.append(len(timeline) - 1)
         taken: list[int] = []
+        start = int(timeline[0])  # the head: before the first stamp taken, open
+        for s in other[other < start]:
+            if start - s >= apart and (not taken or s - taken[-1] >= apart):
+                taken.append(int(s))
         for g in gaps:
             last = int(timeline[g])  # the gap's start; its end is timeline[g + 1]
             closed = g + 1 < len(timeline)
@@ -340,9 +372,10 @@ def read_imu_topics(
     # refusals above (a refusal is its one line alone)
     warn_numbers_out_of_order(str(p), topics)
     warn_clocks_apart(str(p), logs, half_period_s)
-    # IMU 1's first stamp: a topic that starts later leaves t = 0 where a tensions file
-    # counted from the log's start of IMU 1 has it
-    t0 = int(stamps[0][0])
+    # the first sample's stamp: IMU 1's, or another topic's that started before it (its
+    # samples there estimated, IMU 1 missing), so that t counts from the log's first
+    # IMU sample; a topic that starts later does not move it
+    t0 = int(timeline[0])
     t = (timeline - t0) / 1e9
     return PairedImus(
         logs=tuple(_subset(log, i, t, t0) for log, i in zip(logs, idx)),
@@ -355,6 +388,7 @@ def read_imu_topics(
         offsets_s=tuple(
             float(np.median(np.abs(s - stamps[0][_nearest(s, stamps[0])]))) / 1e9 for s in stamps
         ),
+        starts_s=tuple((int(s[0]) - t0) / 1e9 for s in stamps),
     )
 
 

@@ -79,7 +79,7 @@ from continuum_mhe.io.raw_imu import (
 from continuum_mhe.io.raw_units import (
     ACCEL_READING_MAX,
     GYRO_READING_MAX,
-    TimeUnitWatch,
+    MotionUnitWatch,
     check_accel_range,
     check_accel_units,
     check_gyro_units,
@@ -715,7 +715,7 @@ def _append_tensions(
     blocks = stream.blocks
     if tensions is not None:
         # a robot log's tensions on its clock (times since 1970, as the log's stamps):
-        # the log's t = 0 is IMU 1's first stamp, t0_ns
+        # the log's t = 0 is its first sample's stamp, t0_ns
         tensions, note = on_log_clock(tensions, stream.t0_ns)
         if note:
             stream.description.notes += (note,)
@@ -773,13 +773,13 @@ def _table_stream(
         convs = imu_converters(options.raw, base.robot)
 
         read = [0]  # the blocks read so far
-        time_watch = TimeUnitWatch(rows.time_scale)
+        motion_watch = MotionUnitWatch(rows.time_scale)
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             blocks = raw_blocks(
                 name, values, lines, n_imus, has_gyro, options.skip_bad, problems,
                 options.raw.needs_gyro, first_block=read[0] == 0, t=t,
-                time_watch=time_watch,
+                motion_watch=motion_watch,
             )  # fmt: skip
             read[0] += 1
             return np.hstack(

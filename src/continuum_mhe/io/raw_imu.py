@@ -45,7 +45,7 @@ from continuum_mhe.io.raw_units import (
     ACCEL_READING_MAX,
     GYRO_READING_MAX,
     UNIT_CHECK_SAMPLES,
-    TimeUnitWatch,
+    MotionUnitWatch,
     check_accel_range,
     check_accel_units,
     check_gyro_units,
@@ -697,7 +697,7 @@ def raw_blocks(
     gyro_used: bool = True,
     first_block: bool = True,
     t: FloatArray | None = None,
-    time_watch: TimeUnitWatch | None = None,
+    motion_watch: MotionUnitWatch | None = None,
     range_dropouts: bool = False,
 ) -> list[tuple[FloatArray, FloatArray | None]]:
     """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
@@ -705,9 +705,10 @@ def raw_blocks(
     later block of a file read in blocks (not ``first_block``), only where it has
     :data:`UNIT_CHECK_SAMPLES` readings or more: a short last block of a fast turn is
     no deg/s; with the rows' times ``t`` (n,) s, the first block's gyros are also held
-    against the accelerometers: :func:`gyro_gravity_problem`; with ``time_watch`` (a
+    against the accelerometers: :func:`gyro_gravity_problem`; with ``motion_watch`` (a
     whole table's, or a stream's, which gathers its first blocks' rows), the times are
-    checked against the gyros: :class:`TimeUnitWatch`).
+    checked against the gyros, and from the second block on a gyro the estimate uses
+    against the turns of the motion: :class:`MotionUnitWatch`).
 
     A zero acceleration, or a reading beyond any IMU's range (:data:`ACCEL_READING_MAX`,
     :data:`GYRO_READING_MAX`), is an error naming the line (and, of several IMUs, the
@@ -754,8 +755,8 @@ def raw_blocks(
         check_accel_units(label, acc)
         # the times first: times a thousand times too long would make the gyro's
         # gravity check below read a rad/s gyro as deg/s
-        if has_gyro and t is not None and time_watch is not None:
-            time_watch.add(label, t, acc, block[:, 3:6])
+        if has_gyro and t is not None and motion_watch is not None:
+            motion_watch.add(label, t, acc, block[:, 3:6], gyro_used)
         judged = first_block or int(np.isfinite(gyr_norm).sum()) >= UNIT_CHECK_SAMPLES
         if has_gyro and judged:
             gravity = t is not None and first_block
@@ -812,7 +813,7 @@ def read_raw_imus(
     skipped = list(got.skipped)
     blocks = raw_blocks(
         rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped, t=got.t,
-        time_watch=TimeUnitWatch(rows.time_scale), range_dropouts=range_dropouts,
+        motion_watch=MotionUnitWatch(rows.time_scale), range_dropouts=range_dropouts,
     )  # fmt: skip
     imus = [RawImuTable(got.t, acc, gyr) for acc, gyr in blocks]
     return MultiRawImuTable(got.t, imus, skipped)
@@ -840,6 +841,6 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     skipped = list(got.skipped)
     ((acc, gyr),) = raw_blocks(
         rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped, t=got.t,
-        time_watch=TimeUnitWatch(rows.time_scale),
+        motion_watch=MotionUnitWatch(rows.time_scale),
     )  # fmt: skip
     return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)

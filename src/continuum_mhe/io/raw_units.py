@@ -1,7 +1,8 @@
 """Unit checks of raw IMU readings: an accelerometer in g or in raw counts, a gyro in
 deg/s (by its median rate, or against the turn of gravity's direction that the
-accelerometer shows), and times a thousand times too long (the gyro's turn against the
-accelerometer's). Each check names the file or IMU and the fix in one line."""
+accelerometer shows, at rest and in motion), and times a thousand times too long (the
+gyro's turn against the accelerometer's). Each check names the file or IMU and the fix
+in one line."""
 
 from __future__ import annotations
 
@@ -240,6 +241,17 @@ def _rotated_by_vectors(v: FloatArray, rotvec: FloatArray) -> FloatArray:
 def gyro_gravity_problem(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, names: str = "gx, gy, gz"
 ) -> str | None:
+    """A gyro in deg/s whose rates are too small for :func:`gyro_units_problem`, told by
+    the accelerometer: on its still stretches (:func:`_still_gyro_problem`: an IMU at
+    rest with its bias), else on the turns of its motion (:func:`gyro_motion_problem`:
+    a bias too small to tell, a recording that starts at rest or moves slowly). What to
+    say, naming the columns ``names``, else None."""
+    return _still_gyro_problem(t, acc, gyr, names) or gyro_motion_problem(t, acc, gyr, names)
+
+
+def _still_gyro_problem(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, names: str = "gx, gy, gz"
+) -> str | None:
     """A gyro in deg/s whose rates are too small for :func:`gyro_units_problem` (an IMU
     at rest with its bias), told by the accelerometer: where, over the still stretches
     of the times ``t`` (n,) s (:func:`_turn_errors`: the specific force ``acc`` (n, 3;
@@ -299,7 +311,13 @@ TIME_CHECK_MIN_TURN = 0.1
 TIME_CHECK_WINDOWS = 5
 #: ... where the accelerometer's direction follows that turn to within this fraction of
 #: it (median), while the turn over each step as given misses it by more than
-#: :data:`TIME_CHECK_MIN_TURN` and by this factor more than the thousandth's.
+#: :data:`TIME_CHECK_MIN_TURN` and by this factor more than the thousandth's. The check
+#: of a gyro in deg/s in motion (:func:`gyro_motion_problem`) is the same with the rates
+#: taken pi/180 times instead of a thousandth (:func:`_scaled_turn_evidence`): it finds
+#: none in the shipped recordings (rad/s); with their gyros in deg/s it finds them in
+#: every IMU of every motion but the tendon robot's planar-s IMU 2 (its turns across
+#: gravity too small), following to 0.3 to 1.3 deg of turns of about 6 deg, the rates
+#: read as rad/s missing by over 300 deg.
 TIME_CHECK_FOLLOW = 0.35
 TIME_CHECK_RATIO = 5.0
 #: The rows examined, at most (the first ones), and the longest window.
@@ -312,19 +330,27 @@ def _angles(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0))
 
 
-def time_unit_problem(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> str | None:
-    """Times ``t`` (n,) a thousand times too long (milliseconds read as seconds), told by
-    the gyro against the accelerometer, on positive evidence only: the rows (finite,
-    the first :data:`TIME_CHECK_ROWS`) are cut into consecutive windows over which the
-    rates ``gyr`` (n, 3; rad/s, the mean of a step's two rows), taken over a thousandth
-    of each step, turn the specific force's direction ``acc`` (n, 3; any unit) by
+def _scaled_turn_evidence(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, scale: float, unwrap: bool = False
+) -> tuple[int, float, float, float] | None:
+    """Whether the rates ``gyr`` (n, 3) over the times ``t`` (n,) s, taken ``scale``
+    times (a thousandth: times in ms read as s; pi/180: a gyro in deg/s read as rad/s),
+    turn the specific force's direction ``acc`` (n, 3; any unit) as the accelerometer
+    shows, where as given they do not; on positive evidence only: the rows (finite, the
+    first :data:`TIME_CHECK_ROWS`) are cut into consecutive windows over which the
+    rates (the mean of a step's two rows) taken ``scale`` times turn the direction by
     :data:`TIME_CHECK_MIN_TURN` across it; with at least :data:`TIME_CHECK_WINDOWS` of
     them, where the accelerometer's direction at a window's end follows that turn
-    (median miss within :data:`TIME_CHECK_FOLLOW` of the turn) and the turn over the
-    steps as given misses it by more than :data:`TIME_CHECK_MIN_TURN` and
-    :data:`TIME_CHECK_RATIO` times as much: what to say (the two misses), else None. A
-    gyro that reads more than the IMU turns (a bias, deg/s, counts) or an accelerometer
-    that does not follow gravity (a swing's own acceleration) gives no such evidence."""
+    (median miss within :data:`TIME_CHECK_FOLLOW` of the turn) and the turn as given
+    misses it by more than :data:`TIME_CHECK_MIN_TURN` and :data:`TIME_CHECK_RATIO`
+    times as much: ``(windows, miss taken scale times, miss as given, turn)``, the
+    misses and the turn as medians in rad; else None. With ``unwrap``, a turn as given
+    beyond half a turn misses by at least its part across the direction less the
+    direction's own move (the angle between two directions wraps: deg/s read as rad/s
+    turns a window's :data:`TIME_CHECK_MIN_TURN` into 5.7 rad, near a whole turn, which
+    would seem to follow). A gyro that reads more than the IMU turns (a bias) or an
+    accelerometer that does not follow gravity (a swing's own acceleration) gives no
+    such evidence."""
     t, acc, gyr = (np.asarray(a, float) for a in (t, acc, gyr))
     norm = np.linalg.norm(acc, axis=1)
     ok = np.isfinite(t) & np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1) & (norm > 0)
@@ -338,21 +364,17 @@ def time_unit_problem(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> str | 
     # the turn of a direction fixed in the world, seen in the IMU's frame: dv/dt = -w x v;
     # the summed rotation vector from row 0 (exact for a turn about one axis)
     turn = np.vstack(
-        [np.zeros(3), np.cumsum(-1e-3 * 0.5 * (gyr[:-1] + gyr[1:]) * step[:, None], axis=0)]
+        [np.zeros(3), np.cumsum(-scale * 0.5 * (gyr[:-1] + gyr[1:]) * step[:, None], axis=0)]
     )
     ends: list[tuple[int, int]] = []
     i = 0
     while i < len(t) - 1:
-        ahead = turn[i + 1 : i + 1 + TIME_CHECK_WINDOW_ROWS] - turn[i]
-        reached = np.flatnonzero(
-            np.linalg.norm(np.cross(ahead, direction[i]), axis=1) >= TIME_CHECK_MIN_TURN
-        )
-        if not len(reached):
+        j = _window_end(turn, direction[i], i)
+        if j is None:
             if i + 1 + TIME_CHECK_WINDOW_ROWS >= len(t):
                 break
             i += TIME_CHECK_WINDOW_ROWS  # a still stretch: the next window starts after it
             continue
-        j = i + 1 + int(reached[0])
         ends.append((i, j))
         i = j
     if len(ends) < TIME_CHECK_WINDOWS:
@@ -362,40 +384,114 @@ def time_unit_problem(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> str | 
     first, last = (np.asarray(ix) for ix in zip(*ends))
     rotvec = turn[last] - turn[first]
     start = direction[first]
+    moved = _angles(start, direction[last])  # the direction's own move
     medians = []
-    for scale in (1.0, 1e3):
-        predicted = Rotation.from_rotvec(scale * rotvec).apply(start)
-        medians.append(float(np.median(_angles(predicted, direction[last]))))
-    as_thousandth, as_given = medians
+    for factor in (1.0, 1.0 / scale):
+        predicted = Rotation.from_rotvec(factor * rotvec).apply(start)
+        miss = _angles(predicted, direction[last])
+        if unwrap:
+            across = np.linalg.norm(np.cross(factor * rotvec, start), axis=1)
+            beyond = np.linalg.norm(factor * rotvec, axis=1) > math.pi
+            miss[beyond] = np.maximum(miss, across - moved)[beyond]
+        medians.append(float(np.median(miss)))
+    as_scaled, as_given = medians
     turned = float(np.median(_angles(Rotation.from_rotvec(rotvec).apply(start), start)))
     if (
-        as_thousandth > TIME_CHECK_FOLLOW * turned
+        as_scaled > TIME_CHECK_FOLLOW * turned
         or as_given <= TIME_CHECK_MIN_TURN
-        or as_thousandth * TIME_CHECK_RATIO > as_given
+        or as_scaled * TIME_CHECK_RATIO > as_given
     ):
         return None
+    return len(ends), as_scaled, as_given, turned
+
+
+#: A window's end is looked for in this many rows first, then in
+#: :data:`TIME_CHECK_WINDOW_ROWS` (the same end, found without turning every row ahead
+#: where windows are short).
+WINDOW_LOOK_ROWS = 256
+
+
+def _window_end(turn: FloatArray, direction: FloatArray, i: int) -> int | None:
+    """The first row after ``i``, within :data:`TIME_CHECK_WINDOW_ROWS`, at which the
+    summed rotation vectors ``turn`` (n, 3) have turned ``direction`` (3,) by
+    :data:`TIME_CHECK_MIN_TURN` across it since row ``i``; None where none has."""
+    for rows in (WINDOW_LOOK_ROWS, TIME_CHECK_WINDOW_ROWS):
+        ahead = turn[i + 1 : i + 1 + rows] - turn[i]
+        reached = np.flatnonzero(
+            np.linalg.norm(np.cross(ahead, direction), axis=1) >= TIME_CHECK_MIN_TURN
+        )
+        if len(reached):
+            return i + 1 + int(reached[0])
+        if i + 1 + rows >= len(turn):
+            return None
+    return None
+
+
+def time_unit_problem(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> str | None:
+    """Times ``t`` (n,) a thousand times too long (milliseconds read as seconds), told by
+    the gyro (``gyr`` (n, 3), rad/s) against the accelerometer (``acc`` (n, 3), any
+    unit): where the rates taken over a thousandth of each step turn the specific
+    force's direction as the accelerometer shows and over the steps as given do not
+    (:func:`_scaled_turn_evidence`): what to say (the two misses), else None. A gyro
+    that reads more than the IMU turns (a bias, deg/s, counts) gives no such
+    evidence."""
+    found = _scaled_turn_evidence(t, acc, gyr, 1e-3)
+    if found is None:
+        return None
+    windows, as_thousandth, as_given, turned = found
     return (
-        f"over {len(ends)} stretches the accelerometer's gravity direction turns as the "
+        f"over {windows} stretches the accelerometer's gravity direction turns as the "
         "gyro's rates say over a thousandth of the steps of t (to a median of "
         f"{math.degrees(as_thousandth):.1f} deg of a {math.degrees(turned):.1f}-deg turn), "
         f"not over the steps as given (to {math.degrees(as_given):.0f} deg)"
     )
 
 
-class TimeUnitWatch:
-    """:func:`check_time_unit` over the first :data:`TIME_CHECK_ROWS` rows of a stream
-    read in blocks, each IMU's rows gathered from block to block (a still start longer
-    than a block gives no evidence in its first one)."""
+def gyro_motion_problem(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, names: str = "gx, gy, gz"
+) -> str | None:
+    """A gyro in deg/s told by the turns of a motion (a recording that starts at rest, or
+    moves slowly, whose median rate stays below :data:`GYRO_MEDIAN_MAX` and whose still
+    stretches' bias is too small for :func:`gyro_gravity_problem`'s still check):
+    where the rates ``gyr`` (n, 3) taken as deg/s turn the accelerometer's gravity
+    direction (``acc`` (n, 3), any unit; times ``t`` (n,) s) as it turns, and read as
+    rad/s turn it 57 times too far (:func:`_scaled_turn_evidence`): what to say, naming
+    the columns ``names``; else None."""
+    found = _scaled_turn_evidence(t, acc, gyr, math.pi / 180.0, unwrap=True)
+    if found is None:
+        return None
+    windows, as_deg, as_rad, turned = found
+    return (
+        f"over {windows} stretches of its motion the accelerometer's gravity direction turns "
+        "as the gyro says only with the gyro in deg/s (to a median of "
+        f"{math.degrees(as_deg):.1f} deg of a {math.degrees(turned):.1f}-deg turn; read as "
+        "rad/s they say a turn 57 times as large, which it misses by a median of "
+        f"{math.degrees(as_rad):.0f} deg): give rad/s ({names} times pi/180 = "
+        f"{math.pi / 180:.7f})"
+    )
+
+
+class MotionUnitWatch:
+    """The units that a stream's motion tells, over the first :data:`TIME_CHECK_ROWS`
+    rows of a stream read in blocks, each IMU's rows gathered from block to block (a
+    still start longer than a block gives no evidence in its first one): times a
+    thousand times too long (:func:`check_time_unit`), and, from an IMU's second block
+    on, a gyro in deg/s that the estimate uses (:func:`gyro_motion_problem`; the first
+    block's gyro is judged by :func:`check_gyro_units`)."""
 
     def __init__(self, time_scale: float) -> None:
         self.time_scale = time_scale
         self._rows: dict[str, list[FloatArray]] = {}
         self._count: dict[str, int] = {}
 
-    def add(self, label: str, t: FloatArray, acc: FloatArray, gyr: FloatArray) -> None:
+    def add(
+        self, label: str, t: FloatArray, acc: FloatArray, gyr: FloatArray, gyro_used: bool = False
+    ) -> None:
         """Take a block of IMU ``label``'s rows (``t`` s, ``acc``, ``gyr`` as
         :func:`time_unit_problem` takes them) and check its rows so far: a one-line
-        :class:`InputError` where they are a thousand times too long."""
+        :class:`InputError` where they are a thousand times too long, or, where the
+        estimate uses the gyro (``gyro_used``) and this is not the IMU's first block,
+        where its rates turn the accelerometer's gravity direction as deg/s do."""
         seen = self._count.get(label, 0)
         if seen >= TIME_CHECK_ROWS:
             return
@@ -404,6 +500,10 @@ class TimeUnitWatch:
         self._count[label] = seen + min(len(t), take)
         rows = np.vstack(self._rows[label])
         check_time_unit(label, rows[:, 0], rows[:, 1:4], rows[:, 4:7], self.time_scale)
+        if gyro_used and len(self._rows[label]) > 1:
+            problem = gyro_motion_problem(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
+            if problem is not None:
+                raise InputError(f"{label}: {problem}")
         if self._count[label] >= TIME_CHECK_ROWS:
             del self._rows[label]  # judged: the memory goes
 
@@ -435,9 +535,9 @@ def check_gyro_units(
 ) -> None:
     """A gyro whose median magnitude exceeds :data:`GYRO_MEDIAN_MAX` rad/s looks like deg/s
     (:func:`gyro_units_problem`), and so does one whose rates, given its times ``t`` and
-    accelerometer ``acc``, turn the gravity direction as deg/s would
-    (:func:`gyro_gravity_problem`): an error where the estimate uses it (``used``), else
-    one warning (it is ignored)."""
+    accelerometer ``acc``, turn the gravity direction as deg/s would, at rest or in
+    motion (:func:`gyro_gravity_problem`): an error where the estimate uses it
+    (``used``), else one warning (it is ignored)."""
     problem = gyro_units_problem(gyr)
     if problem is None and t is not None and acc is not None:
         problem = gyro_gravity_problem(t, acc, gyr)

@@ -585,7 +585,7 @@ class Tensions:
         if self.t[0] >= EPOCH_LIKE_S > abs(t):  # a clock's absolute time, s
             epoch = (
                 " (times since 1970, a clock's own? the recording's t counts from its "
-                "start: a robot log's t = 0 is IMU 1's first stamp, the estimate's "
+                "start: a robot log's t = 0 is its first sample's stamp, the estimate's "
                 "# t0_ns line)"
             )
         end = 0 if t < self.t[0] else len(self.t) - 1  # the row the sample lies beyond
@@ -612,7 +612,7 @@ class Tensions:
 
 def on_log_clock(tensions: Tensions, t0_ns: int) -> tuple[Tensions, str]:
     """``tensions`` whose times are since 1970, as a robot log's stamps are, counted
-    from the log's ``t = 0`` (``t0_ns``, ns since 1970: IMU 1's first stamp), with the
+    from the log's ``t = 0`` (``t0_ns``, ns since 1970: the first sample's stamp), with the
     note that says so; as given, and ``""``, where either is not on that clock."""
     if t0_ns < EPOCH_LIKE_S * 1e9 or not len(tensions.t) or tensions.t[0] < EPOCH_LIKE_S:
         return tensions, ""
@@ -620,7 +620,7 @@ def on_log_clock(tensions: Tensions, t0_ns: int) -> tuple[Tensions, str]:
     shifted = replace(tensions, t=(tensions.t - seconds) - ns * 1e-9)
     return shifted, (
         f"{tensions.name}: its times, since 1970, are taken on the log's clock: t = 0 "
-        f"at IMU 1's first stamp, {seconds}.{ns:09d} s"
+        f"at the first sample's stamp, {seconds}.{ns:09d} s"
     )
 
 
