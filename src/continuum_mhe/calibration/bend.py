@@ -245,7 +245,8 @@ def bend_plane_warning(
     turned by ``-d`` about the tangent, and nothing in the readings tells the two apart:
     a robot bent the other way (``d = 180``) or in the other plane (``d = +-90``) gives
     every IMU a yaw a quarter or half turn off, silently. Boards that are turned so
-    declare it with their yaw in the robot file, which silences this."""
+    declare it with their yaw in the robot file (as the file written with these yaws
+    does), which silences this."""
     turns = np.radians([_wrap_deg(y.yaw_deg - own) for y, own in zip(yaws, robot_yaws)])
     mean = math.atan2(float(np.mean(np.sin(turns))), float(np.mean(np.cos(turns))))
     spread = np.degrees(np.abs(np.angle(np.exp(1j * (turns - mean)))))
@@ -262,8 +263,8 @@ def bend_plane_warning(
     return (
         f"{every} from the bend is {own} turned by {_wrap_deg(round(turn)):g} degrees "
         f"({each}): a bend towards phi = {_wrap_deg(round(phi_deg - turn)):g} instead of "
-        f"--bend-phi's {given} reads so: was the robot bent the other way, or in another "
+        f"--bend-phi's {given} reads so. Was the robot bent the other way, or in another "
         "plane? Record the bend again towards --bend-phi, or give the plane it was bent in "
-        "(--bend-phi); for boards turned so about the backbone, give their yaws in the "
-        "robot file's mount_rpy (written here as the bend measured them)"
+        "(--bend-phi). Are the boards turned so about the backbone? Then the yaws written "
+        "are right and the robot file's were not"
     )
