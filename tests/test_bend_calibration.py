@@ -253,6 +253,80 @@ def test_imus_tilting_out_of_order_in_the_bend_are_said() -> None:
     assert tilt_order_warning(ends, tilts(60.0, 150.0, 150.0 - 10), reach) == ""
 
 
+def _robot_with_yaws(path: Path, yaws: tuple[float, float]) -> Path:
+    """The shipped two-section robot with each IMU's yaw given (roll and pitch 0)."""
+    path.write_text(
+        'mounting = "z-up"\n[[section]]\nlength = 0.16\n[[section]]\nlength = 0.14\n'
+        f"[[imu]]\nsection = 1\nmount_rpy = [0, 0, {yaws[0]}]\n"
+        f"[[imu]]\nsection = 2\nmount_rpy = [0, 0, {yaws[1]}]\n"
+    )
+    return path
+
+
+@pytest.mark.parametrize(("bent_deg", "turn", "towards"), [(180.0, 180, 180), (90.0, -90, 90)])
+def test_a_bend_in_another_plane_than_bend_phi_is_said(
+    tmp_path: Path, bent_deg: float, turn: int, towards: int
+) -> None:
+    """A robot bent the other way (towards +x) or in the other plane (towards +y) while
+    --bend-phi says -x: the readings are those of a bend towards -x by boards turned
+    half or a quarter turn about the backbone, so every yaw comes out that far from the
+    robot file's (25 and -140 degrees, the boards' true yaws). Written as measured, with
+    a warning that names the turn and the plane that reads so; the bend towards the
+    plane given is not said, nor boards whose yaws the file does not give."""
+    rest, bend = _bend_readings(_planar_bend(np.radians(bent_deg)), MOUNTS)
+    rest_csv, bend_csv = _write(tmp_path / "rest.csv", rest), _write(tmp_path / "bend.csv", bend)
+    robot = _robot_with_yaws(tmp_path / "robot.toml", (MOUNTS[0][2], MOUNTS[1][2]))
+    out = tmp_path / "cal.toml"
+    res = subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.cli", "calibrate", "--from", str(rest_csv),
+         "--bend", str(bend_csv), "--robot", str(robot), "--write-robot", str(out)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    warned = [ln for ln in res.stderr.splitlines() if f"warning: {bend_csv}" in ln]
+    assert len(warned) == 1, res.stderr  # (the rest's boards lean: said of rest.csv)
+    assert warned[0].startswith(
+        f"continuum-mhe: warning: {bend_csv}: every IMU's yaw from the bend is the robot "
+        f"file's turned by {turn} degrees (IMU 1: {MOUNTS[0][2] - bent_deg:.1f} against 25; "
+    )
+    assert (
+        f"a bend towards phi = {towards} instead of --bend-phi's 0 (towards base -x) reads so"
+        in warned[0]
+    )
+    assert out.exists()  # the yaws as measured: the warning says what is doubtful
+    res = _cli("--from", str(rest_csv), "--bend", str(bend_csv), "--bend-phi", str(bent_deg))
+    assert res.returncode == 0 and f"warning: {bend_csv}" not in res.stderr, res.stderr
+    res = subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.cli", "calibrate", "--from", str(rest_csv),
+         "--bend", str(bend_csv), "--robot", str(robot), "--bend-phi", str(bent_deg)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert res.returncode == 0 and f"warning: {bend_csv}" not in res.stderr, res.stderr
+
+
+def test_the_bend_plane_warning_wants_every_imu_turned_alike() -> None:
+    """Said where every IMU's yaw is over 45 degrees from the robot's, all within 15
+    degrees of the same turn; not where one board alone is turned (its file's yaw is
+    wrong, the bend is right), nor for the turns boards mounted by hand differ by."""
+    from continuum_mhe.calibration.bend import YawCalibration, bend_plane_warning
+
+    def yaws(*deg: float) -> list[YawCalibration]:
+        return [YawCalibration(d, d, 60.0, 0.01, 0.01) for d in deg]
+
+    said = bend_plane_warning(yaws(-179.0, 179.0, 180.0), [0.0, 0.0, 0.0], 0.0, True)
+    assert "turned by 180 degrees" in said and "phi = 180 instead of" in said
+    said = bend_plane_warning(yaws(100.0, 80.0), [10.0, -5.0], 30.0, False)
+    assert said.startswith("every IMU's yaw from the bend is the robot's (0: no robot file")
+    assert "turned by 88 degrees" in said and "phi = -58 instead of --bend-phi's 30 reads" in said
+    assert bend_plane_warning(yaws(-91.0), [0.0], 0.0, True).startswith("the IMU's yaw from")
+    assert bend_plane_warning(yaws(179.0, 2.0), [0.0, 0.0], 0.0, True) == ""  # one board
+    assert bend_plane_warning(yaws(70.0, 100.0), [0.0, 0.0], 0.0, True) == ""  # 30 apart
+    assert bend_plane_warning(yaws(44.0, 44.0), [0.0, 0.0], 0.0, True) == ""
+    assert "turned by 135 degrees" in bend_plane_warning(
+        yaws(-134.0, -136.0), [90.0, 90.0], 0.0, True
+    )
+
+
 def test_the_printed_yaw_standard_error_is_the_yaws_scatter() -> None:
     """Over 400 draws of a gyro's white noise (0.02 rad/s) on one 60-degree bend in a
     plane, at a yaw of 25 degrees, the yaw's printed standard error equals the scatter

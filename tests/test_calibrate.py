@@ -408,6 +408,42 @@ def test_a_gyro_spread_with_still_accelerometers_suggests_deg_s(
             assert "deg/s" not in err
 
 
+def test_a_raised_gyro_bound_over_still_accelerometers_warns_of_deg_s(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A gyro in deg/s with 0.1 deg/s of noise (the firmware's MPU9250's) spreads by 0.1
+    "rad/s", twice the bound, which the refusal cannot tell from a noisy gyro: it says
+    to raise --still-gyro-std. Raised, the calibration goes through and writes the
+    deg/s mean as the gyro bias, with a warning that says a gyro in deg/s reads so; an
+    IMU whose accelerometer spread as much (a noisy IMU, both bounds raised) is not
+    said, nor a gyro within the default bound."""
+    n = 400
+    t = 0.01 * np.arange(n)
+    path = tmp_path / "rest_deg_s.csv"
+    _write_rows(path, RAW_COLUMNS, np.column_stack([t, _rest_values(n, 0.0, 0.1, 5.0)]))
+    code, _, err = _calibrate_main(capsys, "--from", str(path))
+    assert code == 2 and err.endswith("; if the robot was still, raise --still-gyro-std\n")
+    out_toml = tmp_path / "cal.toml"
+    args = ["--from", str(path), "--still-gyro-std", "0.2", "--write-robot", str(out_toml)]
+    code, _, err = _calibrate_main(capsys, *args)
+    assert code == 0 and out_toml.exists()
+    assert (
+        f"continuum-mhe: warning: {path}: IMU 1's gyro spread (std of gx) is 0.1 rad/s at "
+        "rest, above the 0.05 rad/s of a still robot, while its accelerometer stayed still: "
+        "a gyro in deg/s reads so (its noise, 0.1 deg/s, a MEMS gyro's), and its gyro_bias "
+        "would then be 57.3 times too large: give rad/s (gx, gy, gz times pi/180 = "
+        "0.0174533) and calibrate again\n"
+    ) in err
+    noisy = np.column_stack([t, _rest_values(n, 0.3, 0.1, 5.0)])
+    _write_rows(path, RAW_COLUMNS, noisy)
+    args[2:] = ["--still-gyro-std", "0.2", "--still-acc-std", "0.4"]
+    code, _, err = _calibrate_main(capsys, *args)
+    assert code == 0 and "warning" not in err, err
+    _write_rows(path, RAW_COLUMNS, np.column_stack([t, _rest_values(n, 0.0, 0.04, 5.0)]))
+    code, _, err = _calibrate_main(capsys, *args[:2], "--still-gyro-std", "0.2")
+    assert code == 0 and "warning" not in err, err
+
+
 def test_the_tilt_stillness_bound_follows_still_acc_std(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -598,6 +598,29 @@ def creep_at_rest(values: FloatArray, n_imus: int) -> list[str]:
 DEG_S_SPREAD_RATIO = 3.0
 
 
+def gyro_deg_s_at_rest(cal: Calibration) -> list[str]:
+    """What to say of each IMU of a raw calibration ``cal`` whose gyro spread beyond
+    :data:`STILL_GYRO_STD` (a raised ``--still-gyro-std`` let it pass) while its
+    accelerometer stayed within :data:`STILL_ACC_STD`: a MEMS gyro's noise in deg/s
+    (0.05 to 0.3), read as rad/s, spreads so, and its mean, the ``gyro_bias`` written,
+    is then 57 times too large. Below :data:`DEG_S_SPREAD_RATIO` times the bound the
+    refusal cannot tell a noisy gyro from one in deg/s, and says to raise the bound."""
+    said = []
+    for i, imu in enumerate(cal.imus, start=1):
+        gyro, acc = imu.std[3:6], imu.std[:3]
+        j = int(np.argmax(gyro))
+        if gyro[j] > STILL_GYRO_STD and acc.max() <= STILL_ACC_STD:
+            said.append(
+                f"IMU {i}'s gyro spread (std of {('gx', 'gy', 'gz')[j]}) is {gyro[j]:.3g} "
+                f"rad/s at rest, above the {STILL_GYRO_STD:g} rad/s of a still robot, while "
+                f"its accelerometer stayed still: a gyro in deg/s reads so (its noise, "
+                f"{gyro[j]:.3g} deg/s, a MEMS gyro's), and its gyro_bias would then be "
+                f"{180 / math.pi:.1f} times too large: give rad/s (gx, gy, gz times pi/180 "
+                f"= {math.pi / 180:.7f}) and calibrate again"
+            )
+    return said
+
+
 #: A still accelerometer reads gravity alone: a mean magnitude outside these multiples
 #: of g is another unit (cm/s^2 reads about 981 at rest, milli-g about 1000).
 REST_GRAVITY_RANGE = (0.5, 2.0)

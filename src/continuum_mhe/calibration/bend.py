@@ -225,3 +225,46 @@ def _bend_between(
     if s0 == s1:
         return (a1 - a0) * theta_max[s0]
     return (1.0 - a0) * theta_max[s0] + sum(theta_max[s0 + 1 : s1]) + a1 * theta_max[s1]
+
+
+#: An IMU's yaw from the bend this far (deg) from the robot's own yaw is doubtful where
+#: every IMU's is (:func:`bend_plane_warning`): nearer a quarter turn than none.
+BEND_YAW_TURN_DEG = 45.0
+#: ... and every IMU's turn lies within this many degrees of their mean turn (boards
+#: mounted by hand differ by a few degrees; a bend in another plane turns all alike).
+BEND_YAW_AGREEMENT_DEG = 15.0
+
+
+def bend_plane_warning(
+    yaws: Sequence[YawCalibration], robot_yaws: Sequence[float], phi_deg: float, robot_file: bool
+) -> str:
+    """``""``, or why the yaws from a bend may be those of a bend in another plane than
+    ``phi_deg``: every IMU's yaw turned from the robot's own (``robot_yaws``, deg: the
+    robot file's, 0 without one) by over :data:`BEND_YAW_TURN_DEG`, all by the same turn
+    within :data:`BEND_YAW_AGREEMENT_DEG`. A bend towards ``phi_deg + d`` reads as IMUs
+    turned by ``-d`` about the tangent, and nothing in the readings tells the two apart:
+    a robot bent the other way (``d = 180``) or in the other plane (``d = +-90``) gives
+    every IMU a yaw a quarter or half turn off, silently. Boards that are turned so
+    declare it with their yaw in the robot file (as the file written with these yaws
+    does), which silences this."""
+    turns = np.radians([_wrap_deg(y.yaw_deg - own) for y, own in zip(yaws, robot_yaws)])
+    mean = math.atan2(float(np.mean(np.sin(turns))), float(np.mean(np.cos(turns))))
+    spread = np.degrees(np.abs(np.angle(np.exp(1j * (turns - mean)))))
+    turn = math.degrees(mean)
+    if not (abs(turn) > BEND_YAW_TURN_DEG and np.all(spread <= BEND_YAW_AGREEMENT_DEG)):
+        return ""
+    each = "; ".join(
+        f"IMU {i}: {y.yaw_deg:.1f} against {own:g}"
+        for i, (y, own) in enumerate(zip(yaws, robot_yaws), start=1)
+    )
+    own = "the robot file's" if robot_file else "the robot's (0: no robot file gives one)"
+    every = "every IMU's yaw" if len(yaws) > 1 else "the IMU's yaw"
+    given = f"{phi_deg:g}" + (" (towards base -x)" if phi_deg == 0 else "")
+    return (
+        f"{every} from the bend is {own} turned by {_wrap_deg(round(turn)):g} degrees "
+        f"({each}): a bend towards phi = {_wrap_deg(round(phi_deg - turn)):g} instead of "
+        f"--bend-phi's {given} reads so. Was the robot bent the other way, or in another "
+        "plane? Record the bend again towards --bend-phi, or give the plane it was bent in "
+        "(--bend-phi). Are the boards turned so about the backbone? Then the yaws written "
+        "are right and the robot file's were not"
+    )

@@ -30,6 +30,7 @@ from continuum_mhe.calibration.at_rest import (
     creep_at_rest,
     format_report,
     frozen_at_rest,
+    gyro_deg_s_at_rest,
     knocks_at_rest,
     motion_at_rest,
     rest_gravity_note,
@@ -37,7 +38,7 @@ from continuum_mhe.calibration.at_rest import (
     rest_tilt_warning,
     rolls_kept,
 )
-from continuum_mhe.calibration.bend import YawCalibration, tilt_order_warning
+from continuum_mhe.calibration.bend import YawCalibration, bend_plane_warning, tilt_order_warning
 from continuum_mhe.errors import (
     InputError,
     UserError,
@@ -58,8 +59,9 @@ from continuum_mhe.stream.protocol import LineFormat
 class CalibrationWarning(UserWarning):
     """What a calibration measured that may not be what was meant: readings left out of
     the statistics (dropouts, knocks, a pose that crept), a board upside down, IMUs not
-    straight at rest, a bend's plane that looks given in radians, IMUs whose tilts in the
-    bend are not in the robot's order. The command line says it as a warning
+    straight at rest, a gyro whose spread at rest reads as deg/s, a bend's plane that
+    looks given in radians, IMUs whose tilts in the bend are not in the robot's order,
+    yaws from the bend that read as a bend in another plane. The command line says it as a warning
     (``continuum-mhe: warning: ...``)."""
 
 
@@ -187,8 +189,9 @@ def calibrate_robot(
 
     Warns:
         CalibrationWarning: readings left out, a board upside down, IMUs not straight
-            at rest, a plane that looks given in radians, tilts in the bend out of the
-            IMUs' order.
+            at rest, a gyro spread that reads as deg/s, a plane that looks given in
+            radians, tilts in the bend out of the IMUs' order, every yaw a quarter or
+            half turn from the robot's (a bend in another plane than ``bend_phi_deg``).
         CalibrationNote: an accelerometer whose magnitude is more than 2 % from g (a
             scale or offset error), a roll kept from the robot.
     """
@@ -309,7 +312,11 @@ def calibrate_readings(
         held.append((left_out, CalibrationWarning))
     for knock in knocks:
         held.append((f"{source}: {knock}", CalibrationWarning))
-    tilted = rest_tilt_warning(cal, robot.mounting, fix, [imu.mount_rpy[2] for imu in robot.imus])
+    if fmt == "raw":
+        for deg_s in gyro_deg_s_at_rest(cal):
+            held.append((f"{source}: {deg_s}", CalibrationWarning))
+    file_yaws = [imu.mount_rpy[2] for imu in robot.imus]
+    tilted = rest_tilt_warning(cal, robot.mounting, fix, file_yaws)
     if tilted:
         held.append((f"{source}: {tilted}", CalibrationWarning))
     if fmt == "raw":
@@ -351,7 +358,8 @@ def calibrate_readings(
         reach = [s.theta_max for s in robot.sections]
         if order := tilt_order_warning(places, bent[2], reach):
             held.append((f"{bend}: {order}", CalibrationWarning))
-    file_yaws = [imu.mount_rpy[2] for imu in robot.imus]
+        if plane := bend_plane_warning(bent[2], file_yaws, phi, robot_file):
+            held.append((f"{bend}: {plane}", CalibrationWarning))
     report = format_report(cal, source, bent, file_yaws, robot.mounting)
     yaws = None if bent is None else tuple(bent[2])
     for message, category in held:
