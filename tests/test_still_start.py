@@ -326,3 +326,87 @@ def test_a_gyro_in_deg_s_that_starts_still_is_told_by_its_motion(
                 err,
             )
             assert said is not None, err
+
+
+@pytest.mark.parametrize("deg_s", [True, False])
+def test_a_stream_that_starts_still_has_its_gyro_units_told_by_its_motion(deg_s: bool) -> None:
+    """The readings of the recording above (12 s still, then the planar-s motion)
+    handed to an estimator's ``step`` one sample at a time, as ``live`` does: its first
+    second, still, says nothing of the unit; the motion does. In deg/s a
+    ``ReadingUnitsError`` naming deg/s is raised within the first
+    ``MOTION_CHECK_ROWS + 5 s`` of motion (every later sample refused alike), where the
+    stream was stepped to its end without a word; in rad/s the stream runs through."""
+    from continuum_mhe import Measurement, make_estimator
+    from continuum_mhe.estimators.reading_units import MOTION_CHECK_ROWS, ReadingUnitsError
+    from continuum_mhe.io import raw_measurements
+
+    lines = _low_noise_gyro_from_rest(Path("unused"), 12.0, deg_s)
+    rows = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    header = lines[0].split(",")
+    acc = np.stack([rows[:, [header.index(f"a{a}_{i}") for a in "xyz"]] for i in (1, 2)], axis=1)
+    gyr = np.stack([rows[:, [header.index(f"g{a}_{i}") for a in "xyz"]] for i in (1, 2)], axis=1)
+    t = rows[:, 0]
+    robot = read_robot("two-section")
+    z = raw_measurements(robot, t, acc, gyr)
+    est = make_estimator("ekf", make_formulation("direct", robot))
+    moving = int(np.searchsorted(t, 12.0))
+    stepped = 0
+    try:
+        for i in range(len(t)):
+            est.step(Measurement(float(t[i]), z[i]))
+            stepped += 1
+    except ReadingUnitsError as exc:
+        assert deg_s, exc
+        assert "only with the gyro in deg/s" in str(exc)
+    if not deg_s:
+        assert stepped == len(t)
+        return
+    assert moving < stepped < moving + MOTION_CHECK_ROWS + 250, (moving, stepped)
+    with pytest.raises(ReadingUnitsError, match="as found at"):
+        est.step(Measurement(float(t[stepped + 1]), z[stepped + 1]))
+
+
+@pytest.mark.parametrize("deg_s", [True, False])
+def test_live_stops_on_a_gyro_in_deg_s_once_a_still_start_moves(deg_s: bool) -> None:
+    """The same readings streamed to ``live``'s session as raw lines (two IMUs, 50 Hz,
+    the direct model): its own check of the first 100 samples, still, passes both
+    units; in deg/s the estimator's motion check stops the session once the robot moves
+    (the estimates already made are not kept: readings in the wrong units), in rad/s it
+    streams to the end."""
+    import io
+    import time
+
+    from live_helpers import raw_line
+
+    from continuum_mhe import make_estimator
+    from continuum_mhe.io.inputs import imu_converters
+    from continuum_mhe.io.raw_imu import RawImuSettings
+    from continuum_mhe.live.session import LiveSession, LiveSettings
+    from continuum_mhe.model.direct import DirectFormulation
+
+    lines = _low_noise_gyro_from_rest(Path("unused"), 12.0, deg_s)
+    rows = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    header = lines[0].split(",")
+    acc = np.stack([rows[:, [header.index(f"a{a}_{i}") for a in "xyz"]] for i in (1, 2)], axis=1)
+    gyr = np.stack([rows[:, [header.index(f"g{a}_{i}") for a in "xyz"]] for i in (1, 2)], axis=1)
+    robot = read_robot("two-section")
+    raw = RawImuSettings(imu_model="direct")
+    session = LiveSession(
+        LiveSettings(port="/dev/ttyIMU", fmt="raw"),
+        make_estimator("ekf", DirectFormulation(robot=robot)),
+        imu_converters(raw, robot),
+        io.StringIO(),
+        say=lambda _: None,
+    )
+    now = time.monotonic()
+    for i in range(len(rows)):
+        session.handle_line(raw_line(20 * i, acc[i], gyr[i]).encode(), now + 0.02 * i)
+        if session.fatal is not None:
+            break
+    if not deg_s:
+        assert session.fatal is None and session.counts.estimates == len(rows)
+        return
+    assert session.fatal is not None and "only with the gyro in deg/s" in session.fatal
+    assert session.fatal.startswith("/dev/ttyIMU: ")
+    assert session.wrong_units
+    assert 600 < session.counts.samples < 600 + 256 + 250  # after 12 s still, as it moves

@@ -21,9 +21,11 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.raw_units import (
+    TIME_CHECK_ROWS,
     UNIT_CHECK_SAMPLES,
     UNIT_CHECK_SPAN_S,
     gyro_gravity_problem,
+    gyro_motion_problem,
     gyro_units_problem,
 )
 from continuum_mhe.model.formulations import Formulation
@@ -34,6 +36,14 @@ UNIT_TOLERANCE = 0.05
 
 
 DirectRows = tuple[slice, slice, tuple[str, ...]]
+
+#: Once an IMU's first readings are judged, its gyro is judged again by the turns of its
+#: motion (:func:`~continuum_mhe.io.raw_units.gyro_motion_problem`) each time this many
+#: more full readings have come, over those and the :data:`MOTION_CHECK_KEPT` before
+#: them, up to :data:`~continuum_mhe.io.raw_units.TIME_CHECK_ROWS` readings: a stream
+#: that starts still, with a small bias, tells no gyro's unit in its first second.
+MOTION_CHECK_ROWS = 256
+MOTION_CHECK_KEPT = 768
 
 
 def gyro_label(names: tuple[str, ...]) -> str:
@@ -99,9 +109,11 @@ class ReadingUnitsWatch:
     over its first full readings, at least
     :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SAMPLES` of them over at least
     :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SPAN_S` (the check of a whole
-    recording, on the samples a stream has; one fast turn says nothing). A stream
-    shorter than that has its gyros unchecked. A problem found is given again for every
-    later sample, until :meth:`reset` (a new recording)."""
+    recording, on the samples a stream has; one fast turn says nothing); then, until
+    :data:`~continuum_mhe.io.raw_units.TIME_CHECK_ROWS` full readings, the turns of its
+    motion (:data:`MOTION_CHECK_ROWS`). A stream shorter than a second has its gyros
+    unchecked. A problem found is given again for every later sample, until
+    :meth:`reset` (a new recording)."""
 
     def __init__(self, blocks: list[DirectRows]) -> None:
         self._blocks = blocks
@@ -121,6 +133,9 @@ class ReadingUnitsWatch:
         self._times: list[list[FloatArray]] = [[] for _ in self._blocks]
         self._first_t = [math.nan] * len(self._blocks)
         self._counts = [0] * len(self._blocks)
+        #: blocks whose first readings passed, their gyros judged by their motion
+        self._moving: list[int] = []
+        self._fresh = [0] * len(self._blocks)  # full readings since the last motion check
 
     def see(self, t: FloatArray, z: FloatArray) -> str | None:
         """Look at the samples ``t`` (n,) s, ``z`` (n, nz) that follow those seen: what
@@ -134,14 +149,56 @@ class ReadingUnitsWatch:
             return f"measurement at t={now!r} s: as found at t={found_t!r} s, {problem}"
         if self.done:
             return None
+        moving = list(self._moving)  # (not those that begin to move with these samples)
         for k in list(self._pending):
             found = self._see_block(k, t, z)
             if found is not None:
                 self._found = found
                 self.problem = f"measurement at t={found[0]!r} s: {found[1]}"
                 return self.problem
-        self.done = not self._pending
+        for k in moving:
+            found = self._see_motion(k, t, z)
+            if found is not None:
+                self._found = found
+                self.problem = f"measurement at t={found[0]!r} s: {found[1]}"
+                return self.problem
+        self.done = not self._pending and not self._moving
         return None
+
+    def _full_rows(self, k: int, z: FloatArray) -> np.ndarray:
+        """The rows of ``z`` with block ``k``'s whole reading."""
+        force_rows, gyro_rows, _ = self._blocks[k]
+        return np.flatnonzero(
+            np.isfinite(z[:, force_rows]).all(axis=1) & np.isfinite(z[:, gyro_rows]).all(axis=1)
+        )
+
+    def _see_motion(self, k: int, t: FloatArray, z: FloatArray) -> tuple[float, str] | None:
+        """Block ``k``'s gyro judged by its motion (:data:`MOTION_CHECK_ROWS`): the time
+        and the problem of the sample that showed deg/s, else None."""
+        force_rows, gyro_rows, names = self._blocks[k]
+        full = self._full_rows(k, z)
+        if not len(full):
+            return None
+        self._gyros[k].append(z[full, gyro_rows].copy())
+        self._forces[k].append(z[full, force_rows].copy())
+        self._times[k].append(np.asarray(t, dtype=float)[full].copy())
+        self._counts[k] += len(full)
+        self._fresh[k] += len(full)
+        if self._counts[k] >= TIME_CHECK_ROWS:
+            self._moving.remove(k)
+        elif self._fresh[k] < MOTION_CHECK_ROWS:
+            return None
+        self._fresh[k] = 0
+        kept = MOTION_CHECK_KEPT + MOTION_CHECK_ROWS
+        times, forces, gyros = (
+            np.concatenate(rows)[-kept:]
+            for rows in (self._times[k], self._forces[k], self._gyros[k])
+        )
+        self._times[k], self._forces[k], self._gyros[k] = [times], [forces], [gyros]
+        problem = gyro_motion_problem(times, forces, gyros, ", ".join(names[3:]))
+        if problem is None:
+            return None
+        return float(times[-1]), f"{gyro_label(names)}: {problem}"
 
     def _see_block(self, k: int, t: FloatArray, z: FloatArray) -> tuple[float, str] | None:
         force_rows, gyro_rows, names = self._blocks[k]
@@ -149,9 +206,7 @@ class ReadingUnitsWatch:
             map(math.isfinite, z[0, force_rows].tolist() + z[0, gyro_rows].tolist())
         ):
             return None
-        full = np.flatnonzero(
-            np.isfinite(z[:, force_rows]).all(axis=1) & np.isfinite(z[:, gyro_rows]).all(axis=1)
-        )
+        full = self._full_rows(k, z)
         if not len(full):
             return None
         if self._force_unchecked[k]:
@@ -171,14 +226,19 @@ class ReadingUnitsWatch:
             return None
         self._pending.remove(k)
         gyros = np.concatenate(seen)
+        times, forces = np.concatenate(self._times[k]), np.concatenate(self._forces[k])
         problem = gyro_units_problem(gyros, ", ".join(names[3:]))
         if problem is None:
-            problem = gyro_gravity_problem(
-                np.concatenate(self._times[k]), np.concatenate(self._forces[k]), gyros,
-                ", ".join(names[3:]),
-            )  # fmt: skip
-        self._gyros[k], self._forces[k], self._times[k] = [], [], []
-        if problem is None:
+            problem = gyro_gravity_problem(times, forces, gyros, ", ".join(names[3:]))
+        if problem is None:  # its motion judges it from here on, the rows so far kept
+            kept = MOTION_CHECK_KEPT + MOTION_CHECK_ROWS
+            self._gyros[k], self._forces[k], self._times[k] = (
+                [gyros[-kept:]],
+                [forces[-kept:]],
+                [times[-kept:]],
+            )
+            self._moving.append(k)
             return None
+        self._gyros[k], self._forces[k], self._times[k] = [], [], []
         of = f"(median of the first {self._counts[k]} full readings, {span:.3g} s)"
         return float(t[full[-1]]), f"{gyro_label(names)}: " + problem.replace("(median)", of, 1)

@@ -578,7 +578,8 @@ class Estimator(Generic[InferenceT]):
                 after a reset is checked) or a gyro in deg/s (the median of each IMU's
                 first full readings after a reset, of samples not refused, at least
                 :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SAMPLES` over at least a
-                second: the samples before are estimated; ``run`` checks the whole
+                second: the samples before are estimated; then the turns of its motion,
+                :class:`~.reading_units.ReadingUnitsWatch`; ``run`` checks the whole
                 recording; both a :class:`~.reading_units.ReadingUnitsError`, raised
                 again for every later sample until a reset), times whose first
                 :data:`TOO_FAST_STEPS` steps after a reset have a median under
