@@ -559,35 +559,33 @@ def test_gyro_columns_named_otherwise_beside_the_accelerometer_are_not_left_out(
     )
 
 
-def test_accelerometer_columns_named_otherwise_beside_the_gyros_are_told_the_names(
-    tmp_path: Path, capsys: pytest.CaptureFixture
-) -> None:
-    """Gyro columns as the reader takes them and accelerometer columns with a unit in
-    their names (``ax_mps2``): one line giving the renames of the accelerometer's (not
-    that the accelerometer is missing)."""
-    path = _write(tmp_path / "imu.csv", "t,ax_mps2,ay_mps2,az_mps2,gx,gy,gz\n0,0,0,9.8,0,0,0\n")
-    assert main(["estimate", str(path), "-o", str(tmp_path / "e.csv")]) == 2
-    assert capsys.readouterr().err == (
-        f"continuum-mhe: error: {path}: line 1: no accelerometer column is named as this "
-        "reader takes IMU readings: raw columns are t,ax,ay,az,gx,gy,gz for one IMU and "
-        "ax_1 ... gz_1, ax_2 ... for several (m/s^2, rad/s), tilt ones roll, pitch (roll_1, "
-        "pitch_1 ...); rename the columns (ax_mps2 -> ax, ay_mps2 -> ay, az_mps2 -> az)\n"
-    )
-    assert not (tmp_path / "e.csv").exists()
-
-
+@pytest.mark.parametrize(
+    ("text", "said"),
+    [
+        (
+            "t,gx,gy,gz\n0.0,0.0,0.0,0.0\n",
+            "gyro columns (gx, gy, gz) but no accelerometer columns (ax, ay, az; ax_1 ... for "
+            "several IMUs): raw readings need the accelerometer (m/s^2); the gyro is optional",
+        ),
+        (
+            "t,ax_mps2,ay_mps2,az_mps2,gx,gy,gz\n0,0,0,9.8,0,0,0\n",
+            "no accelerometer column is named as this reader takes IMU readings: raw columns "
+            "are t,ax,ay,az,gx,gy,gz for one IMU and ax_1 ... gz_1, ax_2 ... for several "
+            "(m/s^2, rad/s), tilt ones roll, pitch (roll_1, pitch_1 ...); rename the columns "
+            "(ax_mps2 -> ax, ay_mps2 -> ay, az_mps2 -> az)",
+        ),
+    ],
+)
 def test_a_header_with_gyro_columns_alone_asks_for_the_accelerometer(
-    tmp_path: Path, capsys: pytest.CaptureFixture
+    tmp_path: Path, capsys: pytest.CaptureFixture, text: str, said: str
 ) -> None:
     """Gyro columns without accelerometer ones: one line saying the accelerometer is
-    needed (not a rename of gx to gx)."""
-    path = _write(tmp_path / "gyro.csv", "t,gx,gy,gz\n0.0,0.0,0.0,0.0\n")
+    needed (not a rename of gx to gx); beside accelerometer columns with a unit in their
+    names (``ax_mps2``), the renames of those."""
+    path = _write(tmp_path / "gyro.csv", text)
     assert main(["estimate", str(path), "-o", str(tmp_path / "e.csv")]) == 2
-    assert capsys.readouterr().err == (
-        f"continuum-mhe: error: {path}: line 1: gyro columns (gx, gy, gz) but no "
-        "accelerometer columns (ax, ay, az; ax_1 ... for several IMUs): raw readings need "
-        "the accelerometer (m/s^2); the gyro is optional\n"
-    )
+    assert capsys.readouterr().err == f"continuum-mhe: error: {path}: line 1: {said}\n"
+    assert not (tmp_path / "e.csv").exists()
 
 
 def test_a_header_without_imu_columns_names_the_robots_columns(
