@@ -233,7 +233,7 @@ def test_the_errors_and_warnings_the_library_raises_are_public_names():
     from continuum_mhe.io.input_options import MountingError
 
     errors = ("UserError", "InputError", "SampleTimeError", "ReadingUnitsError", "MountingError",
-              "FieldError", "MissingExtraError")  # fmt: skip
+              "FieldError", "MissingExtraError", "TimesWrittenAsOneError")  # fmt: skip
     for name in errors:
         assert issubclass(getattr(continuum_mhe, name), continuum_mhe.UserError), name
         assert name in continuum_mhe.__all__

@@ -468,6 +468,22 @@ def test_gyro_rates_implausible_in_rad_s_are_an_error(
         ),
         ("t,Accel_X_2,wz", "Accel_X_2 -> ax_2, wz -> gz"),
         ("t,ax0,ay0,az0,ax1,ay1,az1", "ax0 -> ax_1, ay0 -> ay_1, az0 -> az_1, ..."),
+        # the IMU's number before the name (a logger's imu1_ax, MATLAB's imu1.ax)
+        (
+            "t,imu1_ax,imu1_ay,imu1_az,imu1_gx,imu1_gy,imu1_gz,imu2_ax,imu2_ay,imu2_az",
+            "imu1_ax -> ax_1, imu1_ay -> ay_1, imu1_az -> az_1, ...",
+        ),
+        ("t,IMU2.acc_x,imu1.gyro_z", "IMU2.acc_x -> ax_2, imu1.gyro_z -> gz_1"),
+        # a unit after the name, which is not read
+        (
+            "t,ax_1 [m/s^2],ay_1 [m/s^2],az_1 [m/s^2],ax_2 (m/s^2)",
+            "ax_1 [m/s^2] -> ax_1, ay_1 [m/s^2] -> ay_1, az_1 [m/s^2] -> az_1, ...",
+        ),
+        # tilt angles so named
+        (
+            "t,imu1_roll,imu1_pitch,imu2_roll,imu2_pitch",
+            "imu1_roll -> roll_1, imu1_pitch -> pitch_1, imu2_roll -> roll_2, ...",
+        ),
     ],
 )
 def test_a_logger_header_with_other_imu_names_is_told_the_names_to_use(
@@ -506,6 +522,25 @@ def test_a_logger_header_with_other_imu_names_is_told_the_names_to_use(
             [],
             "gyro_x_1 -> gx, gyro_y_1 -> gy, gyro_z_1 -> gz",
         ),
+        # a unit after the name (an export's gx_1_rad_s, gx_dps, gx_1 (rad/s))
+        (
+            "t,ax_1,ay_1,az_1,gx_1_rad_s,gy_1_rad_s,gz_1_rad_s,ax_2,ay_2,az_2,gx_2_rad_s,"
+            "gy_2_rad_s,gz_2_rad_s",
+            ["--robot", "two-section"],
+            "gx_1_rad_s -> gx_1, gy_1_rad_s -> gy_1, gz_1_rad_s -> gz_1, ...",
+        ),
+        ("t,ax,ay,az,gx_dps,gy_dps,gz_dps", [], "gx_dps -> gx, gy_dps -> gy, gz_dps -> gz"),
+        (
+            "t,ax,ay,az,gx (rad/s),gy (rad/s),gz (rad/s)",
+            [],
+            "gx (rad/s) -> gx, gy (rad/s) -> gy, gz (rad/s) -> gz",
+        ),
+        # the IMU's number before the name
+        (
+            "t,ax_1,ay_1,az_1,imu1_gx,imu1_gy,imu1_gz,ax_2,ay_2,az_2,imu2_gx,imu2_gy,imu2_gz",
+            ["--robot", "two-section"],
+            "imu1_gx -> gx_1, imu1_gy -> gy_1, imu1_gz -> gz_1, ...",
+        ),
     ],
 )
 def test_gyro_columns_named_otherwise_beside_the_accelerometer_are_not_left_out(
@@ -528,18 +563,33 @@ def test_gyro_columns_named_otherwise_beside_the_accelerometer_are_not_left_out(
     )
 
 
+@pytest.mark.parametrize(
+    ("text", "said"),
+    [
+        (
+            "t,gx,gy,gz\n0.0,0.0,0.0,0.0\n",
+            "gyro columns (gx, gy, gz) but no accelerometer columns (ax, ay, az; ax_1 ... for "
+            "several IMUs): raw readings need the accelerometer (m/s^2); the gyro is optional",
+        ),
+        (
+            "t,ax_mps2,ay_mps2,az_mps2,gx,gy,gz\n0,0,0,9.8,0,0,0\n",
+            "no accelerometer column is named as this reader takes IMU readings: raw columns "
+            "are t,ax,ay,az,gx,gy,gz for one IMU and ax_1 ... gz_1, ax_2 ... for several "
+            "(m/s^2, rad/s), tilt ones roll, pitch (roll_1, pitch_1 ...); rename the columns "
+            "(ax_mps2 -> ax, ay_mps2 -> ay, az_mps2 -> az)",
+        ),
+    ],
+)
 def test_a_header_with_gyro_columns_alone_asks_for_the_accelerometer(
-    tmp_path: Path, capsys: pytest.CaptureFixture
+    tmp_path: Path, capsys: pytest.CaptureFixture, text: str, said: str
 ) -> None:
     """Gyro columns without accelerometer ones: one line saying the accelerometer is
-    needed (not a rename of gx to gx)."""
-    path = _write(tmp_path / "gyro.csv", "t,gx,gy,gz\n0.0,0.0,0.0,0.0\n")
+    needed (not a rename of gx to gx); beside accelerometer columns with a unit in their
+    names (``ax_mps2``), the renames of those."""
+    path = _write(tmp_path / "gyro.csv", text)
     assert main(["estimate", str(path), "-o", str(tmp_path / "e.csv")]) == 2
-    assert capsys.readouterr().err == (
-        f"continuum-mhe: error: {path}: line 1: gyro columns (gx, gy, gz) but no "
-        "accelerometer columns (ax, ay, az; ax_1 ... for several IMUs): raw readings need "
-        "the accelerometer (m/s^2); the gyro is optional\n"
-    )
+    assert capsys.readouterr().err == f"continuum-mhe: error: {path}: line 1: {said}\n"
+    assert not (tmp_path / "e.csv").exists()
 
 
 def test_a_header_without_imu_columns_names_the_robots_columns(

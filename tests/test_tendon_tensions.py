@@ -346,6 +346,10 @@ def test_a_tensions_file_without_a_header_is_told_the_tensions_header(
         # a separator too many in the header, not a row too short
         ("t,,tension_1\n0,1.0\n0.1,1.5\n", "line 1: column 2 has no name (a separator too "
          "many?): expected the columns t,tension_1"),
+        # pandas' index before the columns, written without a name
+        (",t,tension_1\n0,0,1.0\n1,0.1,1.5\n", "line 1: column 1 has no name (an index, as "
+         "pandas writes one? remove it: to_csv(..., index=False)): expected the columns "
+         "t,tension_1"),
         # a column of another name beside all the tension columns: no IMU's readings,
         # so a tensions file's, not a recording's whose other columns are left out
         ("t,tension_1,foo\n0,1.0,2\n0.1,1.5,2\n", "line 1: foo not the robot's: expected "

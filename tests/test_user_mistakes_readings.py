@@ -51,12 +51,29 @@ def test_imu_columns_numbered_from_zero_are_named(tmp_path, capsys, header, row,
         ("time", "(the time in seconds is named t: rename 'time' to t)"),
         ("Time_ms", "(a time in milliseconds is named t_ms: rename 'Time_ms' to t_ms)"),
         ("timestamp_ms", "(a time in milliseconds is named t_ms: rename 'timestamp_ms' to t_ms)"),
+        # a unit after the name, as spreadsheets and MATLAB write it, is not read
+        ("Time (s)", "(a unit in a column's name is not read: rename 'Time (s)' to t)"),
+        ("t [ms]", "(a unit in a column's name is not read: rename 't [ms]' to t_ms)"),
+        # microseconds or nanoseconds, which no column name takes
+        (
+            "t_ns",
+            "('t_ns' is a time in microseconds or nanoseconds? give it in seconds, as t, or in "
+            "milliseconds, as t_ms)",
+        ),
+        # pandas' index, written without a name before the columns
+        (
+            "",
+            "(a column without a name, as pandas writes its index: the time in seconds is "
+            "named t; pandas' to_csv(..., index=False) leaves the index out)",
+        ),
     ],
 )
 def test_a_time_column_named_otherwise_is_told_its_name(tmp_path, capsys, time, hint) -> None:
     """A recording whose time column is named ``time`` (seconds) or ``time_ms``
-    (milliseconds) is refused in one line naming the column to rename it to, ``t`` or
-    ``t_ms``: renamed to ``t``, milliseconds would be read as seconds."""
+    (milliseconds), or with its unit (``Time (s)``, ``t [ms]``), is refused in one line
+    naming the column to rename it to, ``t`` or ``t_ms``: renamed to ``t``, milliseconds
+    would be read as seconds; one in nanoseconds is told to give seconds, and one whose
+    first column has no name (pandas' index) is told that the time is named ``t``."""
     meas = tmp_path / "m.csv"
     meas.write_text(f"{time},roll,pitch\n0,0.1,0.2\n50,0.1,0.2\n")
     assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv")]) == 2
@@ -64,6 +81,86 @@ def test_a_time_column_named_otherwise_is_told_its_name(tmp_path, capsys, time, 
     assert err.count("\n") == 1 and f"{meas}: line 1: missing column(s) t (" in err
     assert err.rstrip().endswith(hint), err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
+def test_a_t_beside_a_time_column_is_refused(tmp_path, capsys) -> None:
+    """A header with a ``time`` column and a ``T`` (a temperature, most often), which
+    reads as ``t``: one line naming both, nothing written (read, the temperature would
+    be the sample times)."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("time,roll,pitch,T\n0,0.1,0.2,25.0\n0.05,0.1,0.2,25.1\n0.1,0.1,0.2,25.2\n")
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv")]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {meas}: line 1: column 'T' is read as the time t, but the "
+        "header has 'time' too (and 'T' may be a temperature): name the time column t "
+        "(seconds) or t_ms (milliseconds), and the other otherwise\n"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
+@pytest.mark.parametrize(
+    ("second", "said"),
+    [
+        ("s,rad,rad", "line 2: column t: 's' is not a number (a row of units under the "
+         "header? remove it: each column's unit is fixed)"),
+        ("[s],[rad],[rad]", "line 2: column t: '[s]' is not a number (a row of units"),
+        ("2026-03-04T10:15:00.020,0.1,0.2", "line 2: column t: '2026-03-04T10:15:00....' is "
+         "not a number (a date and time: t is a number of seconds, such as since the start)"),
+        ("0,deg,0.2", "line 2: column roll: 'deg' is not a number (a row of units"),
+    ],
+)  # fmt: skip
+def test_a_units_row_or_a_date_is_told_what_it_is(tmp_path, capsys, second, said) -> None:
+    """A row of units under the header (as an export from a spreadsheet has), and a date
+    and time in ``t``: one line saying what the field looks like, nothing written."""
+    meas = tmp_path / "m.csv"
+    meas.write_text(f"t,roll,pitch\n{second}\n0.05,0.1,0.2\n0.1,0.1,0.2\n")
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"error: {meas}: {said}" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
+def test_a_time_that_starts_over_is_told_so(tmp_path, capsys) -> None:
+    """Two recordings joined (``t`` back at the file's first): the line of the step back
+    says the time starts over and to split the file there; a step back past a later
+    time (not the first) does not."""
+    meas = tmp_path / "m.csv"
+    for times, said in (
+        (
+            (0.0, 0.05, 0.1, 0.15, 0.0, 0.05),
+            "line 6: decreasing timestamp t=0 after t=0.15 on line 5 (t must strictly "
+            "increase); the file's first t is 0: two recordings joined, or a logger "
+            "restarted? split the file there",
+        ),
+        (
+            (0.0, 0.05, 0.1, 0.15, 0.2, 0.18),
+            "line 7: decreasing timestamp t=0.18 after t=0.2 on line 6 (t must strictly increase)",
+        ),
+    ):
+        rows = "".join(f"{t},0.1,0.2\n" for t in times)
+        meas.write_text(f"t,roll,pitch\n{rows}")
+        assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv")]) == 2
+        assert capsys.readouterr().err == f"continuum-mhe: error: {meas}: {said}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
+def test_a_time_in_nanoseconds_is_refused_naming_the_recording(tmp_path, capsys) -> None:
+    """``t`` in nanoseconds since 1970 read as seconds (steps of 2e7 s from 1.77e18 s,
+    which the estimate would write as one time): one line naming the recording, the
+    unit and the fix, not the estimate file's row; nothing written."""
+    meas = tmp_path / "m.csv"
+    t0 = 1_772_619_300_000_000_000
+    rows = "".join(f"{t0 + k * 20_000_000},0.1,0.2\n" for k in range(10))
+    meas.write_text(f"t,roll,pitch\n{rows}")
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {meas}: t advances by a median of 2e+07 s per sample; t is "
+        "read in seconds: if it is in milliseconds, name the column t_ms; if in "
+        "microseconds or nanoseconds, give seconds (t reaches 1.77261930002e+18 s, whose "
+        "steps the estimate cannot write apart); nothing written\n"
+    )
+    assert not out.exists()
 
 
 def test_an_empty_field_of_a_one_imu_file_is_a_dropout_as_with_several(tmp_path) -> None:

@@ -51,6 +51,7 @@ _EXPORTS: dict[str, str] = {
     "DropoutWarning": "continuum_mhe.io.csv_files",
     "UnitWarning": "continuum_mhe.io.csv_files",
     "TimeStepWarning": "continuum_mhe.io.csv_files",
+    "TimesWrittenAsOneError": "continuum_mhe.io.estimate_csv",
     "TopicClockWarning": "continuum_mhe.io.imu_topics",
     "TopicOrderWarning": "continuum_mhe.io.imu_topics",
     "MountingError": "continuum_mhe.io.input_options",
@@ -138,6 +139,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from continuum_mhe.evaluation.metrics import Metrics, TruthCoverageWarning, compute_metrics
     from continuum_mhe.extras import MissingExtraError
     from continuum_mhe.io.csv_files import DropoutWarning, TimeStepWarning, UnitWarning
+    from continuum_mhe.io.estimate_csv import TimesWrittenAsOneError
     from continuum_mhe.io.imu_topics import TopicClockWarning, TopicOrderWarning
     from continuum_mhe.io.input_options import MountingError, MountingWarning, OptionWarning
     from continuum_mhe.io.robot_file import RobotFileWarning

@@ -66,6 +66,7 @@ from continuum_mhe.estimators.run_notices import (
 )
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.io.csv_files import TimeStepWarning
+from continuum_mhe.io.estimate_csv import TimesWrittenAsOneError
 from continuum_mhe.io.input_options import robot_fix
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.progress import progress_bar
@@ -222,6 +223,15 @@ def run(args: argparse.Namespace) -> int:
         except TimeUnitError:  # its line names the unit that the warnings would
             held.drop()
             raise
+        except TimesWrittenAsOneError as exc:
+            if not held.held:  # times a hair apart, not in another unit: the writer's line
+                raise
+            said = held.held[0]  # the input's t steps like another unit, and says so
+            held.drop()
+            raise TimeUnitError(
+                f"{said} (t reaches {time_text(exc.t)} s, whose steps the estimate cannot "
+                "write apart); nothing written"
+            ) from None
 
 
 def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:

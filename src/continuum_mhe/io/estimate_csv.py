@@ -73,10 +73,19 @@ _APART_S = 1e-6
 TEN_DIGITS_S = 1e15
 
 
+class TimesWrittenAsOneError(UserError):
+    """Times that the estimate, truth or measurement file would write as one
+    (:func:`check_written_times`); ``t`` the later of the two, s."""
+
+    def __init__(self, message: str, t: float) -> None:
+        super().__init__(message)
+        self.t = t
+
+
 def check_written_times(
     path: str | os.PathLike[str], t: FloatArray, after: float | None = None, first_row: int = 1
 ) -> None:
-    """A :class:`UserError` naming ``path`` and the row (from 1) of the first time of
+    """A :class:`TimesWrittenAsOneError` naming ``path`` and the row (from 1) of the first time of
     ``t`` (s, finite, increasing) that :func:`format_time` writes as one not after the
     row before's (``after``: the time of the row written before ``t``'s first, by an
     earlier block; ``first_row``: the row of ``t``'s first time in the file): the file's
@@ -90,12 +99,13 @@ def check_written_times(
         a, b = format_time(float(prev[j])), format_time(float(cur[j]))
         if float(b) <= float(a):
             row = first_row + int(j) + (0 if after is not None else 1)
-            raise UserError(
+            raise TimesWrittenAsOneError(
                 f"{path}: row {row}: t = {time_text(float(cur[j]))} s is written {b}, not after "
                 f"the row before's {a} (t = {time_text(float(prev[j]))} s), and the file's "
                 "readers refuse a time that does not increase: times are written to the "
                 f"microsecond (ten significant digits from {TEN_DIGITS_S:g} s): leave out a "
-                "sample a microsecond or less after the one before, or give t in seconds"
+                "sample a microsecond or less after the one before, or give t in seconds",
+                float(cur[j]),
             )
 
 

@@ -528,29 +528,67 @@ def sample_kind(rows: TextRows) -> Literal["tilt", "raw"]:
     return "raw"
 
 
+#: An IMU number before a column's name, as loggers write it (``imu1_ax``, ``IMU_2.gx``).
+_IMU_PREFIX = r"(?:imu[_. -]?(?P<before>\d+)[_. -]?)?"
+#: A unit after a column's name, which the readers do not read (``ax_1 [m/s^2]``,
+#: ``gx_1 (deg/s)``, ``gx_1_rad_s``, ``gz_dps``, ``ax_mps2``).
+_UNIT_TAIL = (
+    r"(?P<unit>\s*[\[(][^\])]*[\])]"
+    r"|[_ ](?:rad_?s|rad_per_s|dps|deg_?s|deg_per_s|mps2|m_s2|m_s_2|ms2|rad|deg))?"
+)
 #: A header column that names an accelerometer or gyro axis in another spelling
-#: (``ax1``, ``acc_x``, ``accel_x_2``, ``gyro_z1``, ``wx``): its sensor, axis and IMU number.
+#: (``ax1``, ``acc_x``, ``accel_x_2``, ``gyro_z1``, ``wx``, ``imu1_ax``, ``gx_1_dps``): its
+#: sensor, axis and IMU number.
 _OTHER_RAW_NAME = re.compile(
-    r"^(?:(a|acc|accel|accelerometer)|(g|gyr|gyro|w|omega))[_. -]?([xyz])[_. -]?(\d*)$",
+    rf"^{_IMU_PREFIX}(?:(?P<acc>a|acc|accel|accelerometer)|(?P<gyro>g|gyr|gyro|w|omega))"
+    rf"[_. -]?(?P<axis>[xyz])(?:[_. -]?(?P<after>\d+))?{_UNIT_TAIL}$",
+    re.IGNORECASE,
+)
+#: A header column that names a tilt angle in another spelling (``imu1_roll``,
+#: ``roll_1 [rad]``, ``pitch1``): its angle and IMU number.
+_OTHER_TILT_NAME = re.compile(
+    rf"^{_IMU_PREFIX}(?P<angle>roll|pitch)(?:[_. -]?(?P<after>\d+))?{_UNIT_TAIL}$",
     re.IGNORECASE,
 )
 
 
-def _other_raw_renames(rows: TextRows) -> list[str]:
-    """``"ax1 -> ax_1"`` for each header column that names an accelerometer or gyro axis
-    otherwise than this reader takes (:data:`_OTHER_RAW_NAME`)."""
-    matches = [(h, m) for h in rows.header if (m := _OTHER_RAW_NAME.match(h))]
-    numbers = [int(m.group(4)) for _, m in matches if m.group(4)]
+def _imu_number(m: re.Match[str]) -> int | None:
+    """The IMU number a column's name gives (:data:`_OTHER_RAW_NAME`,
+    :data:`_OTHER_TILT_NAME`), before or after its axis; None without one."""
+    number = m.group("before") or m.group("after")
+    return int(number) if number else None
+
+
+def _renames(rows: TextRows, matches: Sequence[tuple[str, re.Match[str], str]]) -> list[str]:
+    """``"ax1 -> ax_1"`` for each ``(column, match, name)`` whose column is not named
+    ``name`` with its IMU's number (a file's numbers from 0 read from 1; one IMU
+    numbered 0 unnumbered)."""
+    numbers = [k for _, m, _ in matches if (k := _imu_number(m)) is not None]
     first = min(numbers, default=1)  # IMUs count from 1: a file's 0 is IMU 1
     several = len(set(numbers)) > 1
     renames = []
-    for h, m in matches:
-        name = ("a" if m.group(1) else "g") + m.group(3).lower()
-        if m.group(4) and (several or first != 0):
-            name += f"_{int(m.group(4)) + 1 - min(first, 1)}"
+    for h, m, name in matches:
+        k = _imu_number(m)
+        if k is not None and (several or first != 0):
+            name += f"_{k + 1 - min(first, 1)}"
         if name != h:
             renames.append(f"{rows.as_written(h)} -> {name}")
     return renames
+
+
+def _other_raw_renames(rows: TextRows) -> list[str]:
+    """``"ax1 -> ax_1"`` for each header column that names an accelerometer or gyro axis
+    (:data:`_OTHER_RAW_NAME`), or a tilt angle (:data:`_OTHER_TILT_NAME`), otherwise
+    than this reader takes."""
+    matches = [
+        (h, m, ("a" if m.group("acc") else "g") + m.group("axis").lower())
+        for h in rows.header
+        if (m := _OTHER_RAW_NAME.match(h))
+    ]
+    matches += [
+        (h, m, m.group("angle").lower()) for h in rows.header if (m := _OTHER_TILT_NAME.match(h))
+    ]
+    return _renames(rows, matches)
 
 
 def _other_gyro_renames(rows: TextRows, suffixes: Sequence[str]) -> list[str]:
@@ -562,14 +600,15 @@ def _other_gyro_renames(rows: TextRows, suffixes: Sequence[str]) -> list[str]:
     matches = [
         (h, m)
         for h in rows.header
-        if h not in wanted and (m := _OTHER_RAW_NAME.match(h)) and m.group(2)
+        if h not in wanted and (m := _OTHER_RAW_NAME.match(h)) and m.group("gyro")
     ]
-    numbers = [int(m.group(4)) for _, m in matches if m.group(4)]
+    numbers = [k for _, m in matches if (k := _imu_number(m)) is not None]
     shift = 1 if numbers and min(numbers) == 0 else 0
     renames = []
     for h, m in matches:
-        axis = "g" + m.group(3).lower()
-        number = int(m.group(4)) + shift if m.group(4) else 1
+        axis = "g" + m.group("axis").lower()
+        k = _imu_number(m)
+        number = k + shift if k is not None else 1
         name = axis if suffixes == [""] else f"{axis}_{number}"
         renames.append(f"{rows.as_written(h)} -> {name}")
     return renames
@@ -577,9 +616,10 @@ def _other_gyro_renames(rows: TextRows, suffixes: Sequence[str]) -> list[str]:
 
 def _refuse_other_raw_names(rows: TextRows) -> None:
     """A one-line error for a header with neither tilt nor raw columns but with columns
-    that name accelerometer or gyro axes otherwise (:data:`_OTHER_RAW_NAME`): the names
-    this reader takes, and what each such column would be called (``ax1`` -> ``ax_1``).
-    Any other header is left to the tilt reader's message."""
+    that name accelerometer or gyro axes or tilt angles otherwise (:data:`_OTHER_RAW_NAME`,
+    :data:`_OTHER_TILT_NAME`: another spelling, an IMU number before the name, a unit
+    after it): the names this reader takes, and what each such column would be called
+    (``ax1`` -> ``ax_1``). Any other header is left to the tilt reader's message."""
     renames = _other_raw_renames(rows)
     gyros = [h for h in rows.header if h in GYRO_COLUMNS or RAW_IMU_COLUMNS.number(h)[0]]
     if not renames and gyros:
@@ -591,8 +631,9 @@ def _refuse_other_raw_names(rows: TextRows) -> None:
     if not renames:
         return
     shown = ", ".join(renames[:3]) + (", ..." if len(renames) > 3 else "")
+    which = "accelerometer column" if gyros else "column"  # the gyros' are named so
     raise InputError(
-        f"{rows.name}: line 1: no column is named as this reader takes IMU readings: raw "
+        f"{rows.name}: line 1: no {which} is named as this reader takes IMU readings: raw "
         "columns are t,ax,ay,az,gx,gy,gz for one IMU and ax_1 ... gz_1, ax_2 ... for "
         f"several (m/s^2, rad/s), tilt ones roll, pitch (roll_1, pitch_1 ...); rename the "
         f"columns ({shown})"

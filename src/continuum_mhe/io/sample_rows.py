@@ -323,6 +323,7 @@ class _SampleChecks:
         #: ``skip_bad`` a time that jumped ahead alone is dropped, not every row after it
         self.retract: Callable[[int], bool] | None = None
         self.last_t = -math.inf
+        self.first_t = math.nan  # the first sample's time
         #: a ``t_ms`` column's ``millis()`` wraps seen (2^32 ms each), unwrapped as
         #: ``live`` unwraps them: a plain capture of the serial line across a wrap
         self.wraps = 0
@@ -407,6 +408,11 @@ class _SampleChecks:
                         f"(t={time_text(self.before_last_t)} before it): is it the wrong "
                         "one? every later row before its t is refused too"
                     )
+                elif t < self.last_t and t <= self.first_t:
+                    msg += (
+                        f"; the file's first t is {time_text(self.first_t)}: two recordings "
+                        "joined, or a logger restarted? split the file there"
+                    )
                 if len(row) < width:  # a torn row: its t may be a piece of another
                     msg += f"; the row has {len(row)} of the header's {width} fields (truncated?)"
                 bad(line, msg, dropped=True)
@@ -445,6 +451,8 @@ class _SampleChecks:
                         v = math.nan  # with --skip-bad: a dropout, as the message says
                 vals.append(v)
             self.before_last_t, self.last_t, self.last_line = self.last_t, t, line
+            if self.n_out == 0:
+                self.first_t = t
             self.n_out += 1
             if line == self.table.cut.line:  # read as written: its last value may be cut short
                 warn_cut_line(self.table.name, line)
@@ -547,6 +555,8 @@ class _SampleChecks:
             return None
         self.before_last_t = float(t[-2]) if len(t) > 1 else self.last_t
         self.last_t, self.last_line = float(t[-1]), int(numbers[-1])
+        if self.n_out == 0:
+            self.first_t = float(t[0])
         self.n_rows += len(t)
         self.n_out += len(t)
         return SampleBlock(list(numbers), t, np.ascontiguousarray(values[:, 1:]))

@@ -742,6 +742,17 @@ def holds_imu_readings(header: Sequence[str]) -> bool:
     )
 
 
+def _unnamed_hint(unnamed: Sequence[str], more: bool) -> str:
+    """What a tensions header's columns without a name (``unnamed``, numbered from 1)
+    may be, where it has ``more`` columns than a tensions file: the first alone, an
+    index as pandas writes one; else a separator too many."""
+    if not more:
+        return ""
+    if list(unnamed) == ["1"]:
+        return " (an index, as pandas writes one? remove it: to_csv(..., index=False))"
+    return " (a separator too many?)"
+
+
 def read_tensions(
     path: str | os.PathLike[str],
     n_tendons: int,
@@ -789,7 +800,7 @@ def read_tensions(
                     f"{', '.join(extra)} not the robot's" if extra else "",
                     f"column{'s' if len(unnamed) > 1 else ''} {', '.join(unnamed)} "
                     f"{'have' if len(unnamed) > 1 else 'has'} no name"
-                    f"{' (a separator too many?)' if len(header) > len(names) + 1 else ''}"
+                    f"{_unnamed_hint(unnamed, len(header) > len(names) + 1)}"
                     if unnamed
                     else "",
                 )

@@ -447,6 +447,21 @@ def _check_names(name: str, line: int, header: list[str], written: list[str]) ->
         seen[h] = w
 
 
+def _check_upper_t(name: str, line: int, header: list[str], written: list[str]) -> None:
+    """One line for a header whose ``t`` is written ``T`` beside a column named as a
+    time (``time``, ``timestamp``, ``time_ms``...): ``T`` is often a temperature, and the
+    time would be read from it."""
+    if "t" not in header or written[header.index("t")] != "T":
+        return
+    times = [w for h, w in zip(header, written) if h != "t" and _time_name(h) is not None]
+    if times:
+        raise InputError(
+            f"{name}: line {line}: column 'T' is read as the time t, but the header has "
+            f"{times[0]!r} too (and 'T' may be a temperature): name the time column t "
+            "(seconds) or t_ms (milliseconds), and the other otherwise"
+        )
+
+
 #: the header a measurement file starts with, as the errors suggest it
 MEASUREMENT_HEADER_HINT = "t,roll,pitch (or t_ms,ax,ay,az,gx,gy,gz)"
 
@@ -503,6 +518,7 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
         if "t" not in header and "t_ms" in header:
             header[header.index("t_ms")] = "t"
             scale = 1e-3
+        _check_upper_t(name, n0, header, written)
         rows = _data_rows(name, lines, pending, sep, cut, tuple(header))
     except BaseException:
         fh.close()
@@ -564,6 +580,89 @@ MS_TIME_LIKE_NAMES = frozenset(
 )
 
 
+#: header names of a time column in microseconds or nanoseconds, which the files here
+#: give in seconds (``t``) or milliseconds (``t_ms``)
+FINE_TIME_LIKE_NAMES = frozenset(
+    {
+        "t_us", "t_ns", "time_us", "time_ns", "timestamp_us", "timestamp_ns", "stamp_us",
+        "stamp_ns", "us", "ns", "micros", "nanos", "time_micros", "time_nanos",
+    }
+)  # fmt: skip
+
+#: the units a time column's name may carry, by the column this reader names it
+_SECOND_UNITS = frozenset({"", "s", "sec", "secs", "second", "seconds"})
+_MILLISECOND_UNITS = frozenset({"ms", "msec", "millisecond", "milliseconds"})
+
+#: a unit in parentheses or brackets after a column's name (``x [m]``, ``Time (s)``)
+_NAME_AND_UNIT = re.compile(r"(.+?)\s*[\[(]\s*([^\])]*?)\s*[\])]")
+
+
+def name_and_unit(column: str) -> tuple[str, str]:
+    """``("x", "m")`` for a header column ``x [m]`` or ``x (m)``; ``(column, "")`` for
+    one without a unit in parentheses or brackets."""
+    m = _NAME_AND_UNIT.fullmatch(column)
+    return (m.group(1), m.group(2).lower()) if m else (column, "")
+
+
+def _time_name(column: str) -> str | None:
+    """The name this package gives a header's time column (``time``, ``Time (s)``,
+    ``t [ms]``): ``t`` (seconds) or ``t_ms`` (milliseconds); ``""`` for one in
+    microseconds or nanoseconds (neither); None for a column not named as a time."""
+    base, unit = name_and_unit(column.lower())
+    if base in FINE_TIME_LIKE_NAMES:
+        return ""
+    if base in MS_TIME_LIKE_NAMES or base == "t_ms":
+        return "t_ms" if unit in _SECOND_UNITS | _MILLISECOND_UNITS else None
+    if base == "t" or base in TIME_LIKE_NAMES:
+        if unit in _MILLISECOND_UNITS:
+            return "t_ms"
+        if unit in _SECOND_UNITS:
+            return "t"
+        return "" if unit in ("us", "\u00b5s", "ns", "usec", "nsec") else None
+    return None
+
+
+def _unit_renames(rows: TextRows, missing: Sequence[str]) -> list[str]:
+    """``'x [m]' to x`` for each header column that is a ``missing`` column (or the
+    time) with a unit in parentheses or brackets after its name, which is not read."""
+    renames = []
+    for column in rows.header:
+        base, unit = name_and_unit(column)
+        if not unit:
+            continue
+        name = _time_name(column) if "t" in missing else None
+        if name is None and base in missing:
+            name = base
+        if name:
+            renames.append(f"{rows.as_written(column)!r} to {name}")
+    return renames
+
+
+def _time_hint(rows: TextRows) -> str:
+    """What a header without ``t`` is told of its time column: the name to give a column
+    named otherwise (``time``: ``t``; ``time_ms``: ``t_ms``), that microseconds or
+    nanoseconds are to be given in seconds, or that an unnamed column (an index, as
+    pandas writes one) is no time; ``""`` where it has none of these."""
+    for column in rows.header:
+        name = _time_name(column)
+        shown = rows.as_written(column)
+        if name == "t":
+            return f" (the time in seconds is named t: rename {shown!r} to t)"
+        if name == "t_ms":
+            return f" (a time in milliseconds is named t_ms: rename {shown!r} to t_ms)"
+        if name == "":
+            return (
+                f" ({shown!r} is a time in microseconds or nanoseconds? give it in seconds, "
+                "as t, or in milliseconds, as t_ms)"
+            )
+    if rows.header and rows.header[0] == "":
+        return (
+            " (a column without a name, as pandas writes its index: the time in seconds "
+            "is named t; pandas' to_csv(..., index=False) leaves the index out)"
+        )
+    return ""
+
+
 #: the columns that IMU readings have (tilt or raw, first IMU or only one)
 _READING_COLUMNS = frozenset({"roll", "pitch", "ax", "roll_1", "pitch_1", "ax_1"})
 
@@ -603,24 +702,28 @@ def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
                 f" (one column: the separator must be {', '.join(map(repr, SEPARATORS))}; "
                 f"read as {_SEPARATOR_NAMES[rows.separator]})"
             )
+        elif not hint and (renames := _unit_renames(rows, missing)):
+            shown = ", ".join(renames[:3]) + (", ..." if len(renames) > 3 else "")
+            hint = f" (a unit in a column's name is not read: rename {shown})"
         elif not hint and "t" in missing:
-            named = [c for c in rows.header if c.lower() in TIME_LIKE_NAMES]
-            in_ms = [c for c in rows.header if c.lower() in MS_TIME_LIKE_NAMES]
-            if named:
-                hint = (
-                    f" (the time in seconds is named t: rename {rows.as_written(named[0])!r} to t)"
-                )
-            elif in_ms:
-                hint = (
-                    " (a time in milliseconds is named t_ms: rename "
-                    f"{rows.as_written(in_ms[0])!r} to t_ms)"
-                )
+            hint = _time_hint(rows)
         shown = ", ".join(missing)
         if len(missing) > MISSING_SHOWN:
             shown = f"{', '.join(missing[:MISSING_SHOWN])} and {len(missing) - MISSING_SHOWN} more"
         raise InputError(f"{rows.name}: line 1: missing column(s) {shown} "
                          f"(header has: {has}){hint}")  # fmt: skip
     return [rows.header.index(c) for c in required]
+
+
+#: A field that is a unit, as a row of units under a header holds them (``s``,
+#: ``m/s^2``, ``[rad/s]``, ``deg``, ``N``).
+_UNIT_TEXT = re.compile(
+    r"[\[(]?\s*(?:s|sec|ms|us|\u00b5s|ns|m|mm|cm|rad|deg|\u00b0|n|mn|g|mg|m/s\^?2|m/s\u00b2"
+    r"|m/s/s|rad/s|deg/s|\u00b0/s|dps|mps2|c|\u00b0c|degc)\s*[\])]?",
+    re.IGNORECASE,
+)
+#: A date and time, or a time of day (``2026-03-04T10:15:00.020``, ``10:15:00``).
+_DATE_TIME = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{1,2}:\d{2}|\d{1,2}:\d{2}:\d{2}")
 
 
 def parse_float(name: str, line: int, column: str, text: str) -> float:
@@ -635,6 +738,11 @@ def parse_float(name: str, line: int, column: str, text: str) -> float:
             hint = " (a decimal comma? use a point, e.g. 0.5)"
         elif column in ("t", "t_ms") and text.strip().strip('"').lower() == column:
             hint = " (the header again: two files joined?)"
+        elif _UNIT_TEXT.fullmatch(text.strip().strip('"')):
+            hint = " (a row of units under the header? remove it: each column's unit is fixed)"
+        elif column in ("t", "t_ms") and _DATE_TIME.match(text.strip().strip('"')):
+            unit = "seconds" if column == "t" else "milliseconds"
+            hint = f" (a date and time: {column} is a number of {unit}, such as since the start)"
         raise NotANumberError(
             name, line, f"column {column}: {shown!r} is not a number{hint}"
         ) from None
