@@ -1165,3 +1165,26 @@ def test_madgwick_without_calibrated_gyro_biases_is_refused(
     assert main(["evaluate", str(out), str(truth), "--robot", str(cal), "--json"]) == 0
     ok = json.loads(capsys.readouterr().out)["calibration_ok"]
     assert ok["tip_far_of"] > 590 and ok["tip_far"] == 0, ok  # measured: 0 of 600
+
+
+def test_a_raw_table_without_gyros_says_its_tilt_comes_from_the_accelerometers(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A raw table whose gyro columns are not there is estimated from its
+    accelerometers alone, as the docs say, and the run says so in a note (it said
+    nothing of the gyros it did without); the same table with its gyros says nothing."""
+    rod = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    lines = (rod / "planar-s_raw.csv").read_text().splitlines()[:120]
+    header = lines[0].split(",")
+    keep = [i for i, c in enumerate(header) if not c.startswith("g")]
+    without = tmp_path / "accel.csv"
+    without.write_text("\n".join(",".join(ln.split(",")[i] for i in keep) for ln in lines) + "\n")
+    full = tmp_path / "full.csv"
+    full.write_text("\n".join(lines) + "\n")
+    for source, said in ((without, True), (full, False)):
+        code = main(["estimate", str(source), "--robot", "two-section", "--method", "ekf",
+                     "-o", str(tmp_path / f"{source.stem}.est.csv")])  # fmt: skip
+        err = capsys.readouterr().err
+        assert code == 0, err
+        assert ("note: no gyro columns (gx_i, gy_i, gz_i): each IMU's tilt from its "
+                "accelerometer alone" in err) is said, err  # fmt: skip

@@ -766,10 +766,13 @@ def _table_stream(
     kind: InputKind
     finish: Callable[[], None] | None = None  # what to say once every sample is read
     mounting_hint: Callable[[], str | None] | None = None  # what a mounting refusal adds
+    notes: tuple[str, ...] = ()
     if sample_kind(rows) == "raw":
         kind = "raw-csv"
         cols, has_gyro = raw_layout(rows, n_imus, fix)
         options, f = resolve(name, kind, has_gyro, options, base)
+        if not has_gyro:
+            notes = (NO_GYRO_NOTE,)
         convs = imu_converters(options.raw, base.robot)
 
         read = [0]  # the blocks read so far
@@ -826,10 +829,19 @@ def _table_stream(
     readings = _readings(f)
     description = InputDescription(
         name, kind, tuple(cols), _table_units(rows, kind, options), _imu_model(f),
-        problems=problems, readings=readings,
+        problems=problems, readings=readings, notes=notes,
     )  # fmt: skip
     samples = _chunked(rows, found, convert, readings, f, finish, robot_name, mounting_hint, python)
     return MeasurementStream(description, f, samples, 0, rows)
+
+
+#: What a run of a raw table without gyro columns says (a note, not a warning: the
+#: accelerometers alone are a valid input).
+NO_GYRO_NOTE = (
+    "no gyro columns (gx_i, gy_i, gz_i): each IMU's tilt from its accelerometer alone; "
+    "with a gyro's rates too the estimate takes the direct model, the better one where "
+    "the robot moves (docs: options)"
+)
 
 
 def _imu_model(formulation: Formulation) -> str:
