@@ -1171,8 +1171,8 @@ def test_a_raw_table_without_gyros_says_its_tilt_comes_from_the_accelerometers(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A raw table whose gyro columns are not there is estimated from its
-    accelerometers alone, as the docs say, and the run says so in a note (it said
-    nothing of the gyros it did without); the same table with its gyros says nothing."""
+    accelerometers alone, as the docs say, and the run says so in a note; the same
+    table with its gyros has no such note."""
     rod = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
     lines = (rod / "planar-s_raw.csv").read_text().splitlines()[:120]
     header = lines[0].split(",")
