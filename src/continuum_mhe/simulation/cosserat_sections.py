@@ -11,7 +11,11 @@ section is driven by its own "tendon", modelled as a point couple at the section
 of every end beyond its base, carries the moment ``M_k`` (:func:`section_moments`).
 The moments are the shipped rod's: the tip section's is its section 2's, every other
 section's its section 1's, each times its role's length (:data:`ROLE_LENGTHS`) over the
-section's, so that a section of any length bends about as far. Scenarios:
+section's, so that a section of any length bends about as far; on more than two
+sections each times ``2 / n`` besides, so that the ``n`` bends add up to about the
+shipped rod's two (four sections each bent as far as the shipped rod's curl it past a
+full turn, where the ``tendon`` drive's rod folded up and its simulation blew up).
+Scenarios:
 
 * ``planar-s``: every moment about base x, the sections in turn the opposite senses:
   on two sections, section 1 bends one way, section 2 the other (an S-curve in the y-z
@@ -19,7 +23,8 @@ section's, so that a section of any length bends about as far. Scenarios:
 * ``spatial``: the moments' axes turn about base z at different rates (bending planes
   turning at different rates: the tip section's at ``-2 pi / 5`` rad/s, every other's
   at ``2 pi / 9`` rad/s, section ``k``'s from ``k - 1`` rad further on), large enough
-  for bends over 90 degrees per section.
+  for bends over 90 degrees per section on one or two sections (about 240 degrees in
+  all on more).
 
 Two drives (``SectionRodSettings.drive``):
 
@@ -469,7 +474,8 @@ def section_moments(scenario: str, t: float, m: float, s: SectionRodSettings) ->
     in the base frame for the ``base`` drive, in the frame of the section's end element
     for ``tendon``, ``M_k = g_k m_k e(alpha_k)`` with ``e(alpha) = (cos alpha, sin alpha,
     0)`` and ``m_k`` the pull scaled to the section's length (``m`` times its role's
-    :data:`ROLE_LENGTHS` over its length).
+    :data:`ROLE_LENGTHS` over its length, and times ``2 / n`` on ``n > 2`` sections: the
+    bends add up to about the shipped rod's).
 
     ``planar-s``: the sections bend the opposite ways in turn (an S on two): ``+-m_k``
     about base x for ``base``, ``alpha_k = 0`` and ``pi`` in turn for ``tendon``.
@@ -481,6 +487,8 @@ def section_moments(scenario: str, t: float, m: float, s: SectionRodSettings) ->
     for k, length in enumerate(s.lengths):
         role = _tip_role(k, n)
         mk = m * (ROLE_LENGTHS[role] / length)
+        if n > 2:  # the bends add up to about the shipped rod's (not a loop)
+            mk *= 2.0 / n
         if scenario == "planar-s" and s.drive == "base":
             out.append(np.array([-mk if k % 2 else mk, 0.0, 0.0]))
             continue
