@@ -10,12 +10,12 @@ section is driven by its own "tendon", modelled as a point couple at the section
 ``M_k - M_{k+1}`` (the tip ``M_n``), so that section ``k``, which carries the couples
 of every end beyond its base, carries the moment ``M_k`` (:func:`section_moments`).
 The moments are the shipped rod's: the tip section's is its section 2's, every other
-section's its section 1's, each times its role's length (:data:`ROLE_LENGTHS`) over the
-section's, so that a section of any length bends about as far; on more than two
-sections each times ``2 / n`` besides, so that the ``n`` bends add up to about the
-shipped rod's two (four sections each bent as far as the shipped rod's curl it past a
-full turn, where the ``tendon`` drive's rod folded up and its simulation blew up).
-Scenarios:
+section's its section 1's; a section longer than its role's (:data:`ROLE_LENGTHS`)
+gets it times the role's length over its own, so that it bends as far, and a shorter
+one bends less (no section curves more than the shipped rod's); on ``n > 2`` sections
+each is ``1 / (n - 1)`` of that besides (:func:`bend_share`). Rods curved or curled
+further went unstable (a shear of their elements growing without bound, at any
+integration step). Scenarios:
 
 * ``planar-s``: every moment about base x, the sections in turn the opposite senses:
   on two sections, section 1 bends one way, section 2 the other (an S-curve in the y-z
@@ -23,8 +23,8 @@ Scenarios:
 * ``spatial``: the moments' axes turn about base z at different rates (bending planes
   turning at different rates: the tip section's at ``-2 pi / 5`` rad/s, every other's
   at ``2 pi / 9`` rad/s, section ``k``'s from ``k - 1`` rad further on), large enough
-  for bends over 90 degrees per section on one or two sections (about 240 degrees in
-  all on more).
+  for bends over 90 degrees per section on one or two sections (on more, ``1 / (n -
+  1)`` of that).
 
 Two drives (``SectionRodSettings.drive``):
 
@@ -162,8 +162,9 @@ MAX_SHEAR_RATIO = 100.0
 
 #: The shipped rod's section lengths, m (``two-section``'s; :class:`SectionRodSettings`'
 #: default): every section's but the tip section's role, and the tip section's. A
-#: section of another length gets its role's moment times the role's length over its
-#: own, so that it bends about as far (:func:`section_moments`).
+#: section longer than its role's gets its role's moment times the role's length over
+#: its own, so that it bends as far and no further; a shorter one its role's moment
+#: (:func:`section_moments`).
 ROLE_LENGTHS = (0.16, 0.14)
 #: The fewest elements of a section (:func:`rod_layout`): five nodes along its arc.
 MIN_SECTION_ELEMENTS = 4
@@ -385,8 +386,10 @@ def rod_layout(settings: SectionRodSettings) -> RodLayout:
     shipped rod's (:data:`ROLE_LENGTHS`; at least :data:`MIN_SECTION_ELEMENTS`), or the
     next count up to :data:`MAX_ELEMENT_FACTOR` times that which puts each of its IMUs
     on a node (an IMU at disk ``d`` of ``D``, ``at = d / D``, on a multiple of
-    ``D / gcd(d, D)`` elements). A :class:`~continuum_mhe.errors.UserError` names the
-    IMUs that lie between the nodes of every such count."""
+    ``D / gcd(d, D)`` elements). No element bends further than the shipped rod's (a
+    section's curvature is at most its role's there: :func:`section_moments`). A
+    :class:`~continuum_mhe.errors.UserError` names the IMUs that lie between the nodes
+    of every such count."""
     s = settings
     total, shipped = sum(s.lengths), sum(ROLE_LENGTHS)
     places = s.places
@@ -473,9 +476,9 @@ def section_moments(scenario: str, t: float, m: float, s: SectionRodSettings) ->
     """The moment ``M_k`` (N m) each section carries at ``t`` at the pull ``m`` (N m):
     in the base frame for the ``base`` drive, in the frame of the section's end element
     for ``tendon``, ``M_k = g_k m_k e(alpha_k)`` with ``e(alpha) = (cos alpha, sin alpha,
-    0)`` and ``m_k`` the pull scaled to the section's length (``m`` times its role's
-    :data:`ROLE_LENGTHS` over its length, and times ``2 / n`` on ``n > 2`` sections: the
-    bends add up to about the shipped rod's).
+    0)`` and ``m_k`` the pull ``m`` times its role's :data:`ROLE_LENGTHS` over its
+    length where that is under 1 (a section no more curved than its role's), and times
+    :func:`bend_share` of the number of sections.
 
     ``planar-s``: the sections bend the opposite ways in turn (an S on two): ``+-m_k``
     about base x for ``base``, ``alpha_k = 0`` and ``pi`` in turn for ``tendon``.
@@ -486,9 +489,9 @@ def section_moments(scenario: str, t: float, m: float, s: SectionRodSettings) ->
     out = []
     for k, length in enumerate(s.lengths):
         role = _tip_role(k, n)
-        mk = m * (ROLE_LENGTHS[role] / length)
-        if n > 2:  # the bends add up to about the shipped rod's (not a loop)
-            mk *= 2.0 / n
+        mk = m * min(1.0, ROLE_LENGTHS[role] / length)
+        if n > 2:
+            mk *= bend_share(n)
         if scenario == "planar-s" and s.drive == "base":
             out.append(np.array([-mk if k % 2 else mk, 0.0, 0.0]))
             continue
@@ -499,6 +502,17 @@ def section_moments(scenario: str, t: float, m: float, s: SectionRodSettings) ->
         gain = s.tendon_gain[role] if s.drive == "tendon" else 1.3
         out.append(gain * mk * np.array([math.cos(a), math.sin(a), 0.0]))
     return out
+
+
+def bend_share(n_sections: int) -> float:
+    """The share of its role's moment each of ``n_sections`` sections gets
+    (:func:`section_moments`): 1 on one or two sections, ``1 / (n - 1)`` on more (their
+    bends add up to at most ``n / (n - 1)`` of one section's). On ``spatial``, three
+    sections bent by ``2 / 3`` of it and four by ``1 / 2`` curled the rod so far that a
+    shear of its elements grew without bound within 9 s (at any step, and on elements
+    half as long), with either drive; so did two sections of 0.1 m each bent as far as
+    the shipped rod's (curved 1.6 times as much)."""
+    return 1.0 if n_sections <= 2 else 1.0 / (n_sections - 1)
 
 
 def _bend_lever(lengths: Sequence[float]) -> float:
