@@ -13,9 +13,11 @@ The moments are the shipped rod's: the tip section's is its section 2's, every o
 section's its section 1's; a section longer than its role's (:data:`ROLE_LENGTHS`)
 gets it times the role's length over its own, so that it bends as far, and a shorter
 one bends less (no section curves more than the shipped rod's); on ``n > 2`` sections
-each is ``1 / (n - 1)`` of that besides (:func:`bend_share`). Rods curved or curled
-further went unstable (a shear of their elements growing without bound, at any
-integration step). Scenarios:
+each is ``1 / (n - 1)`` of that besides (:func:`bend_share`); a rod shorter than the
+shipped one is damped more (:func:`robot_damping`). Rods curved, curled or damped less
+went unstable (a shear of their elements growing without bound, at any integration
+step: the couples, fixed in the base frame or following the elements, do not derive
+from a potential). Scenarios:
 
 * ``planar-s``: every moment about base x, the sections in turn the opposite senses:
   on two sections, section 1 bends one way, section 2 the other (an S-curve in the y-z
@@ -301,13 +303,28 @@ class SectionRodSettings:
 
 def rod_settings(robot: Robot, base: SectionRodSettings | None = None) -> SectionRodSettings:
     """``base`` (the default rod's settings if not given) with ``robot``'s sections and
-    IMUs: its sections' lengths and its IMUs' places (:func:`check_section_robot` says
-    whether the generator writes it)."""
+    IMUs: its sections' lengths, its IMUs' places, and a rod shorter than the shipped
+    rod's 0.3 m damped more, by the square of their ratio (:func:`robot_damping`;
+    :func:`check_section_robot` says whether the generator writes it)."""
+    s = base or SectionRodSettings()
     return replace(
-        base or SectionRodSettings(),
+        s,
         lengths=robot.lengths,
         imu_places=tuple((imu.section, imu.at) for imu in robot.imus),
+        damping=robot_damping(s.damping, robot.lengths),
     )
+
+
+def robot_damping(damping: float, lengths: Sequence[float]) -> float:
+    """The damping constant (1/s) of a rod of ``lengths`` for the shipped rod's
+    ``damping``: the same where the rod is at least as long as the shipped rod
+    (:data:`ROLE_LENGTHS`), else times the square of the shipped rod's length over its
+    own, as its bending modes' frequencies rise, so that its slowest mode is damped as
+    the shipped rod's is. Two sections of 0.1 m, each as curved as the shipped rod's,
+    went unstable on ``spatial`` with the base-frame couples at 9.2 s under 4/s (a shear
+    of the elements growing, at any step), and ran under 8/s."""
+    ratio = sum(ROLE_LENGTHS) / sum(lengths)
+    return damping * max(1.0, ratio * ratio)
 
 
 def check_section_robot(robot: Robot) -> None:
