@@ -25,8 +25,7 @@ from a potential). Scenarios:
 * ``spatial``: the moments' axes turn about base z at different rates (bending planes
   turning at different rates: the tip section's at ``-2 pi / 5`` rad/s, every other's
   at ``2 pi / 9`` rad/s, section ``k``'s from ``k - 1`` rad further on), large enough
-  for bends over 90 degrees per section on one or two sections (on more, ``1 / (n -
-  1)`` of that).
+  for bends over 90 degrees per section on the shipped rod.
 
 Two drives (``SectionRodSettings.drive``):
 
@@ -254,10 +253,11 @@ class SectionRodSettings:
         radius: m; youngs_modulus: Pa; shear_ratio: G / E (1/3 or 5); density: kg/m^3.
         imu_mass: each IMU board, kg.
         n_elements: Cosserat elements of the shipped rod's 0.3 m; any rod's sections
-            get elements of about its length, 1 cm by default (:func:`rod_layout`).
+            get elements about as long, 1 cm by default (:func:`rod_layout`).
         damping: uniform linear damping constant, 1/s; sim_dt: integration step, s.
-        max_moment: each section's largest couple, N m, on a section of its role's
-            length (:data:`ROLE_LENGTHS`; :func:`section_moments`).
+        max_moment: each section's largest couple, N m (less on a section longer
+            than its role's, :data:`ROLE_LENGTHS`, and on more than two sections:
+            :func:`section_moments`).
         period: one pull-hold-release-rest cycle, s.
         drive: ``"base"`` (couples fixed in the base frame) or ``"tendon"`` (each
             couple fixed in the frame of the element it acts on); see the module.
@@ -528,7 +528,8 @@ def bend_share(n_sections: int) -> float:
     sections bent by ``2 / 3`` of it and four by ``1 / 2`` curled the rod so far that a
     shear of its elements grew without bound within 9 s (at any step, and on elements
     half as long), with either drive; so did two sections of 0.1 m each bent as far as
-    the shipped rod's (curved 1.6 times as much)."""
+    the shipped rod's, curved 1.6 times as much (why a section shorter than its role's
+    keeps its role's moment and bends less)."""
     return 1.0 if n_sections <= 2 else 1.0 / (n_sections - 1)
 
 
