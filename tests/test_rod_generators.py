@@ -695,7 +695,7 @@ options:
   --scenario {planar-s,spatial}
                         the couples' motion: planar-s (in one plane, the sections bent the
                         opposite ways in turn: an S on two) or spatial (bending planes turning;
-                        bends past 90 degrees) (default planar-s)
+                        bends past 90 degrees on the default rod) (default planar-s)
   --name NAME           file name prefix (default: the scenario)
   --robot ROBOT         a robot file (or shipped name) whose sections and IMUs to simulate:
                         standing on its base, its IMUs at section ends or on disks, no [backbone]

@@ -152,7 +152,7 @@ def _sections_arguments(p: argparse.ArgumentParser) -> None:
         default="planar-s",
         help="the couples' motion: planar-s (in one plane, the sections bent the opposite "
         "ways in turn: an S on two) or spatial (bending planes turning; bends past 90 "
-        "degrees) (default planar-s)",
+        "degrees on the default rod) (default planar-s)",
     )
     p.add_argument("--name", help="file name prefix (default: the scenario)")
     p.add_argument(
