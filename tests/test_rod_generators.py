@@ -84,6 +84,52 @@ def test_tendon_couples_are_follower_couples_with_the_section_moments() -> None:
         SectionRodSettings(drive="cable")
 
 
+@pytest.mark.parametrize("lengths", [(0.25,), (0.16, 0.14), (0.12, 0.1, 0.055), (0.1,) * 4])
+def test_each_section_carries_its_moment_and_bends_no_further_than_on_the_shipped_rod(
+    lengths: tuple[float, ...],
+) -> None:
+    """On one to four sections, both drives and both motions: section ``k`` carries the
+    couples of every end beyond its base, and they add up to its moment ``M_k``; a
+    section's moment times its length (its bend) is its role's on the shipped rod (the
+    tip section's as section 2's, every other's as section 1's) where it is longer, and
+    as curved where it is shorter, times ``1 / (n - 1)`` past two sections;
+    ``planar-s`` bends the sections the opposite ways in turn, about base x. The bend
+    recording's couples (one per end) turn the tip as far as on the shipped rod; a rod
+    shorter than the shipped one is damped more."""
+    from continuum_mhe.simulation.cosserat_sections import (
+        BEND,
+        ROLE_LENGTHS,
+        robot_damping,
+        section_moments,
+    )
+
+    n = len(lengths)
+    t = 2.4  # the hold: full pull
+    for drive in ("base", "tendon"):
+        s = SectionRodSettings(lengths=lengths, drive=drive)
+        shipped = SectionRodSettings(drive=drive)
+        for scenario in ("planar-s", "spatial"):
+            moments = section_moments(scenario, t, s.max_moment, s)
+            ref = section_moments(scenario, t, s.max_moment, shipped)
+            cs = couples(scenario, t, s)
+            assert len(cs) == len(moments) == n
+            for k in range(n):
+                assert_allclose(np.sum(cs[k:], axis=0), moments[k], atol=1e-15)
+                role = 1 if k == n - 1 else 0
+                bend = np.linalg.norm(moments[k]) * lengths[k]
+                shorter = min(ROLE_LENGTHS[role], lengths[k])  # bends less, as curved
+                want = np.linalg.norm(ref[role]) * shorter / max(1, n - 1)
+                assert bend == pytest.approx(want, rel=1e-12)
+                if scenario == "planar-s":
+                    assert moments[k][0] * (-1) ** k > 0 and abs(moments[k][2]) == 0.0
+    turn = [sum(c[1] * sum(s.lengths[: k + 1]) for k, c in enumerate(couples(BEND, 3.0, s)))
+            for s in (SectionRodSettings(lengths=lengths), SectionRodSettings())]  # fmt: skip
+    assert turn[0] == pytest.approx(turn[1], rel=1e-12) and turn[0] < 0
+    # a rod shorter than the shipped one is damped more, as its modes are faster
+    damping = robot_damping(4.0, lengths)
+    assert damping == pytest.approx(4.0 * max(1.0, (0.3 / sum(lengths)) ** 2), rel=1e-12)
+
+
 def test_shipped_info_agrees_with_its_recordings() -> None:
     """Every shipped recording's info states what its files hold: as many samples as
     each file has rows, each section's largest bend of the truth file, and the PCC floor:
@@ -160,6 +206,228 @@ def test_two_section_rod_generator_short_run(tmp_path: Path) -> None:
             main(["evaluate", str(out), str(tmp_path / "r_truth.csv"), "--robot", "two-section"])
             == 0
         )
+
+
+# --- a robot file's sections ---------------------------------------------------------------
+#: one section of 0.25 m, its IMU at the end
+ONE_SECTION = """
+mounting = "z-up"
+[[section]]
+length = 0.25
+[[imu]]
+section = 1
+"""
+
+#: three sections (0.12 m with 4 disks, 0.1 m, 0.055 m: elements of 1 cm, 1 cm and
+#: 1.1 cm, the rod's nodes not evenly spaced), an IMU on section 1's disk 2 and one at
+#: each section's end
+THREE_SECTIONS = """
+mounting = "z-up"
+[[section]]
+length = 0.12
+disks = 4
+[[section]]
+length = 0.1
+[[section]]
+length = 0.055
+[[imu]]
+section = 1
+disk = 2
+[[imu]]
+section = 1
+[[imu]]
+section = 2
+[[imu]]
+section = 3
+"""
+
+
+def _short_bend(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The bend recording's simulation a tenth of a second long (its 5 s are not what
+    these tests check)."""
+    from continuum_mhe.simulation import cosserat_sections
+
+    bend = cosserat_sections.bend_trajectory
+
+    def short(settings: SectionRodSettings, duration: float = 5.0) -> SectionTrajectory:
+        return bend(settings, 0.1)
+
+    monkeypatch.setattr(cosserat_sections, "bend_trajectory", short)
+
+
+def test_a_straight_rod_of_three_sections_stands_and_its_imus_read_gravity(
+    tmp_path: Path,
+) -> None:
+    """The three-section robot file's rod with no couple (the IMUs without noise, bias
+    or misalignment), 0.2 s under gravity: it stands straight, its tip at (0, 0, L)
+    and each section's end at its arc length up the z axis (within its weight's
+    compression), its bends 0; every IMU (one on a disk) reads gravity in its own frame,
+    (0, 0, g), and no rate, to the 16-bit quantisation; the files' columns follow the
+    robot's three sections and four IMUs."""
+    from continuum_mhe.model.descriptions import output_names, pcc_outputs
+    from continuum_mhe.model.imu import STANDARD_GRAVITY
+    from continuum_mhe.simulation.cosserat_sections import (
+        DEFAULT_IMU,
+        rod_layout,
+        rod_settings,
+        write_trajectory_recording,
+    )
+
+    path = tmp_path / "three.toml"
+    path.write_text(THREE_SECTIONS)
+    settings = dataclasses.replace(rod_settings(read_robot(str(path))), max_moment=0.0)
+    layout = rod_layout(settings)
+    assert layout.elements == (12, 10, 5) and not layout.uniform
+    assert layout.imu_nodes == (6, 12, 22, 27) and layout.end_nodes == (12, 22, 27)
+    quiet = dataclasses.replace(
+        DEFAULT_IMU, accel_noise=0.0, accel_bias=0.0, gyro_noise=0.0, gyro_bias=0.0,
+        misalignment_deg=0.0,
+    )  # fmt: skip
+    traj = simulate_sections(settings, "planar-s", 0.2)
+    write_trajectory_recording(tmp_path, "s", traj, settings, "planar-s", quiet)
+    truth = read_state_table(tmp_path / "s_truth.csv")
+    assert truth.names == output_names(pcc_outputs(3)) and len(truth.t) == 11
+    for end, z in (("", 0.275), ("_1", 0.12), ("_2", 0.22), ("_3", 0.275)):
+        assert_allclose(truth.column(f"x{end}"), 0.0, atol=1e-9)
+        assert_allclose(truth.column(f"y{end}"), 0.0, atol=1e-9)
+        assert_allclose(truth.column(f"z{end}"), z, atol=1e-4)  # its weight: 1e-5 m
+    for k in (1, 2, 3):
+        assert np.all(truth.column(f"theta_{k}") < 1e-6)
+    raw_text = (tmp_path / "s_raw.csv").read_text()
+    assert raw_text.startswith("t," + ",".join(
+        f"{q}{a}_{k}" for k in range(1, 5) for q in "ag" for a in "xyz"
+    ) + "\n")  # fmt: skip
+    step = 2 * quiet.accel_range / 2**quiet.bits  # the quantisation
+    g = np.tile([0.0, 0.0, STANDARD_GRAVITY], (11, 1))
+    for kind in ("rest", "raw"):
+        raw = np.loadtxt(tmp_path / f"s_{kind}.csv", delimiter=",", skiprows=1)
+        for k in range(4):
+            accel, gyro = raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k]
+            assert_allclose(gyro, 0.0, atol=2 * quiet.gyro_range / 2**quiet.bits)
+            if kind == "rest":  # the straight rod held still
+                assert_allclose(accel, g, atol=step)
+            else:  # the rod settling under its weight rings along its axis, 0.4 m/s^2
+                assert_allclose(accel[:, :2], 0.0, atol=step)
+                assert_allclose(accel[:, 2].mean(), STANDARD_GRAVITY, atol=0.1)
+    tilt = (tmp_path / "s_tilt.csv").read_text().splitlines()[0]
+    assert tilt == "t," + ",".join(f"roll_{k},pitch_{k}" for k in range(1, 5))
+
+
+@pytest.mark.parametrize(
+    ("text", "scenario", "mean_mm"),
+    [(ONE_SECTION, "spatial", 8.0), (THREE_SECTIONS, "planar-s", 4.0)],
+    ids=["one-section", "three-sections"],
+)
+def test_a_robot_files_sections_are_recorded_and_estimate_follows_them(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+    text: str, scenario: str, mean_mm: float,
+) -> None:  # fmt: skip
+    """``rod sections --robot`` of one section and of three (an IMU on a disk), 1.5 s:
+    the files' columns are the robot's (one section's ``theta, phi``, one IMU's
+    unnumbered columns), the first truth row the straight rod's tip (0, 0, L), the rest
+    recording's IMUs (calibrated) read gravity; the rod's tip lies near the
+    constant-curvature arcs of the truth's bends (the PCC floor: 6.2 and 0.3 mm at
+    most); and ``estimate`` of the raw recording with the robot file, ``evaluate``d
+    against the truth, follows the rod's tip (measured 3.8 and 1.0 mm mean, the
+    sections bent to 75 degrees, and 10 to 25)."""
+    from continuum_mhe.model.descriptions import output_names, pcc_outputs
+    from continuum_mhe.model.imu import STANDARD_GRAVITY
+
+    _short_bend(monkeypatch)
+    robot_path = tmp_path / "robot.toml"
+    robot_path.write_text(text)
+    robot = read_robot(str(robot_path))
+    out = tmp_path / "rec"
+    argv = ["--robot", str(robot_path), "--scenario", scenario, "--duration", "1.5"]
+    assert _rod_sections([*argv, "--calibrated", "-o", str(out)]) == 0
+    info = json.loads((out / f"{scenario}_info.json").read_text())
+    assert info["robot"] == str(robot_path) and info["samples"] == 76
+    truth = read_state_table(out / f"{scenario}_truth.csv")
+    assert truth.names == output_names(pcc_outputs(robot.n_sections))
+    tip = truth.values[:, :3]
+    assert_allclose(tip[0], [0.0, 0.0, robot.length], atol=1e-12)
+    assert min(info["theta_max_deg"]) > 8  # the couples bent every section
+    raw_head = (out / f"{scenario}_raw.csv").read_text().splitlines()[0]
+    rest = np.loadtxt(out / f"{scenario}_rest.csv", delimiter=",", skiprows=1)
+    assert (out / f"{scenario}_rest.csv").read_text().splitlines()[0] == raw_head
+    assert raw_head.count("ax") == robot.n_imus and ("ax_1" in raw_head) == (robot.n_imus > 1)
+    for k in range(robot.n_imus):
+        accel = rest[:, 1 + 6 * k : 4 + 6 * k].mean(axis=0)
+        assert_allclose(accel, [0.0, 0.0, STANDARD_GRAVITY], atol=0.02)
+    # the rod against the PCC model of its own section-end tangents
+    f = make_formulation("bend", robot)
+    theta = np.column_stack([truth.column(c) for c in truth.names if c.startswith("theta")])
+    phi = np.column_stack([truth.column(c) for c in truth.names if c.startswith("phi")])
+    states = np.zeros((len(truth.t), f.nx))
+    states[:, 0 : 2 * robot.n_sections : 2] = theta * np.cos(phi)
+    states[:, 1 : 2 * robot.n_sections : 2] = theta * np.sin(phi)
+    floor = np.linalg.norm(f.output(states)[:, :3] - tip, axis=1) * 1e3
+    assert floor.mean() == pytest.approx(info["pcc_floor_mean_mm"], abs=1e-6)
+    assert floor.max() < 10.0
+    est = tmp_path / "est.csv"
+    raw = out / f"{scenario}_raw.csv"
+    assert main(["estimate", str(raw), "--robot", str(robot_path), "-o", str(est)]) == 0
+    capsys.readouterr()
+    truth_path = str(out / f"{scenario}_truth.csv")
+    assert main(["evaluate", str(est), truth_path, "--robot", str(robot_path), "--json"]) == 0
+    tip_mm = json.loads(capsys.readouterr().out)["tip_mean_mm"]
+    assert tip_mm < mean_mm, tip_mm
+
+
+def test_the_two_section_robot_file_writes_the_default_rods_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--robot two-section`` (the shipped rod's sections and IMUs) writes the files
+    written without ``--robot``, byte for byte, its info naming the robot besides."""
+    _short_bend(monkeypatch)
+    argv = ["--scenario", "spatial", "--duration", "0.1", "--seed", "4"]
+    assert _rod_sections([*argv, "-o", str(tmp_path / "default")]) == 0
+    assert _rod_sections([*argv, "--robot", "two-section", "-o", str(tmp_path / "robot")]) == 0
+    for kind in ("raw.csv", "tilt.csv", "truth.csv", "rest.csv", "bend.csv"):
+        name = f"spatial_{kind}"
+        assert (tmp_path / "robot" / name).read_bytes() == (
+            tmp_path / "default" / name
+        ).read_bytes()
+    info = json.loads((tmp_path / "robot" / "spatial_info.json").read_text())
+    assert info.pop("robot") == "two-section"
+    assert info == json.loads((tmp_path / "default" / "spatial_info.json").read_text())
+
+
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [
+        (("", "[backbone]\nyoungs_modulus = 54e9\nshear_modulus = 20.77e9\nradius = 0.0007\n"
+              "density = 6450\n"),
+         "the section-rod generator drives its own rod (radius 5 mm, E = 30 MPa)"),
+        (('mounting = "z-up"', 'mounting = "z-down"'), "mounting = 'z-down': the section-rod"),
+        (("disk = 2", "disk = 2\nmount_rpy = [0, 0, 90]"), "IMU 1 has a mount_rpy"),
+        (("disk = 2", "at = 0.513"), "IMU 1 at 0.513 of section 1 lies between the generator's "
+         "rod nodes (section 1 of 12 to 36 elements): place each at the section's end or on a "
+         "disk"),
+    ],
+    ids=["backbone", "z-down", "mount-rpy", "between-nodes"],
+)  # fmt: skip
+def test_the_section_rod_generator_refuses_a_robot_it_does_not_write(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    edit: tuple[str, str], said: str,
+) -> None:  # fmt: skip
+    """A robot file with a backbone (its rod is the generator's own), hanging, with an
+    IMU turned on its section or between the rod's nodes: one line naming the file,
+    exit 2, before any simulation, nothing written."""
+    from continuum_mhe.simulation import cosserat_sections
+
+    def no_simulation(*args: object, **kwargs: object) -> None:
+        raise AssertionError("simulated")
+
+    monkeypatch.setattr(cosserat_sections, "simulate_sections", no_simulation)
+    text = THREE_SECTIONS.replace(*edit) if edit[0] else THREE_SECTIONS + edit[1]
+    (tmp_path / "robot.toml").write_text(text)
+    out = tmp_path / "out"
+    assert _rod_sections(["--robot", str(tmp_path / "robot.toml"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"{ERROR} {tmp_path / 'robot.toml'}: "), err
+    assert said in err[0], err
+    assert not out.exists()
 
 
 # --- the one-section Cosserat rod ---------------------------------------------------------
@@ -417,21 +685,26 @@ options:
   --seed SEED           sensor noise seed (default 0)
 """,
     "sections": """\
-Simulate a two-section Cosserat rod with an IMU at each section's end.
+Simulate a Cosserat rod of sections (a robot file's, two by default) with an IMU at each section's
+end or where the robot file places them.
 
 options:
   -h, --help            show this help message and exit
   -o OUT, --out OUT     folder for the files
   --overwrite           replace the recording's files in -o where they exist (else refused)
   --scenario {planar-s,spatial}
-                        the couples' motion: planar-s (an S in one plane) or spatial (bending
-                        planes turning; bends past 90 degrees) (default planar-s)
+                        the couples' motion: planar-s (in one plane, the sections bent the
+                        opposite ways in turn: an S on two) or spatial (bending planes turning;
+                        bends past 90 degrees on the default rod) (default planar-s)
   --name NAME           file name prefix (default: the scenario)
+  --robot ROBOT         a robot file (or shipped name) whose sections and IMUs to simulate:
+                        standing on its base, its IMUs at section ends or on disks, no [backbone]
+                        (default: two-section's, 0.16 m + 0.14 m, an IMU at each end)
   --duration DURATION   seconds, 0.02 (the IMUs' sample time) to 600 (default 12)
   --shear-ratio SHEAR_RATIO
                         G / E, above 0 and at most 100 (default 1/3)
   --sim-dt SIM_DT       integration step in s, 1e-7 to 1e-3 (default: 2e-5, shorter for a stiffer
-                        torsion: default_sim_dt)
+                        torsion or elements under 1 cm: default_sim_dt)
   --drive {base,tendon}
                         couples fixed in the base frame (default) or in each section's frame
                         (tendon)

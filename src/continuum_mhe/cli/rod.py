@@ -3,7 +3,8 @@ Cosserat rods.
 
 * ``rod single``: one section bent by a cable, a tip MPU9250-like IMU (PyElastica,
   the ``rod`` extra; :mod:`continuum_mhe.simulation.cosserat`);
-* ``rod sections``: two sections, an IMU at each section's end (PyElastica;
+* ``rod sections``: a rod of sections, each bent by a couple at its end, an IMU at each
+  section's end or a robot file's places (PyElastica;
   :mod:`continuum_mhe.simulation.cosserat_sections`);
 * ``rod tendon``: a tendon robot's quasi-static equilibria (CasADi's IPOPT, no extra;
   :mod:`continuum_mhe.simulation.cosserat_tendon`).
@@ -26,15 +27,15 @@ from continuum_mhe.extras import import_problem, missing
 
 DESCRIPTION = (
     "Write recordings of Cosserat rods, which the estimators' models did not generate: "
-    "single (one section bent by a cable, a tip IMU; PyElastica), sections (two "
-    "sections, an IMU at each end; PyElastica) and tendon (a tendon robot's "
+    "single (one section bent by a cable, a tip IMU; PyElastica), sections (a robot "
+    "file's sections, two by default, and IMUs; PyElastica) and tendon (a tendon robot's "
     "quasi-static equilibria; CasADi's IPOPT)."
 )
 
 #: ``rod COMMAND``: its name, its one-line help (``continuum-mhe rod --help``)
 SUBCOMMANDS: tuple[tuple[str, str], ...] = (
     ("single", "one section bent by a cable, a tip MPU9250-like IMU (PyElastica)"),
-    ("sections", "two sections, an IMU at each section's end (PyElastica)"),
+    ("sections", "a robot file's sections (two by default) bent by couples (PyElastica)"),
     ("tendon", "a tendon robot's quasi-static equilibria (CasADi's IPOPT)"),
 )
 
@@ -54,7 +55,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         sub.add_parser(
             "sections",
             help=helps["sections"],
-            description="Simulate a two-section Cosserat rod with an IMU at each section's end.",
+            description="Simulate a Cosserat rod of sections (a robot file's, two by "
+            "default) with an IMU at each section's end or where the robot file places them.",
         )
     )
     _tendon_arguments(
@@ -148,10 +150,17 @@ def _sections_arguments(p: argparse.ArgumentParser) -> None:
         "--scenario",
         choices=SCENARIOS,
         default="planar-s",
-        help="the couples' motion: planar-s (an S in one plane) or spatial (bending "
-        "planes turning; bends past 90 degrees) (default planar-s)",
+        help="the couples' motion: planar-s (in one plane, the sections bent the opposite "
+        "ways in turn: an S on two) or spatial (bending planes turning; bends past 90 "
+        "degrees on the default rod) (default planar-s)",
     )
     p.add_argument("--name", help="file name prefix (default: the scenario)")
+    p.add_argument(
+        "--robot",
+        help="a robot file (or shipped name) whose sections and IMUs to simulate: standing on "
+        "its base, its IMUs at section ends or on disks, no [backbone] (default: "
+        "two-section's, 0.16 m + 0.14 m, an IMU at each end)",
+    )
     p.add_argument(
         "--duration",
         type=float,
@@ -169,7 +178,7 @@ def _sections_arguments(p: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         help="integration step in s, 1e-7 to 1e-3 (default: 2e-5, shorter for a stiffer "
-        "torsion: default_sim_dt)",
+        "torsion or elements under 1 cm: default_sim_dt)",
     )
     p.add_argument(
         "--drive",
@@ -198,14 +207,17 @@ def _sections_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_sections(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from continuum_mhe.io.output_files import check_new_folder
+    from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.simulation import cosserat_sections as cs
 
     _require_elastica()
     imu = cs.CALIBRATED_IMU if args.calibrated else cs.DEFAULT_IMU
     out = Path(args.out)
     name = args.name or args.scenario
-    # every argument, and the folder, before anything is simulated or written
+    # every argument, the folder and the robot, before anything is simulated or written
     if not (0.0 < args.shear_ratio <= cs.MAX_SHEAR_RATIO):  # NaN too
         raise InputError(
             f"--shear-ratio must be G / E > 0 and at most {cs.MAX_SHEAR_RATIO:g}, got "
@@ -220,21 +232,33 @@ def run_sections(args: argparse.Namespace) -> int:
     cs.check_generator_arguments(args.duration, args.seed, imu.sample_dt)
     cs.check_file_prefix(name)
     check_new_folder(out, args.overwrite, cs.recording_files(name, args.bend_only))
-    sim_dt = cs.default_sim_dt(args.shear_ratio) if args.sim_dt is None else args.sim_dt
-    settings = cs.SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=sim_dt, drive=args.drive)
+    settings = cs.SectionRodSettings(shear_ratio=args.shear_ratio, drive=args.drive)
+    if args.robot is not None:
+        robot = read_robot(args.robot)  # its errors name the file
+        try:
+            cs.check_section_robot(robot)
+        except UserError as exc:  # a robot it does not write
+            raise InputError(f"{args.robot}: {exc}") from None
+        settings = cs.rod_settings(robot, settings)
+    element = cs.rod_layout(settings).shortest_element
+    default_dt = cs.default_sim_dt(args.shear_ratio, element)
+    sim_dt = default_dt if args.sim_dt is None else args.sim_dt
+    settings = replace(settings, sim_dt=sim_dt)
     try:
         if args.bend_only:
             path = cs.write_bend_only(out, name, settings, args.duration, imu, args.seed)
             print(f"wrote {path}", file=sys.stderr)
             return 0
         cs.write_section_recording(
-            out, name, settings, args.scenario, args.duration, imu=imu, seed=args.seed
-        )
+            out, name, settings, args.scenario, args.duration, imu=imu, seed=args.seed,
+            robot_name=args.robot,
+        )  # fmt: skip
     except cs.RodDivergedError as err:  # the explicit integrator past its stable step
+        rod = "" if args.robot is None else " and robot"
         raise InputError(
             f"{err} with --sim-dt {sim_dt:g}: give a shorter step (default_sim_dt gives "
-            f"{cs.default_sim_dt(args.shear_ratio):g} for this --shear-ratio; halve it if "
-            "that diverges); nothing written"
+            f"{default_dt:g} for this --shear-ratio{rod}; halve it if that diverges); "
+            "nothing written"
         ) from None
     print(_wrote(out, cs.recording_files(name)), file=sys.stderr)
     return 0

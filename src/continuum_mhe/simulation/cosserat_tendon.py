@@ -72,6 +72,7 @@ from continuum_mhe.simulation.cosserat import ImuSettings
 from continuum_mhe.simulation.cosserat_sections import (
     DEFAULT_IMU,
     SectionTrajectory,
+    check_standing_robot,
     imu_samples,
     write_rest_recording,
 )
@@ -223,20 +224,7 @@ def check_generated_robot(robot: Robot) -> None:
             f"the tendon-robot generator writes robots with a [backbone] and [[tendon]]s "
             f"(as tendon-two-section), not {robot.describe()}"
         )
-    if robot.mounting != "z-up":
-        raise UserError(
-            f"mounting = {robot.mounting!r}: the tendon-robot generator simulates a robot "
-            'standing on its base (mounting = "z-up"): give that in a copy of the robot '
-            "file to generate, and estimate its recording with that copy"
-        )
-    rotated = [k + 1 for k, p in enumerate(robot.imus) if any(v != 0.0 for v in p.mount_rpy)]
-    if rotated:
-        raise UserError(
-            f"IMU {', '.join(map(str, rotated))} has a mount_rpy: the tendon-robot generator "
-            "reads each IMU in its disk's frame (mount_rpy = [0, 0, 0]); leave mount_rpy "
-            "out of the copy of the robot file to generate, and estimate its recording "
-            "with that copy"
-        )
+    check_standing_robot(robot, "tendon-robot", "disk's")
     for k, section in enumerate(robot.sections):
         if section.disks < 1:
             raise UserError(
