@@ -6,9 +6,8 @@ bend recording keeps the recording's IMU errors."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -16,6 +15,7 @@ from live_helpers import alive
 
 from continuum_mhe.calibration.at_rest import calibrate
 from continuum_mhe.calibration.bend import yaws_from_bend
+from continuum_mhe.cli import main
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.model.pcc import pose_at
 
@@ -71,11 +71,20 @@ def _write(path: Path, values: np.ndarray) -> Path:
     return path
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "continuum_mhe.cli", "calibrate", "--robot", "two-section", *args],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+class _Said(NamedTuple):
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> _Said:
+    """``calibrate --robot two-section ARGS`` through the command line's ``main`` in this
+    process (what ``python -m continuum_mhe.cli`` runs): its status and what it wrote on
+    standard output and standard error."""
+    capsys.readouterr()
+    code = main(["calibrate", "--robot", "two-section", *args])
+    out, err = capsys.readouterr()
+    return _Said(code, out, err)
 
 
 def _rest_inputs(
@@ -107,26 +116,33 @@ def test_yaw_round_trip_through_the_pcc_model(phi_deg: float, mounting: str) -> 
         assert (y.yaw_deg - true[2] - 10.0 + 180) % 360 - 180 == pytest.approx(0.0, abs=1e-7)
 
 
-def test_calibrate_cli_prints_the_full_mounting_with_bend_phi(tmp_path: Path) -> None:
+def test_calibrate_cli_prints_the_full_mounting_with_bend_phi(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     rest, bend = _bend_readings(_planar_bend(np.radians(60.0)), MOUNTS)
     rest_csv, bend_csv = _write(tmp_path / "rest.csv", rest), _write(tmp_path / "bend.csv", bend)
-    res = _cli("--from", str(rest_csv), "--bend", str(bend_csv), "--bend-phi", "60")
+    res = _cli(capsys, "--from", str(rest_csv), "--bend", str(bend_csv), "--bend-phi", "60")
     assert res.returncode == 0, res.stderr
     for i, (r, p, y) in enumerate(MOUNTS, start=1):
         assert f"IMU {i}: mounting: --mount-rpy {r:g},{p:g},{y:g} " in res.stdout
     # the default plane, phi = 0, is 60 deg off: the yaw follows
-    res = _cli("--from", str(rest_csv), "--bend", str(bend_csv))
+    res = _cli(capsys, "--from", str(rest_csv), "--bend", str(bend_csv))
     assert res.returncode == 0, res.stderr
     assert f"--mount-rpy {MOUNTS[0][0]:g},{MOUNTS[0][1]:g},{MOUNTS[0][2] - 60:g} " in res.stdout
 
 
-def _bad(tmp_path: Path, bend: np.ndarray, rest: np.ndarray | None = None) -> str:
+def _bad(
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    bend: np.ndarray,
+    rest: np.ndarray | None = None,
+) -> str:
     rest_csv = _write(
         tmp_path / "rest.csv",
         rest if rest is not None else _bend_readings(_planar_bend(0.0), MOUNTS)[0],
     )
     bend_csv = _write(tmp_path / "bend.csv", bend)
-    res = _cli("--from", str(rest_csv), "--bend", str(bend_csv))
+    res = _cli(capsys, "--from", str(rest_csv), "--bend", str(bend_csv))
     assert res.returncode == 2
     assert res.stdout == ""  # nothing printed before the error
     lines = res.stderr.strip().splitlines()
@@ -134,40 +150,44 @@ def _bad(tmp_path: Path, bend: np.ndarray, rest: np.ndarray | None = None) -> st
     return lines[0]
 
 
-def test_too_little_bend_is_one_line(tmp_path: Path) -> None:
+def test_too_little_bend_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     small = _planar_bend(0.0) * (6.0 / 70.0)  # section 1 to 6 deg, the tip to under 10
-    line = _bad(tmp_path, _bend_readings(small, MOUNTS)[1])
+    line = _bad(capsys, tmp_path, _bend_readings(small, MOUNTS)[1])
     assert "IMU 1: tilts by only 6.0 deg" in line
 
 
-def test_imu_count_mismatch_is_one_line(tmp_path: Path) -> None:
+def test_imu_count_mismatch_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bend = _bend_readings(_planar_bend(0.0), MOUNTS)[1]
-    line = _bad(tmp_path, bend[:, :6])
+    line = _bad(capsys, tmp_path, bend[:, :6])
     assert "raw columns for 1 IMU(s)" in line and "robot describes 2" in line
 
 
-def test_a_bend_in_two_planes_is_one_line(tmp_path: Path) -> None:
+def test_a_bend_in_two_planes_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Section 1 towards phi = 0, then section 2 towards phi = 90 deg: the tip turns
     about two axes."""
     n = 300
     bends = np.zeros((n, 2, 2))
     bends[:, 0, 0] = np.radians(50) * _ramp(n, 20, 120)
     bends[:, 1, 1] = np.radians(60) * _ramp(n, 150, 250)
-    line = _bad(tmp_path, _bend_readings(bends, MOUNTS)[1])
+    line = _bad(capsys, tmp_path, _bend_readings(bends, MOUNTS)[1])
     assert "IMU 2: rates across the bending axis are" in line and "not a bend in one plane" in line
 
 
-def test_bend_phi_without_bend_is_one_line(tmp_path: Path) -> None:
+def test_bend_phi_without_bend_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     rest_csv = _write(tmp_path / "rest.csv", _bend_readings(_planar_bend(0.0), MOUNTS)[0])
-    res = _cli("--from", str(rest_csv), "--bend-phi", "30")
+    res = _cli(capsys, "--from", str(rest_csv), "--bend-phi", "30")
     assert res.returncode == 2 and res.stdout == ""
     assert res.stderr.strip() == "continuum-mhe: error: --bend-phi needs --bend BEND.csv"
 
 
-def test_a_bend_held_still_is_one_line(tmp_path: Path) -> None:
+def test_a_bend_held_still_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Recorded after the bend: tilted, but the gyro never turned."""
     bend = _bend_readings(_planar_bend(0.0), MOUNTS)[1][-60:]
-    line = _bad(tmp_path, bend)
+    line = _bad(capsys, tmp_path, bend)
     assert "IMU 1: the gyro saw too little rate about the bending axis" in line
 
 

@@ -7,6 +7,8 @@ errors, and the command line's rules."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import re
@@ -301,6 +303,19 @@ def test_the_mostly_inconsistent_notice_names_the_twist_for_raw_imus() -> None:
     assert tilt is not None and "--imu-twist" not in tilt
 
 
+@pytest.fixture(scope="module")
+def uncalibrated_spatial(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """``estimate`` of the shipped ``spatial`` rod with the uncalibrated two-section
+    robot file and no twist option: ``(estimate file, what it said on stderr)``, run
+    once a module for the tests that read its clauses and its file."""
+    out = tmp_path_factory.mktemp("uncalibrated") / "e.csv"
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["estimate", str(ROD / "spatial_raw.csv"), "--robot", "two-section",
+                     "-o", str(out)]) == 0  # fmt: skip
+    return out, err.getvalue()
+
+
 def _calibrated(tmp_path: Path, name: str) -> Path:
     """The two-section robot calibrated from the shipped rod recording ``name``'s rest
     (every IMU's gyro_bias written)."""
@@ -494,12 +509,14 @@ def test_estimate_chooses_the_twist_for_a_ros2_bag_folder_as_for_its_csv(tmp_pat
     assert said["csv"].group(0) == said["bag"].group(0)
 
 
-def test_estimate_chooses_the_twist_for_a_calibrated_twisting_rod(tmp_path, capsys) -> None:
+def test_estimate_chooses_the_twist_for_a_calibrated_twisting_rod(
+    tmp_path, capsys, uncalibrated_spatial: tuple[Path, str]
+) -> None:
     """Without ``--imu-twist`` or ``--no-imu-twist``, ``estimate`` of a calibrated raw
     recording estimates the twist where the readings say so, says it, and records it:
     the shipped ``spatial`` rod within 10 mm of its tip on average (over 50 mm with the
     constant-curvature frames, ``--no-imu-twist``); the planar S keeps the frames; an
-    uncalibrated robot file is not weighed (no clause)."""
+    uncalibrated robot file is not weighed (no clause: the module's run)."""
     cal = _calibrated(tmp_path, "spatial")
     truth = np.genfromtxt(ROD / "spatial_truth.csv", delimiter=",", names=True)
     tip = np.column_stack([truth["x"], truth["y"], truth["z"]])
@@ -529,11 +546,9 @@ def test_estimate_chooses_the_twist_for_a_calibrated_twisting_rod(tmp_path, caps
     assert "the IMUs' twist not estimated" in err
     assert re.search(r"median log-density gain -\S+ nats per reading", err), err
     assert "imu-twist = false" in out.read_text() and "std_imu_twist" not in out.read_text()
-    out.unlink()
-    assert main(["estimate", str(ROD / "spatial_raw.csv"), "--robot", "two-section",
-                 "-o", str(out)]) == 0  # fmt: skip
-    assert "twist" not in capsys.readouterr().err.strip().splitlines()[-1]
-    assert "std_imu_twist" not in out.read_text()
+    uncalibrated, said_uncalibrated = uncalibrated_spatial
+    assert "twist" not in said_uncalibrated.strip().splitlines()[-1]
+    assert "std_imu_twist" not in uncalibrated.read_text()
 
 
 def test_a_yaw_the_robot_file_lacks_reads_as_a_twist_and_the_summary_says_so(
@@ -632,7 +647,9 @@ def test_an_estimates_twist_past_a_turn_is_read_as_a_twist_not_degrees(tmp_path,
     assert "theta_1=" in err and "beyond 2 pi: degrees?" in err, err
 
 
-def test_an_uncalibrated_twisting_rod_is_told_to_calibrate_first(tmp_path, capsys) -> None:
+def test_an_uncalibrated_twisting_rod_is_told_to_calibrate_first(
+    tmp_path, capsys, uncalibrated_spatial: tuple[Path, str]
+) -> None:
     """An uncalibrated robot file gets no twist chosen for it (its gyro biases, estimated,
     would read as twists), but where the readings do not fit and show the IMUs turning
     about the backbone, ``estimate`` says so after the warning on inconsistent estimates
@@ -645,14 +662,14 @@ def test_an_uncalibrated_twisting_rod_is_told_to_calibrate_first(tmp_path, capsy
     from continuum_mhe.estimators.twist_evidence import twist_evidence, twisted_formulation
 
     path = ROD / "spatial_raw.csv"
-    errs, files = {}, {}
-    for extra in ([], ["--no-imu-twist"]):
-        out = tmp_path / f"u{len(extra)}.csv"
-        capsys.readouterr()
-        assert main(["estimate", str(path), "--robot", "two-section", *extra,
-                     "-o", str(out)]) == 0  # fmt: skip
-        errs[bool(extra)] = capsys.readouterr().err.splitlines()
-        files[bool(extra)] = read_state_table(out)
+    weighed, said = uncalibrated_spatial  # (the module's run: no twist option)
+    errs, files = {False: said.splitlines()}, {False: read_state_table(weighed)}
+    out = tmp_path / "u1.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(path), "--robot", "two-section", "--no-imu-twist",
+                 "-o", str(out)]) == 0  # fmt: skip
+    errs[True] = capsys.readouterr().err.splitlines()
+    files[True] = read_state_table(out)
     lines = errs[False]
     hints = [ln for ln in lines if "turning about the backbone" in ln]
     assert len(hints) == 1
