@@ -77,14 +77,19 @@ class _Said(NamedTuple):
     stderr: str
 
 
-def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> _Said:
-    """``calibrate --robot two-section ARGS`` through the command line's ``main`` in this
-    process (what ``python -m continuum_mhe.cli`` runs): its status and what it wrote on
-    standard output and standard error."""
+def _calibrate(capsys: pytest.CaptureFixture[str], *args: str) -> _Said:
+    """``calibrate ARGS`` through the command line's ``main`` in this process (what
+    ``python -m continuum_mhe.cli`` runs): its status and what it wrote on standard
+    output and standard error."""
     capsys.readouterr()
-    code = main(["calibrate", "--robot", "two-section", *args])
+    code = main(["calibrate", *args])
     out, err = capsys.readouterr()
     return _Said(code, out, err)
+
+
+def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> _Said:
+    """``calibrate --robot two-section ARGS`` (:func:`_calibrate`)."""
+    return _calibrate(capsys, "--robot", "two-section", *args)
 
 
 def _rest_inputs(
@@ -285,7 +290,7 @@ def _robot_with_yaws(path: Path, yaws: tuple[float, float]) -> Path:
 
 @pytest.mark.parametrize(("bent_deg", "turn", "towards"), [(180.0, 180, 180), (90.0, -90, 90)])
 def test_a_bend_in_another_plane_than_bend_phi_is_said(
-    tmp_path: Path, bent_deg: float, turn: int, towards: int
+    tmp_path: Path, bent_deg: float, turn: int, towards: int, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A robot bent the other way (towards +x) or in the other plane (towards +y) while
     --bend-phi says -x: the readings are those of a bend towards -x by boards turned
@@ -297,11 +302,8 @@ def test_a_bend_in_another_plane_than_bend_phi_is_said(
     rest_csv, bend_csv = _write(tmp_path / "rest.csv", rest), _write(tmp_path / "bend.csv", bend)
     robot = _robot_with_yaws(tmp_path / "robot.toml", (MOUNTS[0][2], MOUNTS[1][2]))
     out = tmp_path / "cal.toml"
-    res = subprocess.run(
-        [sys.executable, "-m", "continuum_mhe.cli", "calibrate", "--from", str(rest_csv),
-         "--bend", str(bend_csv), "--robot", str(robot), "--write-robot", str(out)],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+    res = _calibrate(capsys, "--from", str(rest_csv), "--bend", str(bend_csv),
+                     "--robot", str(robot), "--write-robot", str(out))  # fmt: skip
     assert res.returncode == 0, res.stderr
     warned = [ln for ln in res.stderr.splitlines() if f"warning: {bend_csv}" in ln]
     assert len(warned) == 1, res.stderr  # (the rest's boards lean: said of rest.csv)
@@ -314,13 +316,11 @@ def test_a_bend_in_another_plane_than_bend_phi_is_said(
         in warned[0]
     )
     assert out.exists()  # the yaws as measured: the warning says what is doubtful
-    res = _cli("--from", str(rest_csv), "--bend", str(bend_csv), "--bend-phi", str(bent_deg))
+    res = _cli(capsys, "--from", str(rest_csv), "--bend", str(bend_csv), "--bend-phi",
+               str(bent_deg))  # fmt: skip
     assert res.returncode == 0 and f"warning: {bend_csv}" not in res.stderr, res.stderr
-    res = subprocess.run(
-        [sys.executable, "-m", "continuum_mhe.cli", "calibrate", "--from", str(rest_csv),
-         "--bend", str(bend_csv), "--robot", str(robot), "--bend-phi", str(bent_deg)],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+    res = _calibrate(capsys, "--from", str(rest_csv), "--bend", str(bend_csv),
+                     "--robot", str(robot), "--bend-phi", str(bent_deg))  # fmt: skip
     assert res.returncode == 0 and f"warning: {bend_csv}" not in res.stderr, res.stderr
 
 
