@@ -39,8 +39,9 @@ DirectRows = tuple[slice, slice, tuple[str, ...]]
 
 #: Once an IMU's first readings are judged, its gyro is judged again by the turns of its
 #: motion (:func:`~continuum_mhe.io.raw_units.gyro_motion_problem`) each time this many
-#: more full readings have come, over those and the :data:`MOTION_CHECK_KEPT` before
-#: them, up to :data:`~continuum_mhe.io.raw_units.TIME_CHECK_ROWS` readings: a stream
+#: more samples have come, over their full readings and those of the
+#: :data:`MOTION_CHECK_KEPT` samples before them, up to
+#: :data:`~continuum_mhe.io.raw_units.TIME_CHECK_ROWS` samples: a stream
 #: that starts still, with a small bias, tells no gyro's unit in its first second.
 MOTION_CHECK_ROWS = 256
 MOTION_CHECK_KEPT = 768
@@ -133,9 +134,19 @@ class ReadingUnitsWatch:
         self._times: list[list[FloatArray]] = [[] for _ in self._blocks]
         self._first_t = [math.nan] * len(self._blocks)
         self._counts = [0] * len(self._blocks)
-        #: blocks whose first readings passed, their gyros judged by their motion
+        #: blocks whose first readings passed, their gyros judged by their motion over
+        #: the samples since (times and readings, kept as handed over: each block's full
+        #: readings are picked at a check), the samples seen and those since the last check
         self._moving: list[int] = []
-        self._fresh = [0] * len(self._blocks)  # full readings since the last motion check
+        self._motion: list[tuple[FloatArray, FloatArray]] = []
+        self._motion_seen = 0
+        self._motion_fresh = 0
+
+    @property
+    def judging_first(self) -> bool:
+        """Whether some block's first readings are still being gathered (every sample
+        counts there: a caller refuses bad samples before handing them over)."""
+        return bool(self._pending)
 
     def see(self, t: FloatArray, z: FloatArray) -> str | None:
         """Look at the samples ``t`` (n,) s, ``z`` (n, nz) that follow those seen: what
@@ -156,8 +167,8 @@ class ReadingUnitsWatch:
                 self._found = found
                 self.problem = f"measurement at t={found[0]!r} s: {found[1]}"
                 return self.problem
-        for k in moving:
-            found = self._see_motion(k, t, z)
+        if moving:
+            found = self._see_motion(moving, t, z)
             if found is not None:
                 self._found = found
                 self.problem = f"measurement at t={found[0]!r} s: {found[1]}"
@@ -172,33 +183,37 @@ class ReadingUnitsWatch:
             np.isfinite(z[:, force_rows]).all(axis=1) & np.isfinite(z[:, gyro_rows]).all(axis=1)
         )
 
-    def _see_motion(self, k: int, t: FloatArray, z: FloatArray) -> tuple[float, str] | None:
-        """Block ``k``'s gyro judged by its motion (:data:`MOTION_CHECK_ROWS`): the time
-        and the problem of the sample that showed deg/s, else None."""
-        force_rows, gyro_rows, names = self._blocks[k]
-        full = self._full_rows(k, z)
-        if not len(full):
+    def _see_motion(
+        self, blocks: list[int], t: FloatArray, z: FloatArray
+    ) -> tuple[float, str] | None:
+        """The gyros of ``blocks`` judged by their motion (:data:`MOTION_CHECK_ROWS`):
+        the time and the problem of the sample that showed deg/s, else None. A sample
+        kept is a copy; the work is done at a check, not sample by sample."""
+        self._motion.append((np.array(t, dtype=float), np.array(z, dtype=float)))
+        self._motion_seen += len(t)
+        self._motion_fresh += len(t)
+        last = self._motion_seen >= TIME_CHECK_ROWS
+        if last:
+            self._moving = []
+        elif self._motion_fresh < MOTION_CHECK_ROWS:
             return None
-        self._gyros[k].append(z[full, gyro_rows].copy())
-        self._forces[k].append(z[full, force_rows].copy())
-        self._times[k].append(np.asarray(t, dtype=float)[full].copy())
-        self._counts[k] += len(full)
-        self._fresh[k] += len(full)
-        if self._counts[k] >= TIME_CHECK_ROWS:
-            self._moving.remove(k)
-        elif self._fresh[k] < MOTION_CHECK_ROWS:
-            return None
-        self._fresh[k] = 0
+        self._motion_fresh = 0
         kept = MOTION_CHECK_KEPT + MOTION_CHECK_ROWS
-        times, forces, gyros = (
-            np.concatenate(rows)[-kept:]
-            for rows in (self._times[k], self._forces[k], self._gyros[k])
-        )
-        self._times[k], self._forces[k], self._gyros[k] = [times], [forces], [gyros]
-        problem = gyro_motion_problem(times, forces, gyros, ", ".join(names[3:]))
-        if problem is None:
-            return None
-        return float(times[-1]), f"{gyro_label(names)}: {problem}"
+        times = np.concatenate([m[0] for m in self._motion])[-kept:]
+        rows = np.concatenate([m[1] for m in self._motion])[-kept:]
+        self._motion = [] if last else [(times, rows)]
+        # a sample the estimator refused (its time not after the one before) is left out
+        later = times > np.concatenate([[-math.inf], np.maximum.accumulate(times)[:-1]])
+        for k in blocks:
+            force_rows, gyro_rows, names = self._blocks[k]
+            full = self._full_rows(k, rows)
+            full = full[later[full]]
+            problem = gyro_motion_problem(
+                times[full], rows[full, force_rows], rows[full, gyro_rows], ", ".join(names[3:])
+            )
+            if problem is not None:
+                return float(times[-1]), f"{gyro_label(names)}: {problem}"
+        return None
 
     def _see_block(self, k: int, t: FloatArray, z: FloatArray) -> tuple[float, str] | None:
         force_rows, gyro_rows, names = self._blocks[k]
@@ -230,15 +245,9 @@ class ReadingUnitsWatch:
         problem = gyro_units_problem(gyros, ", ".join(names[3:]))
         if problem is None:
             problem = gyro_gravity_problem(times, forces, gyros, ", ".join(names[3:]))
-        if problem is None:  # its motion judges it from here on, the rows so far kept
-            kept = MOTION_CHECK_KEPT + MOTION_CHECK_ROWS
-            self._gyros[k], self._forces[k], self._times[k] = (
-                [gyros[-kept:]],
-                [forces[-kept:]],
-                [times[-kept:]],
-            )
+        self._gyros[k], self._forces[k], self._times[k] = [], [], []
+        if problem is None:  # its motion judges it from here on
             self._moving.append(k)
             return None
-        self._gyros[k], self._forces[k], self._times[k] = [], [], []
         of = f"(median of the first {self._counts[k]} full readings, {span:.3g} s)"
         return float(t[full[-1]]), f"{gyro_label(names)}: " + problem.replace("(median)", of, 1)

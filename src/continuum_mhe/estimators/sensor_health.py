@@ -616,8 +616,10 @@ class Estimator(Generic[InferenceT]):
             z = self._check_tensions(z[None, :], times, stacklevel=3)[0]
         if not self._units.done:
             # a sample the policy refuses is no reading of the stream: its refusal first,
-            # before the unit check counts it
-            self._refuse_before_stepping(times, z[None, :])
+            # before the first readings' check counts it (the motion's check leaves out
+            # the samples refused)
+            if self._units.judging_first:
+                self._refuse_before_stepping(times, z[None, :])
             problem = self._units.see(times, z[None, :])
             if problem is not None:
                 raise ReadingUnitsError(problem)
